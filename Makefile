@@ -1,0 +1,30 @@
+# servoid: everything a fresh clone needs is behind these targets.
+#   make demo    create .venv, install servoid, identify the simulated servo (plots + model.json)
+#   make test    create .venv, install servoid with test tools, run the tests
+#   make bench   run the benchmarks (tables on stdout)
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+DEMO_OUT ?= servoid-run
+
+.PHONY: install demo test bench clean
+
+$(STAMP): pyproject.toml setup.py
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -e ".[test]"
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/servoid identify --snr 43 --samples 5000 --out $(DEMO_OUT)
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+bench: $(STAMP)
+	$(PY) benchmarks/paper_example.py
+
+clean:
+	rm -rf $(VENV) $(DEMO_OUT) build *.egg-info .pytest_cache

@@ -1,0 +1,43 @@
+"""The backlash servo model and its identification (``servoid.ident``).
+
+The pseudo-Wiener model of the paper (Dong, Tan & Tan), its simulator, the
+MRGIA online estimator (eqs 17-42), an offline output-error refinement and
+the metrics. Depends on NumPy, SciPy and (for speed) numba only.
+
+Conventions: arrays are 1-D float64, one entry per sample, oldest first;
+time is counted in samples; ``u`` is in the unit of the command and ``y``,
+``x``, ``c1``, ``c2`` in the unit of the measured position.
+"""
+
+from servoid.ident.identify import Identification, check_record, identify
+from servoid.ident.metrics import nrmse
+from servoid.ident.model import M1, BacklashModel
+from servoid.ident.mrgia import MRGIA, MRGIAConfig, MRGIAResult, RecoveryEvent, Step, noise_epsilon, run_mrgia
+from servoid.ident.paper import PAPER_PLANT
+from servoid.ident.plant import Plant
+from servoid.ident.refine import Refinement, refine
+from servoid.ident.simulate import Simulation, free_run, noise_std_for_snr, simulate
+
+__all__ = [
+    "BacklashModel",
+    "M1",
+    "PAPER_PLANT",
+    "Simulation",
+    "simulate",
+    "free_run",
+    "noise_std_for_snr",
+    "Plant",
+    "MRGIA",
+    "MRGIAConfig",
+    "MRGIAResult",
+    "RecoveryEvent",
+    "Step",
+    "run_mrgia",
+    "noise_epsilon",
+    "Refinement",
+    "refine",
+    "Identification",
+    "identify",
+    "check_record",
+    "nrmse",
+]

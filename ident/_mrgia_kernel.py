@@ -1,0 +1,454 @@
+"""One step of the MRGIA, eqs (17)-(42), on a flat state vector.
+
+The estimator's whole state lives in one float64 array so that a compiled
+step costs one call with three arguments (:class:`StateLayout` names the
+slices; :class:`servoid.ident.mrgia.MRGIA` exposes them as properties). The
+readings of the paper's misprints follow ``shared/PAPER-NOTES.md`` and are
+marked where they are used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from servoid.ident._jit import jit
+from servoid.ident.backlash import schur_stable
+
+__all__ = [
+    "StateLayout",
+    "CFG_RHO_EXPONENT",
+    "CFG_EPSILON",
+    "CFG_COVERAGE_ALPHA",
+    "MIN_MOVE_SHARE",
+    "CFG_PROJECT",
+    "CFG_STUCK_BELOW",
+    "CFG_WARMUP",
+    "STEP_STUCK",
+    "mrgia_recover",
+    "CFG_SIZE",
+    "STEP_REFUSED",
+    "STEP_PRIMED",
+    "STEP_HELD",
+    "STEP_UPDATED",
+    "STEP_DIVERGED",
+    "mrgia_step",
+    "mrgia_skip",
+    "line_coverage",
+    "mrgia_run",
+]
+
+# configuration vector
+CFG_RHO_EXPONENT = 0
+CFG_EPSILON = 1
+CFG_COVERAGE_ALPHA = 2
+CFG_PROJECT = 3  # 1: refuse updates that leave the feasible set (see _feasible)
+CFG_STUCK_BELOW = 4  # a line coverage below this after the warm-up flags the run as stuck (0: never)
+CFG_WARMUP = 5  # samples after a start or a recovery before the coverage is judged
+CFG_SIZE = 6
+
+# scalar slots, after the arrays (offsets relative to StateLayout.scalars)
+SC_S = 0  # S(k), eq. (19)
+SC_SIGMA = 1  # Sigma-hat(k), eq. (22)
+SC_Y_PREV = 2  # y(k-1), measured
+SC_T = 3  # samples seen so far; the k-th sample (0-based) uses rho(t) with t = k + 1
+SC_PRIMED = 4  # 1 once y(k-1) is known
+SC_ERROR = 5  # e-hat(k) of the last update, eq. (17)
+SC_PHI = 6  # Phi(k) of the last sample, eq. (42)
+SC_UPDATES = 7  # number of samples with Phi = 1
+SC_X = 8  # x-hat(k) of the last sample
+# Exponentially weighted shares of samples (window 1/alpha) in which the output
+# measurably moved up (g4) or down (g5), and in which the model updated on the
+# up line (g1 g4) or the down line (g2 g5). A run stuck in a wrong zone
+# classification starves one line: the output moves that way but the model
+# never puts a sample on that line, so its parameters are never corrected.
+SC_MOVE_UP = 9
+SC_MOVE_DOWN = 10
+SC_LINE_UP = 11
+SC_LINE_DOWN = 12
+SC_SINCE_RESET = 13  # samples since the start or the last recovery
+N_SCALARS = 14
+
+#: Below this share of samples moving one way, that side is not judged.
+MIN_MOVE_SHARE = 0.02
+
+# return codes of mrgia_step
+STEP_PRIMED = 0  # first sample after start or a gap: y(k-1) unknown, nothing estimated
+STEP_HELD = 1  # Phi = 0: memory zone, nothing updated (eq. 42)
+STEP_UPDATED = 2  # Phi = 1: theta, P, S, K, Sigma updated
+STEP_DIVERGED = 3  # theta or P became non-finite; the state is left as it was before the step
+STEP_REFUSED = 4  # Phi = 1 but the update would leave the feasible set: nothing updated
+STEP_STUCK = 8  # flag added to the code: past the warm-up, a line coverage is below CFG_STUCK_BELOW
+
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Where each part of the MRGIA state sits in the flat state vector.
+
+    Parameters
+    ----------
+    na, nb, delay : int
+        Model orders and input delay.
+    """
+
+    na: int
+    nb: int
+    delay: int
+
+    @property
+    def n(self) -> int:
+        """Number of parameters, ``na + nb + 4`` (eq. 15)."""
+        return self.na + self.nb + 4
+
+    @property
+    def theta(self) -> slice:
+        return slice(0, self.n)
+
+    @property
+    def P(self) -> slice:
+        return slice(self.n, self.n + self.n * self.n)
+
+    @property
+    def K(self) -> slice:
+        start = self.n + self.n * self.n
+        return slice(start, start + self.n)
+
+    @property
+    def x_history(self) -> slice:
+        """``x-hat(k-1) .. x-hat(k-na)``, newest first."""
+        start = self.K.stop
+        return slice(start, start + self.na)
+
+    @property
+    def u_history(self) -> slice:
+        """``u(k-1) .. u(k-d-nb)``, newest first."""
+        start = self.x_history.stop
+        return slice(start, start + self.delay + self.nb)
+
+    @property
+    def scalars(self) -> int:
+        return self.u_history.stop
+
+    @property
+    def size(self) -> int:
+        return self.scalars + N_SCALARS
+
+
+@jit
+def _offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
+    n = na + nb + 4
+    p = n
+    kk = p + n * n
+    xh = kk + n
+    uh = xh + na
+    sc = uh + d + nb
+    return n, p, kk, xh, uh, sc
+
+
+@jit
+def _feasible(theta: np.ndarray, na: int, nb: int) -> bool:
+    """The model's own assumptions: stable linear block, ``m2 > 0``, ``c1 >= 0``, ``c2 >= 0``.
+
+    Zero dead zones are admitted because the paper starts from them (Section 4).
+
+    The early updates from ``P(0) = 1e6 I`` are large. Without this check one
+    of them can make the linear block unstable, ``x-hat`` then explodes,
+    ``Sigma-hat`` follows (to ~1e23 in one seed of the paper's example) and
+    the gain stays near zero for the rest of the run: a confident wrong model.
+    Refusing such an update (a projection in the sense of Goodwin and Sin)
+    keeps the estimate inside the set the model is defined on.
+    """
+    if not (1.0 + theta[na + nb + 1] > 0.0 and theta[na + nb + 2] >= 0.0 and theta[na + nb + 3] >= 0.0):
+        return False
+    return schur_stable(theta[:na])
+
+
+@jit
+def _shift(hist: np.ndarray, start: int, length: int, value: float) -> None:
+    for i in range(length - 1, 0, -1):
+        hist[start + i] = hist[start + i - 1]
+    if length > 0:
+        hist[start] = value
+
+
+@jit
+def line_coverage(state: np.ndarray, na: int, nb: int, d: int) -> tuple[float, float]:
+    """Share of measured moves up / down that the model put on the up / down line.
+
+    Returns ``(up, down)``; a side whose output moved in fewer than
+    ``MIN_MOVE_SHARE`` of the recent samples reports 1 (nothing to judge).
+    Both tend to 1 as the zone classification settles; a run stuck in a wrong
+    classification keeps one of them near 0.
+    """
+    osc = _offsets(na, nb, d)[5]
+    up = 1.0
+    down = 1.0
+    if state[osc + SC_MOVE_UP] > MIN_MOVE_SHARE:
+        up = state[osc + SC_LINE_UP] / state[osc + SC_MOVE_UP]
+    if state[osc + SC_MOVE_DOWN] > MIN_MOVE_SHARE:
+        down = state[osc + SC_LINE_DOWN] / state[osc + SC_MOVE_DOWN]
+    return up, down
+
+
+@jit
+def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: float, y: float) -> int:
+    """Process one sample ``(u(k), y(k))``; return a ``STEP_*`` code.
+
+    Notes
+    -----
+    Implements, in this order:
+
+    * eq. (27): ``x-hat(k)`` from the stored ``x-hat`` history and the inputs
+      ``u(k-d-j)``, with ``theta-hat(k-1)``;
+    * eqs (34), (26): ``g3-hat(k)`` and ``m-hat(k)``;
+    * eqs (32), (33): ``g1-hat``, ``g2-hat`` from the measured ``y(k-1)``
+      (eq. 32 read as ``y(k-1)/m1 + c1`` with ``m1 = 1``);
+    * eqs (35)-(38): ``g4``, ``g5`` from the measured change of ``y``, with the
+      threshold ``epsilon`` on ``|y(k) - y(k-1)|`` (``epsilon = 0`` gives 35, 36);
+    * eq. (42): ``Phi(k) = 1`` iff ``g1 g4 = 1`` or ``g2 g5 = 1``;
+    * eq. (25) with the ``g4``/``g5`` products of eqs (39)-(41): the regressor
+      ``h-hat(k)``, read with ``-x-hat(k-i)`` entries as in (14) and with
+      ``u(k-d-nb)`` and ``g3-hat x-hat(k)`` as two entries;
+    * eq. (41): when ``Phi = 1`` the switching product is zero, so
+      ``y_c-hat(k) = y(k)`` (eq. 28's ``y1-hat`` only matters when ``Phi = 0``,
+      when nothing is updated);
+    * eq. (17): ``e-hat(k) = y_c-hat(k) - h-hat(k)^T theta-hat(k-1)``;
+    * eq. (22) first, then (19), (20), (21), (18): ``Sigma-hat(k)``, ``S(k)``,
+      ``K(k)``, ``P(k)``, ``theta-hat(k)`` (Sigma-hat(k) is used by the others);
+    * eq. (21) in Joseph form ``[I - K h^T] P [I - K h^T]^T / mu + K Sigma K^T``,
+      evaluated in O(n^2) from ``P h`` and mirrored so that P stays exactly
+      symmetric: the algebraically equal short form ``(P - K h^T P)/mu``
+      loses positive definiteness from ``P(0) = 1e6 I``;
+    * eq. (18) read as ``theta(k) = theta(k-1) + K(k) Phi(k) e-hat(k)``, the
+      form of the appendix's (50);
+    * eq. (30): ``mu(k) = rho(t-1)/rho(t) (1 - rho(t))`` with
+      ``rho(t) = (t + 1)^-r``, ``t = k + 1`` for the k-th sample, ``rho(0) = 1``.
+    """
+    n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
+    r = cfg[CFG_RHO_EXPONENT]
+    eps = cfg[CFG_EPSILON]
+
+    # eq. (27): x-hat(k) with theta-hat(k-1)
+    xk = 0.0
+    for i in range(na):
+        xk -= state[i] * state[oxh + i]
+    for j in range(nb + 1):
+        xk += state[na + j] * state[ouh + d - 1 + j]
+    dx = xk - state[oxh]
+    g3 = 1.0 if dx < 0.0 else 0.0  # eq. (34)
+    m2h = 1.0 + state[na + nb + 1]
+    c1h = state[na + nb + 2]
+    c2h = state[na + nb + 3]
+    mk = 1.0 + (m2h - 1.0) * g3  # eq. (26)
+
+    t = state[osc + SC_T] + 1.0  # this is sample k = t - 1
+    code = STEP_PRIMED
+    if state[osc + SC_PRIMED] != 0.0:
+        y_prev = state[osc + SC_Y_PREV]
+        g1 = 1.0 if y_prev + c1h < xk else 0.0  # eq. (32), m1 = 1
+        g2 = 1.0 if y_prev / m2h - c2h > xk else 0.0  # eq. (33)
+        dy = y - y_prev
+        g4 = 1.0 if (dy > 0.0 and dy >= eps) else 0.0  # eqs (35), (37)
+        g5 = 1.0 if (-dy > 0.0 and -dy >= eps) else 0.0  # eqs (36), (38)
+        up = g1 * g4
+        down = g2 * g5
+        phi = 1.0 if (up == 1.0 or down == 1.0) else 0.0  # eq. (42)
+
+        code = STEP_HELD
+
+        if phi == 1.0:
+            sg = 1.0 if dx > 0.0 else (-1.0 if dx < 0.0 else 0.0)
+            h = np.empty(n)
+            for i in range(na):
+                h[i] = -state[oxh + i]  # eq. (25), read with the sign of (14)
+            for j in range(nb + 1):
+                h[na + j] = state[ouh + d - 1 + j]
+            h[na + nb + 1] = g3 * xk
+            h[na + nb + 2] = -0.5 * mk * (sg + 1.0) * up  # eqs (25), (39)
+            h[na + nb + 3] = 0.5 * mk * (-sg + 1.0) * down
+
+            e = y  # eq. (41): y_c-hat(k) = y(k) when Phi = 1
+            for i in range(n):
+                e -= h[i] * state[i]  # eq. (17)
+
+            rho = (t + 1.0) ** (-r)
+            rho_prev = t ** (-r)
+            mu = rho_prev / rho * (1.0 - rho)  # eq. (30)
+            sigma = state[osc + SC_SIGMA] + rho * (e * e - state[osc + SC_SIGMA])  # eq. (22)
+
+            ph = np.zeros(n)
+            for i in range(n):
+                acc = 0.0
+                for j in range(n):
+                    acc += state[op + i * n + j] * h[j]
+                ph[i] = acc
+            hph = 0.0
+            for i in range(n):
+                hph += h[i] * ph[i]
+            s = hph + mu * sigma  # eq. (19)
+            if not (s > 0.0) or not math.isfinite(s):
+                return STEP_DIVERGED
+            kg = ph / s  # eq. (20)
+
+            # eq. (21), Joseph form, upper triangle then mirrored
+            p_new = np.empty(n * n)
+            for i in range(n):
+                for j in range(i, n):
+                    v = (
+                        state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]
+                    ) / mu + sigma * kg[i] * kg[j]
+                    p_new[i * n + j] = v
+                    p_new[j * n + i] = v
+            ok_flag = True
+            for i in range(n):
+                if not math.isfinite(p_new[i * n + i]) or p_new[i * n + i] <= 0.0:
+                    ok_flag = False
+            theta_new = np.empty(n)
+            for i in range(n):
+                theta_new[i] = state[i] + kg[i] * e  # eq. (18) as in (50)
+                if not math.isfinite(theta_new[i]):
+                    ok_flag = False
+            if not ok_flag:
+                return STEP_DIVERGED
+            if cfg[CFG_PROJECT] != 0.0 and not _feasible(theta_new, na, nb):
+                code = STEP_REFUSED
+            else:
+                for i in range(n):
+                    state[i] = theta_new[i]
+                    state[ok + i] = kg[i]
+                for i in range(n * n):
+                    state[op + i] = p_new[i]
+                state[osc + SC_S] = s
+                state[osc + SC_SIGMA] = sigma
+                state[osc + SC_ERROR] = e
+                state[osc + SC_UPDATES] += 1.0
+                code = STEP_UPDATED
+
+        # after the divergence checks, so that a diverging sample changes nothing
+        alpha = cfg[CFG_COVERAGE_ALPHA]
+        state[osc + SC_MOVE_UP] += alpha * (g4 - state[osc + SC_MOVE_UP])
+        state[osc + SC_MOVE_DOWN] += alpha * (g5 - state[osc + SC_MOVE_DOWN])
+        state[osc + SC_LINE_UP] += alpha * (up - state[osc + SC_LINE_UP])
+        state[osc + SC_LINE_DOWN] += alpha * (down - state[osc + SC_LINE_DOWN])
+        state[osc + SC_PHI] = phi
+
+    # advance: x-hat(k) (computed with theta-hat(k-1)), u(k), y(k), t
+    _shift(state, oxh, na, xk)
+    _shift(state, ouh, d + nb, u)
+    state[osc + SC_X] = xk
+    state[osc + SC_Y_PREV] = y
+    state[osc + SC_PRIMED] = 1.0
+    state[osc + SC_T] = t
+    state[osc + SC_SINCE_RESET] += 1.0
+    if cfg[CFG_STUCK_BELOW] > 0.0 and state[osc + SC_SINCE_RESET] > cfg[CFG_WARMUP]:
+        cov_up, cov_down = line_coverage(state, na, nb, d)
+        if min(cov_up, cov_down) < cfg[CFG_STUCK_BELOW]:
+            code += STEP_STUCK
+    return code
+
+
+@jit
+def mrgia_skip(state: np.ndarray, na: int, nb: int, d: int, u: float) -> None:
+    """Advance over a sample whose measurement was lost.
+
+    ``x-hat(k)`` is propagated with the commanded ``u`` (the plant moved even
+    if we did not see it), nothing is estimated, and the next sample only
+    primes ``y(k-1)``: a change of ``y`` across the gap is not a one-sample
+    change and must not drive ``g4``/``g5``.
+    """
+    n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
+    xk = 0.0
+    for i in range(na):
+        xk -= state[i] * state[oxh + i]
+    for j in range(nb + 1):
+        xk += state[na + j] * state[ouh + d - 1 + j]
+    _shift(state, oxh, na, xk)
+    _shift(state, ouh, d + nb, u)
+    state[osc + SC_X] = xk
+    state[osc + SC_PRIMED] = 0.0
+    state[osc + SC_T] = state[osc + SC_T] + 1.0
+
+
+@jit
+def mrgia_recover(state: np.ndarray, na: int, nb: int, d: int, theta0: np.ndarray, p0: float, sigma0: float) -> None:
+    """Recover from a stuck zone classification (servoid's addition to the paper).
+
+    The backlash parameters ``m2 - 1``, ``c1``, ``c2`` return to their values
+    in ``theta0``, ``P`` to ``p0 I`` and ``Sigma-hat`` to ``sigma0``; the
+    linear block and the ``x-hat`` history are kept. In every stuck run of the
+    paper's example the linear block had converged while a wrong dead zone kept
+    the model off one line (its samples never updated), so this re-opens that
+    line without discarding what was learned.
+    """
+    n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
+    for i in range(na + nb + 1, n):
+        state[i] = theta0[i]
+    for i in range(n):
+        for j in range(n):
+            state[op + i * n + j] = p0 if i == j else 0.0
+    state[osc + SC_SIGMA] = sigma0
+    state[osc + SC_MOVE_UP] = 0.0
+    state[osc + SC_MOVE_DOWN] = 0.0
+    state[osc + SC_LINE_UP] = 0.0
+    state[osc + SC_LINE_DOWN] = 0.0
+    state[osc + SC_SINCE_RESET] = 0.0
+
+
+@jit
+def mrgia_run(
+    state: np.ndarray,
+    cfg: np.ndarray,
+    na: int,
+    nb: int,
+    d: int,
+    u: np.ndarray,
+    y: np.ndarray,
+    valid: np.ndarray,
+    theta_out: np.ndarray,
+    coverage_out: np.ndarray,
+    record_every: int,
+    row0: int,
+) -> tuple[int, int]:
+    """Run :func:`mrgia_step` over whole arrays.
+
+    Parameters
+    ----------
+    valid : ndarray of bool
+        ``False`` where the measurement was lost (:func:`mrgia_skip`).
+    theta_out, coverage_out : ndarray
+        Row ``(row0 + k + 1) // record_every - 1`` receives theta and the two
+        line coverages (:func:`line_coverage`) after sample ``k`` whenever
+        ``row0 + k + 1`` is a multiple of ``record_every`` (``row0`` is the
+        index of ``u[0]`` in the whole record, for runs resumed after a stop).
+
+    Returns
+    -------
+    (status, k) : tuple of int
+        ``(0, n)`` when all samples ran; ``(1, k)`` when sample ``k`` was
+        processed and flagged ``STEP_STUCK`` (the caller recovers and resumes
+        at ``k + 1``); ``(2, k)`` when sample ``k`` diverged (not processed).
+    """
+    n_samples = u.shape[0]
+    n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
+    code = 0
+    for k in range(n_samples):
+        if valid[k]:
+            code = mrgia_step(state, cfg, na, nb, d, u[k], y[k])
+            if code == STEP_DIVERGED:
+                return 2, k
+        else:
+            mrgia_skip(state, na, nb, d, u[k])
+            code = 0
+        done = row0 + k + 1
+        if done % record_every == 0:
+            row = done // record_every - 1
+            cov_up, cov_down = line_coverage(state, na, nb, d)
+            for i in range(n):
+                theta_out[row, i] = state[i]
+            coverage_out[row, 0] = cov_up
+            coverage_out[row, 1] = cov_down
+        if code >= STEP_STUCK:
+            return 1, k
+    return 0, n_samples

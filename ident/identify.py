@@ -1,0 +1,212 @@
+"""Identify a backlash model from a record: MRGIA, then output-error refinement.
+
+This is the pipeline behind ``servoid identify``: validate the record, run the
+MRGIA over it (online estimate), refine the estimate offline, and report both
+with the free-run fit of the best one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Literal, Sequence
+
+import numpy as np
+
+from servoid import validation
+from servoid.errors import ConfigError, DataError, ModelError
+from servoid.ident.metrics import nrmse
+from servoid.ident.model import BacklashModel
+from servoid.ident.mrgia import MRGIAConfig, MRGIAResult, run_mrgia
+from servoid.ident.refine import Refinement, refine
+from servoid.ident.simulate import free_run
+
+__all__ = ["Identification", "identify", "check_record"]
+
+Method = Literal["mrgia", "mrgia+oe"]
+
+
+@dataclass(frozen=True)
+class Identification:
+    """Result of :func:`identify`.
+
+    Attributes
+    ----------
+    model : BacklashModel
+        The best estimate: refined when refinement ran, else the MRGIA's.
+    method : {"mrgia", "mrgia+oe"}
+        How :attr:`model` was obtained.
+    mrgia : MRGIAResult
+        The online estimate and its history.
+    mrgia_model : BacklashModel or None
+        The MRGIA estimate as a model, None when it is not a valid model.
+    refinement : Refinement or None
+        The output-error refinement, when it ran.
+    samples : int
+        Length of the record.
+    fit_nrmse : float
+        ``rms(y - y_hat) / std(y)`` of the free-run simulation of :attr:`model`.
+    mrgia_nrmse : float or None
+        The same for the MRGIA estimate.
+    warnings : tuple of str
+        Things the user must know (an unsettled run, recoveries, an invalid
+        online estimate, a refinement that did not converge).
+    """
+
+    model: BacklashModel
+    method: Method
+    mrgia: MRGIAResult
+    mrgia_model: BacklashModel | None
+    refinement: Refinement | None
+    samples: int
+    fit_nrmse: float
+    mrgia_nrmse: float | None
+    warnings: tuple[str, ...]
+
+    @property
+    def stderr(self) -> dict[str, float] | None:
+        """Standard errors of :attr:`model`'s parameters, when refinement ran."""
+        return None if self.refinement is None else self.refinement.stderr_dict()
+
+
+def check_record(u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Validate a record for identification; return it as float arrays.
+
+    Raises
+    ------
+    DataError
+        Non-finite values, different lengths, too few samples for the orders,
+        a constant input (it excites nothing) or a constant output (the servo
+        never moved).
+    """
+    try:
+        u_arr = validation.signal("u", u)
+        y_arr = validation.signal("y", y)
+    except ConfigError as exc:
+        raise DataError(str(exc)) from None
+    if u_arr.size != y_arr.size:
+        raise DataError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    minimum = 10 * config.n_params + config.delay + config.nb
+    if u_arr.size < minimum:
+        raise DataError(
+            f"{u_arr.size} samples are too few to identify na={config.na}, nb={config.nb}, "
+            f"delay={config.delay} ({config.n_params} parameters): at least {minimum} are needed"
+        )
+    if np.ptp(u_arr) == 0.0:
+        raise DataError(f"the input u is constant (={u_arr[0]!r}): it excites nothing")
+    if np.ptp(y_arr) == 0.0:
+        raise DataError(f"the output y is constant (={y_arr[0]!r}): the servo never moved")
+    return u_arr, y_arr
+
+
+def identify(
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    config: MRGIAConfig,
+    *,
+    refine_model: bool = True,
+    record_every: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+) -> Identification:
+    """Identify a backlash model from a record.
+
+    Parameters
+    ----------
+    u, y : array_like
+        Input and measured output.
+    config : MRGIAConfig
+        Orders, delay and estimator settings.
+    refine_model : bool
+        Run the output-error refinement after the MRGIA.
+    record_every : int
+        Sampling of the MRGIA's parameter history.
+    progress : callable, optional
+        Called as ``progress(done, total)`` while the MRGIA runs.
+
+    Returns
+    -------
+    Identification
+
+    Raises
+    ------
+    DataError
+        For a record that cannot be identified (see :func:`check_record`).
+    EstimatorDiverged
+        If the MRGIA diverged, with the sample index.
+    """
+    u_arr, y_arr = check_record(u, y, config)
+    y0 = float(y_arr[0])
+    warnings: list[str] = []
+    online = run_mrgia(u_arr, y_arr, config, record_every=record_every, progress=progress)
+    if online.recoveries:
+        at = ", ".join(str(r.sample) for r in online.recoveries[:5])
+        warnings.append(
+            f"the MRGIA got stuck in a wrong zone classification and recovered "
+            f"{len(online.recoveries)} time(s) (after samples {at})"
+        )
+    if not online.settled:
+        warnings.append(
+            "the MRGIA did not settle: at the end, line coverage is "
+            f"up {online.coverage[0]:.2f} / down {online.coverage[1]:.2f} "
+            f"(below {config.stuck_below}); the input may not reach both backlash lines"
+        )
+
+    mrgia_model: BacklashModel | None
+    mrgia_nrmse: float | None
+    try:
+        mrgia_model = online.model
+        mrgia_nrmse = nrmse(y_arr, free_run(mrgia_model, u_arr, y0=y0))
+    except ModelError as exc:
+        mrgia_model, mrgia_nrmse = None, None
+        warnings.append(str(exc))
+
+    refinement: Refinement | None = None
+    if refine_model:
+        start = mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
+        refinement = refine(u_arr, y_arr, start, y0=y0)
+        if not refinement.success:
+            warnings.append(f"the refinement did not converge: {refinement.message}")
+        if mrgia_nrmse is not None and refinement.nrmse > mrgia_nrmse:
+            warnings.append("the refinement fits worse than the MRGIA estimate; keeping the MRGIA estimate")
+            refinement = None
+
+    if refinement is not None:
+        model, method, fit = refinement.model, "mrgia+oe", refinement.nrmse
+    elif mrgia_model is not None and mrgia_nrmse is not None:
+        model, method, fit = mrgia_model, "mrgia", mrgia_nrmse
+    else:
+        raise ModelError(
+            "no valid model: the MRGIA estimate is invalid and refinement was not requested "
+            "(drop --no-refine, or check the orders and the input)"
+        )
+    return Identification(
+        model=model,
+        method=method,  # type: ignore[arg-type]
+        mrgia=online,
+        mrgia_model=mrgia_model,
+        refinement=refinement,
+        samples=int(u_arr.size),
+        fit_nrmse=fit,
+        mrgia_nrmse=mrgia_nrmse,
+        warnings=tuple(warnings),
+    )
+
+
+def _feasible_start(theta: np.ndarray, config: MRGIAConfig) -> BacklashModel:
+    """Nearest usable model to an invalid estimate, to start the refinement from.
+
+    Dead zones and ``m2`` are raised to small positive values; an unstable
+    linear block is pulled inside the unit circle by scaling its poles.
+    """
+    th = np.array(theta, dtype=np.float64)
+    na, nb = config.na, config.nb
+    th[na + nb + 1] = max(th[na + nb + 1], 0.05 - 1.0)
+    th[na + nb + 2] = max(th[na + nb + 2], 1e-3)
+    th[na + nb + 3] = max(th[na + nb + 3], 1e-3)
+    if not any(th[na : na + nb + 1]):
+        th[na] = 1.0
+    for _ in range(200):
+        try:
+            return BacklashModel.from_theta(th, na=na, nb=nb, delay=config.delay)
+        except ModelError:
+            th[:na] *= 0.9 ** np.arange(1, na + 1)  # poles scale by 0.9
+    raise ModelError(f"cannot build a starting model from the estimate {theta.tolist()}")

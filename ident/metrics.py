@@ -1,0 +1,32 @@
+"""Fit metrics, defined once."""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from servoid import validation
+from servoid.errors import ConfigError
+
+__all__ = ["nrmse"]
+
+
+def nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) -> float:
+    """Normalised root-mean-square error ``rms(y - y_hat) / std(y)``.
+
+    0 is a perfect fit; 1 is no better than the mean of ``y``.
+
+    Raises
+    ------
+    ConfigError
+        If the lengths differ, a value is not finite, or ``y`` is constant.
+    """
+    y_arr = validation.signal("y", y)
+    yh = validation.signal("y_hat", y_hat)
+    if y_arr.shape != yh.shape:
+        raise ConfigError(f"y and y_hat differ in length: {y_arr.size} against {yh.size}")
+    std = float(np.std(y_arr))
+    if std == 0.0:
+        raise ConfigError("y is constant: an NRMSE against it is undefined")
+    return float(np.sqrt(np.mean((y_arr - yh) ** 2)) / std)

@@ -1,0 +1,5 @@
+"""``python -m servoid`` runs the command line."""
+
+from servoid.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,59 @@
+"""Terminal output for the command line: progress bars and tables on stderr/stdout via rich.
+
+Everything meant for a human goes through here, so ``--json`` runs can keep
+stdout for the one JSON object.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from typing import Any, Callable, Iterator, Sequence
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+__all__ = ["stdout", "stderr", "progress", "table", "print_json", "warn"]
+
+stdout = Console(highlight=False)
+stderr = Console(stderr=True, highlight=False)
+
+
+@contextlib.contextmanager
+def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callable[[int, int], None]]:
+    """A progress bar on stderr; yields ``update(done, total)``. Disabled: a no-op callback."""
+    if not enabled:
+        yield lambda done, total: None
+        return
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=stderr, transient=True) as bar:
+        task = bar.add_task(label, total=total)
+
+        def update(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], *, console: Console | None = None) -> None:
+    """Print a table; numbers are right-aligned."""
+    tab = Table(title=title, title_justify="left")
+    for i, col in enumerate(columns):
+        tab.add_column(col, justify="left" if i == 0 else "right")
+    for row in rows:
+        tab.add_row(*(escape(str(c)) for c in row))
+    (console or stdout).print(tab)
+
+
+def print_json(obj: Any) -> None:
+    """Write exactly one JSON object to stdout."""
+    sys.stdout.write(json.dumps(obj, indent=2) + "\n")
+    sys.stdout.flush()
+
+
+def warn(message: str) -> None:
+    """A warning line on stderr."""
+    stderr.print(f"[yellow]warning:[/yellow] {escape(message)}")

@@ -1,0 +1,172 @@
+"""``servoid identify``: identify a backlash servo from the simulated servo or a recording."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from servoid.cli import _term
+from servoid.errors import ConfigError
+from servoid.ident.identify import identify
+from servoid.ident.mrgia import MRGIAConfig, noise_epsilon
+from servoid.ident.paper import (
+    PAPER_INPUT_AMPLITUDE,
+    PAPER_INPUT_VARIANCE,
+    PAPER_PLANT,
+    PAPER_RHO_EXPONENT,
+    RECOMMENDED_RHO_EXPONENT,
+)
+from servoid.ident.simulate import simulate
+from servoid.recording import read_recording
+from servoid.report import Record, result_json, summary_rows, write_outputs
+
+ORDER = 10
+
+#: Records at least this long get a progress bar.
+PROGRESS_FROM = 100_000
+
+HELP = "identify a backlash model (simulated servo, a recording, or a live servo)"
+
+DESCRIPTION = f"""\
+Identify a servo with output backlash: a linear block (orders na, nb, delay d)
+followed by a backlash with up-line slope 1, down-line slope m2 and dead zones
+c1, c2 (the pseudo-Wiener model of Dong, Tan & Tan). The MRGIA estimates the
+model online, sample by sample; an output-error fit then refines it offline.
+
+Where the record comes from:
+  (default)      the simulated servo of the paper's Section 4 (a1 .45, a2 .55,
+                 b0 .8, d 1, m2 1.5, c1 .5, c2 1) driven by uniform bounded
+                 white noise of variance {PAPER_INPUT_VARIANCE} (|u| <= {PAPER_INPUT_AMPLITUDE:.3f})
+  --data FILE    a CSV recording with a header row and columns u, y (and t in
+                 seconds, optional); lines starting with '#' are metadata
+
+Outputs in --out: recording.csv, model.json, convergence.png (each parameter
+against samples, true values dashed when known), fit.png (measured against
+simulated output), backlash.png (the identified loop).
+
+Noise: with output noise, set --epsilon to about 0.8 x the noise standard
+deviation of y (E|v| for Gaussian noise); for the simulated servo it is set
+from --snr automatically. Units: c1 and c2 come out in the unit of y.
+"""
+
+EPILOG = """\
+examples:
+  servoid identify
+  servoid identify --snr 43 --samples 20000 --seed 3
+  servoid identify --data bench.csv --na 2 --nb 1 --delay 2 --epsilon 0.004 --unit rad
+  servoid identify --json --no-plots > result.json
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "identify", help=HELP, description=DESCRIPTION, epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    src = p.add_argument_group("record")
+    src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
+    src.add_argument("--samples", type=int, default=5000, metavar="N", help="simulated samples (default 5000)")
+    src.add_argument("--seed", type=int, default=0, help="seed of the simulated input and noise (default 0)")
+    src.add_argument("--snr", type=float, metavar="SNR",
+                     help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
+                          "(default: noise-free)")  # fmt: skip
+    src.add_argument("--unit", metavar="UNIT",
+                     help="unit of y (rad, counts, mm, ...); default from the recording's '# unit:' line")  # fmt: skip
+    mdl = p.add_argument_group("model")
+    mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
+    mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
+    mdl.add_argument("--delay", type=int, default=1, help="input delay d >= 1 in samples (default 1)")
+    est = p.add_argument_group("estimator")
+    est.add_argument("--rho-exponent", type=float, default=RECOMMENDED_RHO_EXPONENT, metavar="R",
+                     help=f"r in rho(k) = (k+1)^-r, in (0, 1]; the paper uses {PAPER_RHO_EXPONENT}, larger "
+                          f"values average noise better (default {RECOMMENDED_RHO_EXPONENT})")  # fmt: skip
+    est.add_argument("--epsilon", type=float, metavar="E",
+                     help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), unit of y "
+                          "(default: from --snr for the simulated servo, else 0)")  # fmt: skip
+    est.add_argument("--paper-algorithm", action="store_true",
+                     help="run the MRGIA exactly as printed: no projection, no recovery from a stuck run")
+    est.add_argument("--no-refine", action="store_true", help="skip the output-error refinement")
+    out = p.add_argument_group("output")
+    out.add_argument("--out", type=Path, default=Path("servoid-run"), metavar="DIR",
+                     help="output folder (default ./servoid-run/)")  # fmt: skip
+    out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
+    out.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.set_defaults(handler=run)
+
+
+def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
+    return MRGIAConfig(
+        na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent, epsilon=epsilon,
+        project=not args.paper_algorithm, recover=not args.paper_algorithm,
+    )  # fmt: skip
+
+
+def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
+    if args.samples < 1:
+        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
+        raise ConfigError(
+            f"the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
+            f"--na/--nb/--delay apply to --data recordings"
+        )
+    rng = np.random.default_rng(args.seed)
+    u = rng.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, size=args.samples)
+    sim = simulate(PAPER_PLANT, u, snr=args.snr, rng=rng)
+    source = f"sim://paper?samples={args.samples}&seed={args.seed}" + (f"&snr={args.snr:g}" if args.snr else "")
+    record = Record(
+        u=sim.u, y=sim.y, source=source, truth=PAPER_PLANT, output_unit=args.unit or "unit",
+        input_unit="unit", extra={"y_clean": sim.y_clean},
+    )  # fmt: skip
+    eps = args.epsilon if args.epsilon is not None else noise_epsilon(sim.noise_std)
+    return record, eps
+
+
+def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
+    rec = read_recording(args.data)
+    for note in rec.notes:
+        _term.warn(f"{args.data}: {note}")
+    unit = args.unit or rec.metadata.get("unit", "unit")
+    record = Record(
+        u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
+        input_unit=rec.metadata.get("input_unit", "unit"),
+    )  # fmt: skip
+    return record, args.epsilon if args.epsilon is not None else 0.0
+
+
+def get_record(args: argparse.Namespace) -> tuple[Record, float]:
+    """The record to identify and the epsilon to use, from the command line."""
+    if args.data is not None:
+        return _from_file(args)
+    return _simulated(args)
+
+
+def run(args: argparse.Namespace) -> int:
+    record, epsilon = get_record(args)
+    config = _config(args, epsilon)
+    started = time.perf_counter()
+    with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM) as bar:
+        result = identify(record.u, record.y, config, refine_model=not args.no_refine,
+                          record_every=max(1, record.u.size // 20_000), progress=bar)  # fmt: skip
+    elapsed = time.perf_counter() - started
+    for w in result.warnings:
+        _term.warn(w)
+    paths = write_outputs(args.out, record, result, plots=not args.no_plots)
+    if args.json:
+        _term.print_json(result_json(record, result, paths))
+        return 0
+    cols, rows = summary_rows(result, record.truth)
+    _term.table(f"servoid identify: {record.source} ({result.samples} samples, {elapsed:.2f} s)", cols, rows)
+    out = _term.stdout
+    if result.mrgia_nrmse is not None:
+        out.print(f"free-run NRMSE  MRGIA: {result.mrgia_nrmse:.4g}", end="")
+        out.print(f"   {result.method}: {result.fit_nrmse:.4g}" if result.refinement is not None else "")
+    if record.truth is not None:
+        out.print(f"max relative parameter error ({result.method}): {result.model.max_relative_error(record.truth):.3g}")
+    out.print(f"dead zone c1 + c2 = {result.model.dead_zone:.6g} {record.output_unit}, "
+              f"down-line slope m2 = {result.model.m2:.6g}")  # fmt: skip
+    for name, path in paths.items():
+        out.print(f"  {name:17s} {path}")
+    return 0

@@ -1,0 +1,185 @@
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import paper_record
+from servoid.errors import ConfigError, EstimatorDiverged, ModelError
+from servoid.ident import MRGIA, MRGIAConfig, PAPER_PLANT, Step, noise_epsilon, run_mrgia
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def max_rel(values: np.ndarray) -> float:
+    ref = PAPER_PLANT.values()
+    return float(np.max(np.abs(values - ref) / np.abs(ref)))
+
+
+def test_noise_free_paper_example_converges_to_machine_precision(paper_clean):
+    res = run_mrgia(paper_clean.u[:2000], paper_clean.y[:2000], MRGIAConfig())
+    assert res.settled and not res.recoveries
+    assert max_rel(res.values()) < 1e-9
+    # it is the estimate, not the start, that is right: at k = 50 it is still far off
+    assert max_rel(res.values_history()[49]) > 1e-3
+    assert res.model.max_relative_error(PAPER_PLANT) < 1e-9
+
+
+def test_online_updates_equal_the_batch_run(paper_clean):
+    cfg = MRGIAConfig(rho_exponent=0.75)
+    batch = run_mrgia(paper_clean.u, paper_clean.y, cfg)
+    est = MRGIA(cfg)
+    steps = [est.update(u, y) for u, y in zip(paper_clean.u, paper_clean.y)]
+    assert np.array_equal(est.theta, batch.theta)
+    assert est.updates == batch.updates == steps.count(Step.UPDATED)
+    assert steps[0] is Step.PRIMED and Step.HELD in steps
+
+
+def test_pure_python_path_gives_the_same_numbers(paper_clean, tmp_path):
+    """The same kernels with numba's JIT switched off (NUMBA_DISABLE_JIT=1) agree with the compiled run."""
+    n = 800
+    np.save(tmp_path / "u.npy", paper_clean.u[:n])
+    np.save(tmp_path / "y.npy", paper_clean.y[:n])
+    script = textwrap.dedent(
+        f"""
+        import json, numpy as np
+        from servoid.ident import MRGIAConfig, run_mrgia, simulate, PAPER_PLANT
+        u = np.load({str(tmp_path / "u.npy")!r}); y = np.load({str(tmp_path / "y.npy")!r})
+        r = run_mrgia(u, y, MRGIAConfig(rho_exponent=0.5))
+        s = simulate(PAPER_PLANT, u).y
+        print(json.dumps({{"theta": r.theta.tolist(), "updates": r.updates, "sim": s[-5:].tolist()}}))
+        """
+    )
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, check=True)
+    pure = json.loads(out.stdout)
+    compiled = run_mrgia(paper_clean.u[:n], paper_clean.y[:n], MRGIAConfig(rho_exponent=0.5))
+    assert pure["updates"] == compiled.updates
+    np.testing.assert_allclose(pure["theta"], compiled.theta, rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(pure["sim"], paper_clean.y_clean[n - 5 : n], rtol=1e-14)
+
+
+def test_a_stuck_run_is_detected_and_recovered():
+    # Seed 1 of the paper's example: the down line is never reached (c2-hat ~ 5)
+    rec = paper_record(3000, seed=1)
+    plain = run_mrgia(rec.u, rec.y, MRGIAConfig(recover=False))
+    assert not plain.settled, "the stuck run must be flagged"
+    assert min(plain.coverage) < 0.05
+    assert max_rel(plain.values()) > 1.0
+    fixed = run_mrgia(rec.u, rec.y, MRGIAConfig())
+    assert [r.sample for r in fixed.recoveries] == [300]
+    assert fixed.recoveries[0].coverage_down < 0.2
+    assert fixed.settled
+    assert max_rel(fixed.values()) < 1e-9
+
+
+def test_online_recovery_matches_batch():
+    rec = paper_record(1500, seed=1)
+    est = MRGIA(MRGIAConfig())
+    for u, y in zip(rec.u, rec.y):
+        est.update(u, y)
+    batch = run_mrgia(rec.u, rec.y, MRGIAConfig())
+    assert [r.sample for r in est.recoveries] == [r.sample for r in batch.recoveries] == [300]
+    assert np.array_equal(est.theta, batch.theta)
+
+
+def test_divergence_is_reported_with_the_sample_index(paper_clean):
+    cfg = MRGIAConfig(p0=1e308)  # h^T P h overflows at the first update
+    with pytest.raises(EstimatorDiverged) as info:
+        run_mrgia(paper_clean.u, paper_clean.y, cfg)
+    first_update = run_mrgia(paper_clean.u[:50], paper_clean.y[:50], MRGIAConfig(), record_every=1)
+    k = int(np.argmax(np.any(first_update.theta_history != first_update.theta_history[0], axis=1)))
+    assert info.value.sample == k
+    assert f"sample {k}" in str(info.value)
+    assert info.value.partial.samples == k
+
+    est = MRGIA(cfg)
+    for i in range(k):
+        est.update(paper_clean.u[i], paper_clean.y[i])
+    before = est.state.copy()
+    with pytest.raises(EstimatorDiverged) as info2:
+        est.update(paper_clean.u[k], paper_clean.y[k])
+    assert info2.value.sample == k
+    assert np.array_equal(est.state, before)
+
+
+def test_projection_refuses_infeasible_updates(paper_clean):
+    """With projection every recorded estimate is a valid model; as printed, some are not."""
+    hist = run_mrgia(paper_clean.u[:300], paper_clean.y[:300], MRGIAConfig()).values_history()
+    na = 2
+    assert np.all(hist[1:, na + 1] > 0) and np.all(hist[:, na + 2 :] >= 0)
+    literal = run_mrgia(paper_clean.u[:300], paper_clean.y[:300], MRGIAConfig.paper()).values_history()
+    assert np.any(literal[:, na + 2 :] < 0), "the literal algorithm passes through negative dead zones"
+
+
+def test_noisy_paper_example_with_faster_forgetting(paper_noisy):
+    cfg = MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(paper_noisy.noise_std))
+    res = run_mrgia(paper_noisy.u, paper_noisy.y, cfg)
+    assert res.settled
+    assert max_rel(res.values()) < 1.5e-2
+    paper = run_mrgia(paper_noisy.u, paper_noisy.y, MRGIAConfig(epsilon=cfg.epsilon))
+    assert max_rel(paper.values()) > max_rel(res.values())
+
+
+def test_state_is_explicit_constant_and_P_stays_symmetric_positive(paper_clean):
+    est = MRGIA(MRGIAConfig(na=2, nb=1, delay=2))
+    size = est.state.size
+    for u, y in zip(paper_clean.u, paper_clean.y):
+        est.update(u, y)
+    assert est.state.size == size
+    assert est.theta.shape == (7,) and est.P.shape == (7, 7) and est.K.shape == (7,)
+    assert est.x_history.shape == (2,) and est.u_history.shape == (3,)
+    assert np.array_equal(est.P, est.P.T)
+    assert np.all(np.linalg.eigvalsh(est.P) > 0)
+    assert est.samples == paper_clean.u.size and 0 < est.updates < est.samples
+    assert est.S > 0 and est.sigma > 0
+
+
+def test_skip_propagates_and_reprimes(paper_clean):
+    u, y = paper_clean.u[:400], paper_clean.y[:400].copy()
+    valid = np.ones(400, dtype=bool)
+    valid[[50, 51, 200]] = False
+    y_gaps = y.copy()
+    y_gaps[~valid] = np.nan  # lost samples may be NaN: they are not read
+    batch = run_mrgia(u, y_gaps, MRGIAConfig(), valid=valid)
+    est = MRGIA(MRGIAConfig())
+    steps = []
+    for k in range(400):
+        if valid[k]:
+            steps.append(est.update(u[k], y[k]))
+        else:
+            est.skip(u[k])
+            steps.append(None)
+    assert np.array_equal(est.theta, batch.theta)
+    assert steps[52] is Step.PRIMED and steps[201] is Step.PRIMED
+    assert est.samples == 400
+
+
+def test_bad_samples_and_settings_are_rejected():
+    est = MRGIA()
+    with pytest.raises(ConfigError, match=r"y \(=nan\).*skip"):
+        est.update(1.0, float("nan"))
+    with pytest.raises(ConfigError, match=r"rho_exponent \(=0\) must lie in \(0, 1\]"):
+        MRGIAConfig(rho_exponent=0)
+    with pytest.raises(ConfigError, match="rho_exponent"):
+        MRGIAConfig(rho_exponent=1.5)
+    with pytest.raises(ConfigError, match="theta0 has 5 entries"):
+        MRGIAConfig(theta0=(0, 0, 1, 0, 0))
+    with pytest.raises(ConfigError, match=r"na \(=0\) must be >= 1"):
+        MRGIAConfig(na=0)
+    with pytest.raises(ConfigError, match=r"epsilon \(=-0.1\) must be >= 0"):
+        MRGIAConfig(epsilon=-0.1)
+    with pytest.raises(ConfigError, match="u and y differ in length"):
+        run_mrgia(np.ones(100), np.ones(99))
+    with pytest.raises(ConfigError, match="too few"):
+        run_mrgia(np.ones(5), np.ones(5))
+
+
+def test_an_invalid_estimate_is_not_handed_out_as_a_model():
+    est = MRGIA(MRGIAConfig.paper())  # theta(0) has c1 = c2 = 0
+    with pytest.raises(ModelError, match="not a valid model: c1 \\(=0.0\\) must be > 0"):
+        est.model

@@ -1,0 +1,57 @@
+import numpy as np
+import pytest
+
+from conftest import paper_record
+from servoid.errors import ConfigError, DataError
+from servoid.ident import BacklashModel, MRGIAConfig, PAPER_PLANT, check_record, identify, noise_epsilon, refine
+
+
+def test_refinement_improves_the_online_estimate_and_its_errors_are_honest(paper_noisy):
+    cfg = MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(paper_noisy.noise_std))
+    result = identify(paper_noisy.u, paper_noisy.y, cfg)
+    assert result.method == "mrgia+oe"
+    online_err = result.mrgia_model.max_relative_error(PAPER_PLANT)
+    refined_err = result.model.max_relative_error(PAPER_PLANT)
+    assert refined_err < online_err
+    assert refined_err < 5e-3
+    # standard errors: each true value within 4 standard errors of its estimate
+    stderr = np.array(result.refinement.stderr)
+    assert np.all(stderr > 0)
+    assert np.all(np.abs(result.model.values() - PAPER_PLANT.values()) < 4 * stderr)
+    # the fit reaches the noise floor: NRMSE ~ 1/SNR
+    assert result.fit_nrmse == pytest.approx(1 / 43, rel=0.1)
+    assert result.refinement.residual_std == pytest.approx(paper_noisy.noise_std, rel=0.1)
+
+
+def test_refinement_from_a_distant_start_on_clean_data(paper_clean):
+    far = BacklashModel(a=(0.2, 0.3), b=(1.0,), delay=1, m2=1.2, c1=0.3, c2=0.7)
+    ref = refine(paper_clean.u, paper_clean.y, far)
+    assert ref.success
+    assert ref.initial_nrmse > 0.1
+    assert ref.model.max_relative_error(PAPER_PLANT) < 1e-8
+
+
+def test_refine_rejects_mismatched_records():
+    with pytest.raises(ConfigError, match="differ in length"):
+        refine(np.ones(50), np.ones(40), PAPER_PLANT)
+
+
+@pytest.mark.parametrize(
+    "u, y, fragment",
+    [
+        (np.ones(500), np.arange(500.0), "input u is constant"),
+        (np.arange(500.0), np.zeros(500), "output y is constant"),
+        (np.arange(30.0), np.arange(30.0), "too few"),
+        (np.r_[np.arange(499.0), np.inf], np.arange(500.0), r"u\[499\] \(=inf\) is not finite"),
+    ],
+)
+def test_records_that_cannot_be_identified(u, y, fragment):
+    with pytest.raises(DataError, match=fragment):
+        check_record(u, y, MRGIAConfig())
+
+
+def test_identify_reports_an_unsettled_run():
+    rec = paper_record(3000, seed=1)
+    result = identify(rec.u, rec.y, MRGIAConfig(recover=False))
+    assert not result.mrgia.settled
+    assert any("did not settle" in w for w in result.warnings)
