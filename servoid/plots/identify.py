@@ -1,42 +1,19 @@
-"""Figures for identification results (matplotlib, imported lazily, no screen needed).
-
-Each function takes result objects, draws, writes a PNG and returns its path;
-none computes anything the libraries do not already return, except the
-free-run simulation it shows.
-"""
+"""Figures of an identification: convergence, fit, backlash loop."""
 
 from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from servoid.ident.model import BacklashModel
 from servoid.ident.mrgia import MRGIAResult
-
-if TYPE_CHECKING:  # pragma: no cover
-    from matplotlib.figure import Figure
+from servoid.plots._base import pyplot as _pyplot
+from servoid.plots._base import save as _save
 
 __all__ = ["plot_convergence", "plot_fit", "plot_backlash"]
-
-
-def _pyplot():  # type: ignore[no-untyped-def]
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: "Figure", path: str | os.PathLike[str]) -> Path:
-    p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(p, dpi=110, bbox_inches="tight")
-    _pyplot().close(fig)
-    return p
 
 
 def plot_convergence(

@@ -1,0 +1,11 @@
+"""Figures (matplotlib, imported lazily, no screen needed), one module per topic.
+
+Every function takes result objects, draws, writes a PNG and returns its path.
+Shared helpers: :func:`pyplot` (matplotlib with the Agg backend) and
+:func:`save`.
+"""
+
+from servoid.plots._base import pyplot, save
+from servoid.plots.identify import plot_backlash, plot_convergence, plot_fit
+
+__all__ = ["pyplot", "save", "plot_convergence", "plot_fit", "plot_backlash"]
