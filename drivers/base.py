@@ -1,0 +1,506 @@
+"""The driver base class: what every servo driver shares.
+
+A driver talks to one servo. It implements a handful of primitives; this base
+class does the rest, once, for every driver.
+
+What a driver MUST implement
+----------------------------
+``_open(self) -> None``
+    Acquire the transport (port, bus, SDK handle) and check the servo answers.
+``_close(self) -> None``
+    Release the transport. Called once, after torque was switched off.
+``_set_torque(self, enabled: bool) -> None``
+    Switch the servo's output stage on or off (Dynamixel Torque Enable, CiA 402
+    state machine, the serial firmware's enable request, ...).
+``_exchange(self, command: float) -> Reading``
+    Send one command, in the driver's native unit, and return the measurement
+    that answers it (position in native units, with the device's clock when it
+    has one). One call per sample.
+
+What a driver MAY implement
+---------------------------
+``_read(self) -> Reading``
+    A measurement without a command (the base raises if absent).
+``_identity(self) -> dict``
+    What the servo says it is (model, firmware, serial number, id), stored in
+    ``model.json``.
+``scheme`` / ``options`` (class attributes)
+    The URL scheme the registry maps to this class, and the URL options it
+    accepts (:class:`Option`); the base adds ``min``, ``max``, ``max_step``.
+``clock_wrap_s`` (class attribute)
+    Period after which the device clock wraps (a u32 microsecond counter wraps
+    after 4294.967296 s, the Dynamixel tick after 32.768 s); the base unwraps.
+``from_url(cls, url)``
+    Only if the defaults (options parsed into keyword arguments) do not fit.
+
+What the base class owns
+------------------------
+Unit conversion (native <-> the user's unit, stated in :class:`UnitConversion`),
+safety limits (a command outside the position range or changing faster than
+``max_step`` per sample is clamped and counted, never sent), the context
+manager, idempotent :meth:`Driver.close` that always tries to leave the torque
+off, unwrapping of the device clock, counters, and wrapping of library errors
+into :mod:`servoid.errors` (``raise ... from``): a ``TimeoutError`` becomes
+:class:`DriverTimeout`, anything else :class:`DriverError`.
+
+Drivers are not thread-safe; a driver belongs to the thread that opened it.
+"""
+
+from __future__ import annotations
+
+import abc
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable, ClassVar, Mapping
+
+from servoid import validation
+from servoid.errors import ConfigError, DriverError, DriverTimeout, ServoidError
+
+__all__ = [
+    "Driver",
+    "Reading",
+    "Measurement",
+    "Limits",
+    "UnitConversion",
+    "Option",
+    "DriverStats",
+    "DriverURL",
+]
+
+log = logging.getLogger("servoid.drivers")
+
+
+@dataclass(frozen=True)
+class UnitConversion:
+    """A linear map between a driver's native unit and the user's unit.
+
+    ``user = (native - offset) * scale`` and ``native = user / scale + offset``.
+
+    Parameters
+    ----------
+    unit : str
+        Name of the user's unit (``"rad"``, ``"counts"``, ``"A"``, ...).
+    scale : float
+        User units per native unit (``2 pi / 4096`` rad per count for a
+        4096-count encoder), nonzero.
+    offset : float
+        Native value that maps to user zero (``2048`` counts for a Dynamixel's
+        centre position).
+    """
+
+    unit: str = "unit"
+    scale: float = 1.0
+    offset: float = 0.0
+
+    def __post_init__(self) -> None:
+        scale = validation.real("scale", self.scale)
+        if scale == 0.0:
+            raise ConfigError("scale (=0.0) must be nonzero")
+        validation.real("offset", self.offset)
+
+    def to_user(self, native: float) -> float:
+        return (native - self.offset) * self.scale
+
+    def to_native(self, user: float) -> float:
+        return user / self.scale + self.offset
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Safety limits on the command, in the user's unit.
+
+    Parameters
+    ----------
+    minimum, maximum : float
+        Allowed command range (the servo's safe position range, or a band
+        ``centre +/- amplitude`` around an operating point).
+    max_step : float
+        Largest change of the command from one sample to the next (a rate
+        limit: ``max_step / sample_period`` per second).
+    """
+
+    minimum: float = -math.inf
+    maximum: float = math.inf
+    max_step: float = math.inf
+
+    def __post_init__(self) -> None:
+        for name in ("minimum", "maximum", "max_step"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or math.isnan(value):
+                raise ConfigError(f"{name} (={value!r}) must be a number")
+        if not self.minimum < self.maximum:
+            raise ConfigError(f"minimum (={self.minimum!r}) must be < maximum (={self.maximum!r})")
+        if not self.max_step > 0:
+            raise ConfigError(f"max_step (={self.max_step!r}) must be > 0")
+
+    def clamp(self, requested: float, previous: float | None) -> float:
+        """The command to send for ``requested``, given the last command sent."""
+        value = min(max(requested, self.minimum), self.maximum)
+        if previous is not None and math.isfinite(self.max_step):
+            value = min(max(value, previous - self.max_step), previous + self.max_step)
+            # the step limit never leaves the range: previous lies inside it
+            value = min(max(value, self.minimum), self.maximum)
+        return value
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One measurement as a driver primitive returns it, in native units.
+
+    Attributes
+    ----------
+    position : float
+        Measured position, native unit.
+    device_time : float or None
+        The device's clock in seconds (may wrap; the base unwraps it).
+    velocity, current : float or None
+        Optional extra measurements, native units.
+    """
+
+    position: float
+    device_time: float | None = None
+    velocity: float | None = None
+    current: float | None = None
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One exchange as the user sees it: in the user's units.
+
+    Attributes
+    ----------
+    requested : float
+        The command asked for.
+    command : float
+        The command actually sent (after the safety limits).
+    clamped : bool
+        Whether the limits changed the command.
+    position : float
+        Measured position.
+    device_time : float or None
+        Device clock in seconds, unwrapped, when the device has one.
+    velocity, current : float or None
+        Extra measurements, converted by the driver to user units where it
+        knows how (see the driver's documentation), else native.
+    """
+
+    requested: float
+    command: float
+    clamped: bool
+    position: float
+    device_time: float | None = None
+    velocity: float | None = None
+    current: float | None = None
+
+
+@dataclass
+class DriverStats:
+    """Counters a driver keeps while open."""
+
+    exchanges: int = 0
+    clamped: int = 0
+    errors: int = 0
+    timeouts: int = 0
+
+
+@dataclass(frozen=True)
+class Option:
+    """One URL option a driver accepts.
+
+    Parameters
+    ----------
+    parse : callable
+        Turns the option's text into a value; raises ValueError on bad text.
+    help : str
+        One line for ``--help`` and error messages, with the unit.
+    keyword : str, optional
+        Constructor keyword it maps to (default: the option's name).
+    """
+
+    parse: Callable[[str], Any]
+    help: str
+    keyword: str | None = None
+
+
+@dataclass(frozen=True)
+class DriverURL:
+    """A parsed driver URL ``scheme://location/path?key=value&...``."""
+
+    raw: str
+    scheme: str
+    host: str
+    path: str
+    options: Mapping[str, str] = field(default_factory=dict)
+
+
+def _float(text: str) -> float:
+    return float(text)
+
+
+#: Options every driver accepts: the safety limits, in the user's unit.
+COMMON_OPTIONS: dict[str, Option] = {
+    "min": Option(_float, "lowest command allowed (user unit)", "minimum"),
+    "max": Option(_float, "highest command allowed (user unit)", "maximum"),
+    "max_step": Option(_float, "largest command change per sample (user unit)", "max_step"),
+}
+
+
+class Driver(abc.ABC):
+    """Base of every servo driver (see the module docstring for the contract).
+
+    Parameters
+    ----------
+    limits : Limits, optional
+        Safety limits on the command (user unit); default none.
+    position_unit : UnitConversion, optional
+        Native position unit -> user unit.
+    command_unit : UnitConversion, optional
+        Native command unit -> user unit; default the position unit (position
+        mode).
+    """
+
+    scheme: ClassVar[str] = ""
+    options: ClassVar[Mapping[str, Option]] = {}
+    clock_wrap_s: ClassVar[float | None] = None
+
+    def __init__(
+        self,
+        *,
+        limits: Limits | None = None,
+        position_unit: UnitConversion | None = None,
+        command_unit: UnitConversion | None = None,
+    ) -> None:
+        self.limits = limits if limits is not None else Limits()
+        self.position_unit = position_unit if position_unit is not None else UnitConversion()
+        self.command_unit = command_unit if command_unit is not None else self.position_unit
+        self.stats = DriverStats()
+        self.url: str = ""
+        self._is_open = False
+        self._torque = False
+        self._last_command: float | None = None
+        self._clock_last: float | None = None
+        self._clock_offset = 0.0
+        self._identity_cache: dict[str, Any] | None = None
+
+    # ---- primitives -----------------------------------------------------------------
+    @abc.abstractmethod
+    def _open(self) -> None:
+        """Acquire the transport and check the servo answers."""
+
+    @abc.abstractmethod
+    def _close(self) -> None:
+        """Release the transport."""
+
+    @abc.abstractmethod
+    def _set_torque(self, enabled: bool) -> None:
+        """Switch the output stage on or off."""
+
+    @abc.abstractmethod
+    def _exchange(self, command: float) -> Reading:
+        """Send one command (native unit); return the measurement that answers it."""
+
+    def _read(self) -> Reading:
+        """A measurement without a command; drivers that can, override this."""
+        raise DriverError(f"{type(self).__name__} cannot read without commanding")
+
+    def _identity(self) -> dict[str, Any]:
+        """What the servo says it is; drivers that know, override this."""
+        return {}
+
+    # ---- construction from a URL -------------------------------------------------------
+    @classmethod
+    def accepted_options(cls) -> dict[str, Option]:
+        """All URL options this driver accepts: its own and the common limits."""
+        return {**COMMON_OPTIONS, **cls.options}
+
+    @classmethod
+    def parse_options(cls, url: DriverURL) -> dict[str, Any]:
+        """URL options as constructor keywords; unknown options are rejected by name."""
+        accepted = cls.accepted_options()
+        unknown = sorted(set(url.options) - set(accepted))
+        if unknown:
+            valid = ", ".join(f"{k} ({o.help})" for k, o in sorted(accepted.items()))
+            raise ConfigError(f"{url.raw}: unknown option(s) {', '.join(unknown)}; {cls.scheme}:// accepts {valid}")
+        kwargs: dict[str, Any] = {}
+        limit_kwargs: dict[str, float] = {}
+        for name, text in url.options.items():
+            opt = accepted[name]
+            try:
+                value = opt.parse(text)
+            except (TypeError, ValueError) as exc:
+                raise ConfigError(f"{url.raw}: option {name}={text!r} is invalid: {opt.help} ({exc})") from None
+            key = opt.keyword or name
+            if name in COMMON_OPTIONS:
+                limit_kwargs[key] = value
+            else:
+                kwargs[key] = value
+        if limit_kwargs:
+            kwargs["limits"] = Limits(**limit_kwargs)
+        return kwargs
+
+    @classmethod
+    def from_url(cls, url: DriverURL) -> "Driver":
+        """Build a driver (not yet open) from a parsed URL.
+
+        The default passes the parsed options as keywords; drivers whose URL
+        location (port, bus, channel) matters override this and call
+        :meth:`parse_options`.
+        """
+        driver = cls(**cls.parse_options(url))
+        driver.url = url.raw
+        return driver
+
+    # ---- life cycle ----------------------------------------------------------------------
+    @property
+    def is_open(self) -> bool:
+        return self._is_open
+
+    @property
+    def torque_enabled(self) -> bool:
+        return self._torque
+
+    def open(self) -> "Driver":
+        """Open the transport (torque stays off until :meth:`enable`); returns self."""
+        if self._is_open:
+            return self
+        self._call(self._open)
+        self._is_open = True
+        self._last_command = None
+        self._clock_last = None
+        self._clock_offset = 0.0
+        return self
+
+    def enable(self) -> None:
+        """Switch the torque on."""
+        self._require_open()
+        self._call(self._set_torque, True)
+        self._torque = True
+
+    def disable(self) -> None:
+        """Switch the torque off."""
+        self._require_open()
+        self._call(self._set_torque, False)
+        self._torque = False
+
+    def close(self) -> None:
+        """Switch the torque off and release the transport; safe to call twice.
+
+        A servo that does not answer the torque-off request is still closed;
+        the failure is logged and counted, never raised from here, so that
+        closing in an error path does not hide the original error.
+        """
+        if not self._is_open:
+            return
+        try:
+            self._set_torque(False)
+            self._torque = False
+        except Exception as exc:  # noqa: BLE001 - must not mask the error being handled
+            self.stats.errors += 1
+            log.warning("%s: could not switch the torque off while closing: %s", self.describe(), exc)
+        finally:
+            self._is_open = False
+            try:
+                self._close()
+            except Exception as exc:  # noqa: BLE001
+                log.warning("%s: error while closing: %s", self.describe(), exc)
+
+    def __enter__(self) -> "Driver":
+        return self.open()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __del__(self) -> None:  # last resort: never leave a servo powered by accident
+        try:
+            if getattr(self, "_is_open", False):
+                self.close()
+        except Exception:  # noqa: BLE001
+            pass
+
+    # ---- per sample ----------------------------------------------------------------------
+    def exchange(self, u: float) -> Measurement:
+        """Command ``u`` (user unit), clamped to the limits, and return the measurement.
+
+        Raises
+        ------
+        ConfigError
+            If ``u`` is not finite.
+        DriverTimeout
+            If the servo did not answer in time.
+        DriverError
+            For any other failure of the transport or the servo.
+        """
+        self._require_open()
+        requested = float(u)
+        if not math.isfinite(requested):
+            raise ConfigError(f"command u (={requested!r}) must be finite")
+        command = self.limits.clamp(requested, self._last_command)
+        clamped = command != requested
+        if clamped:
+            self.stats.clamped += 1
+        reading = self._call(self._exchange, self.command_unit.to_native(command))
+        self._last_command = command
+        self.stats.exchanges += 1
+        return self._measurement(reading, requested, command, clamped)
+
+    def read(self) -> Measurement:
+        """A measurement without commanding (only for drivers that support it)."""
+        self._require_open()
+        reading = self._call(self._read)
+        last = self._last_command if self._last_command is not None else math.nan
+        return self._measurement(reading, last, last, False)
+
+    @property
+    def identity(self) -> dict[str, Any]:
+        """What the servo says it is (empty when the driver cannot tell); cached."""
+        if self._identity_cache is None:
+            self._identity_cache = dict(self._call(self._identity)) if self._is_open else {}
+        return dict(self._identity_cache)
+
+    def describe(self) -> str:
+        """A short name for messages: the URL, or the class name."""
+        return self.url or type(self).__name__
+
+    # ---- helpers -------------------------------------------------------------------------
+    def _require_open(self) -> None:
+        if not self._is_open:
+            raise DriverError(f"{self.describe()} is not open")
+
+    def _call(self, func: Callable[..., Any], *args: Any) -> Any:
+        try:
+            return func(*args)
+        except DriverTimeout:
+            self.stats.errors += 1
+            self.stats.timeouts += 1
+            raise
+        except ServoidError:
+            self.stats.errors += 1
+            raise
+        except TimeoutError as exc:
+            self.stats.errors += 1
+            self.stats.timeouts += 1
+            raise DriverTimeout(f"{self.describe()}: no answer in time ({exc})") from exc
+        except Exception as exc:  # noqa: BLE001 - vendor libraries raise anything
+            self.stats.errors += 1
+            raise DriverError(f"{self.describe()}: {type(exc).__name__}: {exc}") from exc
+
+    def _measurement(self, reading: Reading, requested: float, command: float, clamped: bool) -> Measurement:
+        return Measurement(
+            requested=requested,
+            command=command,
+            clamped=clamped,
+            position=self.position_unit.to_user(reading.position),
+            device_time=self._unwrap(reading.device_time),
+            velocity=reading.velocity,
+            current=reading.current,
+        )
+
+    def _unwrap(self, t: float | None) -> float | None:
+        if t is None:
+            return None
+        wrap = self.clock_wrap_s
+        if wrap is not None and self._clock_last is not None and t < self._clock_last - wrap / 2:
+            self._clock_offset += wrap
+        self._clock_last = t
+        return t + self._clock_offset

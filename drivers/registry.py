@@ -1,0 +1,115 @@
+"""Open a driver from a URL: one registry, vendor libraries imported only on use.
+
+URL forms::
+
+    sim://?snr=40                                   the simulated servo
+    serial:///dev/ttyUSB0?baud=1000000              the serial bench controller
+    can://virtual/ch0?protocol=cia402&node=1        a CAN drive (python-can interface / channel)
+    dxl:///dev/ttyUSB0?id=1&baud=1000000            a ROBOTIS Dynamixel
+
+Every driver also accepts the safety limits ``min``, ``max`` and
+``max_step`` (user unit). Unknown schemes and unknown options are rejected
+by name, with the valid ones listed.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+from urllib.parse import parse_qsl, urlsplit
+
+from servoid.errors import ConfigError, MissingDependency
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.drivers.base import Driver, DriverURL
+
+__all__ = ["register", "schemes", "parse_url", "driver_class", "driver_from_url"]
+
+#: scheme -> "module:Class", imported when a URL with that scheme is opened.
+_REGISTRY: dict[str, str] = {
+    "sim": "servoid.drivers.sim:SimDriver",
+    "serial": "servoid.drivers.serial:SerialDriver",
+    "can": "servoid.drivers.can:CanDriver",
+    "dxl": "servoid.drivers.dynamixel:DynamixelDriver",
+}
+
+#: Third-party module -> the PyPI package that provides it (for error messages).
+_PACKAGES = {"serial": "pyserial", "can": "python-can", "canopen": "canopen", "dynamixel_sdk": "dynamixel-sdk"}
+
+
+def register(scheme: str, target: str) -> None:
+    """Map ``scheme`` to a driver class given as ``"package.module:Class"``."""
+    if "://" in scheme or not scheme.isidentifier():
+        raise ConfigError(f"scheme (={scheme!r}) must be a bare name such as 'sim'")
+    if ":" not in target:
+        raise ConfigError(f"target (={target!r}) must look like 'package.module:Class'")
+    _REGISTRY[scheme] = target
+
+
+def schemes() -> tuple[str, ...]:
+    """The registered URL schemes."""
+    return tuple(sorted(_REGISTRY))
+
+
+def parse_url(url: str) -> "DriverURL":
+    """Split a driver URL into scheme, host, path and options.
+
+    Raises
+    ------
+    ConfigError
+        No scheme, an unknown scheme, or an option given twice.
+    """
+    from servoid.drivers.base import DriverURL
+
+    if not isinstance(url, str) or "://" not in url:
+        raise ConfigError(f"driver URL (={url!r}) must look like scheme://...; schemes: {', '.join(schemes())}")
+    parts = urlsplit(url)
+    scheme = parts.scheme.lower()
+    if scheme not in _REGISTRY:
+        raise ConfigError(f"unknown driver scheme {scheme!r} in {url!r}; known: {', '.join(schemes())}")
+    options: dict[str, str] = {}
+    for key, value in parse_qsl(parts.query, keep_blank_values=True):
+        if key in options:
+            raise ConfigError(f"{url}: option {key!r} is given twice")
+        options[key] = value
+    return DriverURL(raw=url, scheme=scheme, host=parts.netloc, path=parts.path, options=options)
+
+
+def driver_class(scheme: str) -> type["Driver"]:
+    """The driver class for ``scheme``, imported now.
+
+    Raises
+    ------
+    ConfigError
+        Unknown scheme.
+    MissingDependency
+        The driver's vendor library is not installed (the message names the package).
+    """
+    try:
+        target = _REGISTRY[scheme]
+    except KeyError:
+        raise ConfigError(f"unknown driver scheme {scheme!r}; known: {', '.join(schemes())}") from None
+    module_name, _, class_name = target.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        missing = (exc.name or "").split(".")[0]
+        if missing in _PACKAGES:
+            raise MissingDependency(
+                f"the {scheme}:// driver needs the package {_PACKAGES[missing]!r}: pip install {_PACKAGES[missing]}"
+            ) from exc
+        raise
+    return getattr(module, class_name)  # type: ignore[no-any-return]
+
+
+def driver_from_url(url: str) -> "Driver":
+    """Build the driver a URL names (not yet open: use it as a context manager).
+
+    Examples
+    --------
+    >>> with driver_from_url("sim://?snr=40") as servo:   # doctest: +SKIP
+    ...     servo.enable()
+    ...     m = servo.exchange(0.5)
+    """
+    parsed = parse_url(url)
+    return driver_class(parsed.scheme).from_url(parsed)

@@ -1,0 +1,126 @@
+"""The base class's own logic, on a minimal driver that records what reaches its primitives.
+
+These test what the base promises every driver (clamping before sending, unit
+conversion, idempotent close with torque off, error wrapping, clock unwrapping);
+each real driver is then tested against its emulator by the contract tests.
+"""
+
+import math
+
+import pytest
+
+from servoid.drivers import Driver, Limits, Reading, UnitConversion, parse_url, register
+from servoid.drivers.registry import driver_from_url
+from servoid.errors import ConfigError, DriverError, DriverTimeout, MissingDependency
+
+
+class Recorder(Driver):
+    scheme = "recorder"
+    clock_wrap_s = 10.0
+
+    def __init__(self, *, fail_with: BaseException | None = None, clock: list[float] | None = None, **kw):
+        super().__init__(**kw)
+        self.sent: list[float] = []
+        self.torque_calls: list[bool] = []
+        self.fail_with = fail_with
+        self.clock = list(clock or [])
+        self.closed = 0
+
+    def _open(self):
+        pass
+
+    def _close(self):
+        self.closed += 1
+
+    def _set_torque(self, enabled):
+        self.torque_calls.append(enabled)
+
+    def _exchange(self, command):
+        if self.fail_with is not None:
+            raise self.fail_with
+        self.sent.append(command)
+        return Reading(position=2 * command, device_time=self.clock.pop(0) if self.clock else None)
+
+
+def test_commands_outside_the_limits_are_clamped_counted_and_never_sent():
+    d = Recorder(limits=Limits(minimum=-1.0, maximum=1.0, max_step=0.5))
+    with d:
+        d.enable()
+        ms = [d.exchange(u) for u in (0.2, 5.0, 5.0, -5.0, 0.0)]
+    assert [m.command for m in ms] == [0.2, 0.7, 1.0, 0.5, 0.0]
+    assert [m.clamped for m in ms] == [False, True, True, True, False]
+    assert d.sent == [0.2, 0.7, 1.0, 0.5, 0.0]
+    assert max(abs(v) for v in d.sent) <= 1.0 and d.stats.clamped == 3 and d.stats.exchanges == 5
+
+
+def test_units_convert_both_ways():
+    counts = UnitConversion("rad", scale=2 * math.pi / 4096, offset=2048)
+    d = Recorder(position_unit=counts, command_unit=counts)
+    with d:
+        m = d.exchange(math.pi / 2)
+    assert d.sent == [pytest.approx(3072.0)]  # pi/2 rad is a quarter turn above the centre
+    assert m.position == pytest.approx((2 * 3072.0 - 2048) * 2 * math.pi / 4096)
+
+
+def test_close_is_idempotent_and_switches_torque_off():
+    d = Recorder()
+    d.open()
+    d.enable()
+    d.close()
+    d.close()
+    assert d.torque_calls == [True, False] and d.closed == 1 and not d.is_open
+    with pytest.raises(DriverError, match="is not open"):
+        d.exchange(0.0)
+
+
+def test_errors_are_wrapped_into_servoid_errors():
+    with Recorder(fail_with=TimeoutError("read timed out")) as d:
+        with pytest.raises(DriverTimeout, match="no answer in time") as info:
+            d.exchange(0.0)
+        assert isinstance(info.value, TimeoutError) and isinstance(info.value.__cause__, TimeoutError)
+    with Recorder(fail_with=OSError(5, "Input/output error")) as d:
+        with pytest.raises(DriverError, match="OSError"):
+            d.exchange(0.0)
+        assert d.stats.errors == 1
+    with Recorder() as d, pytest.raises(ConfigError, match="must be finite"):
+        d.exchange(float("nan"))
+
+
+def test_device_clock_is_unwrapped():
+    with Recorder(clock=[9.0, 9.9, 0.3, 5.0, 9.8, 0.1]) as d:
+        times = [d.exchange(0.0).device_time for _ in range(6)]
+    assert times == pytest.approx([9.0, 9.9, 10.3, 15.0, 19.8, 20.1])
+
+
+def test_urls_and_options():
+    register("recorder", f"{__name__}:Recorder")
+    url = parse_url("recorder:///dev/x?max=2&max_step=0.1")
+    assert (url.scheme, url.path, dict(url.options)) == ("recorder", "/dev/x", {"max": "2", "max_step": "0.1"})
+    d = driver_from_url("recorder://?min=-2&max=2")
+    assert d.limits == Limits(minimum=-2.0, maximum=2.0)
+    with pytest.raises(ConfigError, match="unknown option.*bogus.*accepts .*max_step"):
+        driver_from_url("recorder://?bogus=1")
+    with pytest.raises(ConfigError, match="option max='x' is invalid"):
+        driver_from_url("recorder://?max=x")
+    with pytest.raises(ConfigError, match="unknown driver scheme 'nope'"):
+        parse_url("nope://x")
+    with pytest.raises(ConfigError, match="must look like scheme://"):
+        parse_url("/dev/ttyUSB0")
+    with pytest.raises(ConfigError, match="given twice"):
+        parse_url("recorder://?max=1&max=2")
+
+
+def test_a_missing_vendor_library_names_the_package(tmp_path, monkeypatch):
+    (tmp_path / "needs_pyserial_driver.py").write_text("import serial\nclass X: pass\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(__import__("sys").modules, "serial", None)  # as if pyserial were not installed
+    register("needsserial", "needs_pyserial_driver:X")
+    with pytest.raises(MissingDependency, match="needs the package 'pyserial': pip install pyserial"):
+        driver_from_url("needsserial://")
+
+
+def test_limits_validate():
+    with pytest.raises(ConfigError, match="minimum .* must be < maximum"):
+        Limits(minimum=1.0, maximum=0.0)
+    with pytest.raises(ConfigError, match="max_step"):
+        Limits(max_step=0.0)
