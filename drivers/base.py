@@ -15,7 +15,9 @@ What a driver MUST implement
 ``_exchange(self, command: float) -> Reading``
     Send one command, in the driver's native unit, and return the measurement
     that answers it (position in native units, with the device's clock when it
-    has one). One call per sample.
+    has one). One call per sample. During a session, :attr:`Driver.exchange_slot`
+    holds the slot number ``k`` of the sample (scheduled at ``t0 + k T``), for
+    devices that want to know how many periods lie between two commands.
 
 What a driver MAY implement
 ---------------------------
@@ -342,6 +344,7 @@ class Driver(abc.ABC):
         self._clock_offset = 0.0
         self._identity_cache: dict[str, Any] | None = None
         self.sample_period_s: float | None = None
+        self._exchange_slot: int | None = None
 
     # ---- primitives -----------------------------------------------------------------
     @abc.abstractmethod
@@ -494,8 +497,21 @@ class Driver(abc.ABC):
             pass
 
     # ---- per sample ----------------------------------------------------------------------
-    def exchange(self, u: float) -> Measurement:
+    @property
+    def exchange_slot(self) -> int | None:
+        """Slot number of the exchange in progress, as the sampler counts them (None when not told)."""
+        return self._exchange_slot
+
+    def exchange(self, u: float, *, slot: int | None = None) -> Measurement:
         """Command ``u`` (user unit), clamped to the limits, and return the measurement.
+
+        Parameters
+        ----------
+        u : float
+            The command, user unit.
+        slot : int, optional
+            The sample slot ``k`` this exchange belongs to (the sampling
+            session passes it); slots only increase.
 
         Raises
         ------
@@ -514,6 +530,7 @@ class Driver(abc.ABC):
         clamped = command != requested
         if clamped:
             self.stats.clamped += 1
+        self._exchange_slot = slot
         reading = self._call(self._exchange, self.command_unit.to_native(command))
         self._last_command = command
         self.stats.exchanges += 1

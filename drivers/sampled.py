@@ -4,29 +4,30 @@ A real servo moves continuously; the model servoid identifies is its
 discrete-time behaviour at the session's sample period ``T``
 (:data:`servoid.drivers.bench.BENCH_PLANT` is "the servo at the session's
 rate"). :class:`SampledPlant` makes a :class:`~servoid.ident.Plant` behave
-like a device that keeps running between requests:
+like a bench controller whose position loop is triggered by the host's set
+points and keeps running on its own when the host falls silent:
 
-* its sample instants lie on a grid ``t0 + j T``, anchored at the first
-  command after the torque was switched on (so the host's slots and the
-  plant's samples coincide);
-* a command belongs to the sample instant nearest to its arrival
-  (``j = round((t - t0) / T)``): the plant is stepped once per instant, with
-  the sample taken before the command is applied (``y(j)`` depends on
-  ``u(j - d)`` and earlier), so the reply to a command is the position at its
-  own instant;
-* instants that received no command (a missed slot, a stalled host) hold the
-  last command, as a position loop holds its set point; they are stepped
-  when the next request arrives, so between requests nothing needs to run;
-* a second command in the same instant does not re-step the plant: it
-  becomes the held command from the next instant on;
-* a read without a command returns the latest instant at or before its time;
+* each command is one sample of the plant: the sample is taken, then the
+  command applied (``y(j)`` depends on ``u(j - d)`` and earlier), and the reply
+  is the position of that sample;
+* when a command comes ``n`` periods after the previous one (``n >= 2``: the
+  host skipped ``n - 1`` slots or stalled), the plant first runs ``n - 1``
+  samples on the held command, as a position loop holds its set point;
+  between requests nothing needs to run;
+* ``n`` is what the host says (from its slot numbers, ``periods=``) when it does:
+  then the plant's samples follow the host's slots exactly, and the jitter of
+  the link shows in the timestamps only; otherwise ``n`` is the time since
+  the previous command in periods, rounded (commands closer than one and a
+  half periods are one sample each);
+* a read without a command runs the held samples due up to its time and
+  returns the latest;
 * with the torque off the plant does not move and commands are refused.
 
-Without a period (``period_ns=None``) every command is one sample (the plant
-follows the requests, whatever their timing).
+Without a period (``period_ns=None``) every command is one sample, whatever
+the time between them.
 
 The serial firmware's simulated motor (``drivers/serial/firmware/host/sim_motor.c``)
-implements the same rules in C; the CAN and Dynamixel emulators use this class.
+implements the same rules in C; the CAN and Dynamixel emulators can use this class.
 """
 
 from __future__ import annotations
@@ -52,9 +53,10 @@ class PlantSample:
     position : float
         Measured position (with noise, when configured), plant unit.
     index : int
-        Sample instant ``j`` the reading belongs to (-1 before the first).
+        Sample ``j`` the reading belongs to (-1 before the first).
     time_ns : int
-        Time of that instant, ``t0 + j T`` (the request's time without a period).
+        Time of that sample (the command's arrival; for held samples, the
+        previous sample's time plus whole periods).
     """
 
     position: float
@@ -63,7 +65,7 @@ class PlantSample:
 
 
 class SampledPlant:
-    """A backlash plant that lives on the time grid of its sample period.
+    """A backlash plant sampled by the host's commands, running on by itself when they stop.
 
     Parameters
     ----------
@@ -92,28 +94,28 @@ class SampledPlant:
             raise DriverError("noise_std > 0 needs rng=np.random.default_rng(seed)")
         self._rng = rng
         self.period_ns: int | None = None
-        self.set_period(period_ns)
         self.enabled = False
         self.held = 0.0
         self.index = -1
-        self._anchor_ns: int | None = None
+        self._last_ns: int | None = None  # time of the latest sample (None: the next command starts afresh)
+        self.set_period(period_ns)
 
     @property
     def model(self) -> BacklashModel:
         return self.plant.model
 
     def set_period(self, period_ns: int | None) -> None:
-        """Change the sample period; the grid is anchored again at the next command."""
+        """Change the sample period; the next command starts the count afresh."""
         if period_ns is not None:
             period_ns = validation.integer("period_ns", period_ns, minimum=1)
         self.period_ns = period_ns
-        self._anchor_ns = None
+        self._last_ns = None
 
     def enable(self) -> None:
-        """Torque on: the plant follows commands; the grid is anchored at the next command."""
+        """Torque on: the plant follows commands from the next one on."""
         if not self.enabled:
             self.enabled = True
-            self._anchor_ns = None
+            self._last_ns = None
 
     def disable(self) -> None:
         """Torque off: the plant stays where it is."""
@@ -125,10 +127,20 @@ class SampledPlant:
         self.enabled = False
         self.held = 0.0
         self.index = -1
-        self._anchor_ns = None
+        self._last_ns = None
 
-    def command(self, u: float, t_ns: int) -> PlantSample:
-        """Apply the set point ``u`` arriving at ``t_ns``; return the reading of its instant.
+    def command(self, u: float, t_ns: int, *, periods: int | None = None) -> PlantSample:
+        """Apply the set point ``u`` arriving at ``t_ns``; return the reading of its sample.
+
+        Parameters
+        ----------
+        u : float
+            The set point.
+        t_ns : int
+            Its arrival time.
+        periods : int, optional
+            Periods since the previous set point as the host counts them
+            (>= 1); default: from the time since the previous one.
 
         Raises
         ------
@@ -137,30 +149,25 @@ class SampledPlant:
         """
         if not self.enabled:
             raise DriverError("the torque is off: commands are refused")
-        u = float(u)
-        if self.period_ns is None:
-            self._step(u)
-            self.held = u
-            return self._reading(t_ns)
-        if self._anchor_ns is None:
-            self._anchor_ns = t_ns - (self.index + 1) * self.period_ns
-        target = _nearest(t_ns - self._anchor_ns, self.period_ns)
-        self._hold_until(target - 1)
-        if self.index < target:
-            self._step(u)
-        self.held = u
-        return self._reading(self._anchor_ns + self.index * self.period_ns)
-
-    def read(self, t_ns: int) -> PlantSample:
-        """The reading of the latest instant at or before ``t_ns``."""
-        if self.enabled and self.period_ns is not None and self._anchor_ns is not None:
-            self._hold_until((t_ns - self._anchor_ns) // self.period_ns)
-            return self._reading(self._anchor_ns + self.index * self.period_ns)
+        if self._last_ns is not None:
+            if periods is None and self.period_ns is not None:
+                periods = _nearest(t_ns - self._last_ns, self.period_ns)
+            for _ in range((periods or 1) - 1):
+                self._step(self.held)
+        self._step(float(u))
+        self.held = float(u)
+        self._last_ns = t_ns
         return self._reading(t_ns)
 
-    def _hold_until(self, index: int) -> None:
-        while self.index < index:
-            self._step(self.held)
+    def read(self, t_ns: int) -> PlantSample:
+        """The reading of the latest sample at or before ``t_ns`` (running the held samples due)."""
+        if self.enabled and self.period_ns is not None and self._last_ns is not None:
+            due = (t_ns - self._last_ns) // self.period_ns
+            for _ in range(max(due, 0)):
+                self._step(self.held)
+            self._last_ns += max(due, 0) * self.period_ns
+            return self._reading(self._last_ns)
+        return self._reading(t_ns)
 
     def _step(self, u: float) -> None:
         self.plant.step(u)
@@ -174,5 +181,5 @@ class SampledPlant:
 
 
 def _nearest(offset_ns: int, period_ns: int) -> int:
-    """Index of the grid point nearest to ``offset_ns`` (halves round up: a half-period-late command is the next)."""
+    """Whole periods nearest to ``offset_ns`` (a half rounds up)."""
     return (offset_ns + period_ns // 2) // period_ns

@@ -146,8 +146,11 @@ class SimDevice:
         self.boot_ns = clock.now_ns()
         self.exchanges = 0
 
-    def request(self, command: float | None) -> tuple[PlantSample, int] | None:
-        """Serve one request: a command (or a read with None); None when no reply comes back."""
+    def request(self, command: float | None, periods: int | None = None) -> tuple[PlantSample, int] | None:
+        """Serve one request: a command (or a read with None); None when no reply comes back.
+
+        ``periods`` is the host's count of sample periods since its previous command.
+        """
         self.exchanges += 1
         if self.mute_after is not None and self.exchanges > self.mute_after:
             return None
@@ -157,7 +160,7 @@ class SimDevice:
             self.boot_ns = self.clock.now_ns()
         now = self.clock.now_ns()
         if command is not None and self.plant.enabled:
-            sample = self.plant.command(command, now)
+            sample = self.plant.command(command, now, periods=periods)
         else:
             sample = self.plant.read(now)
         delay = self.latency_ns
@@ -252,6 +255,7 @@ class SimDriver(Driver):
         self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.device: SimDevice | None = None
         self._boot_id: int | None = None
+        self._last_slot: int | None = None
 
     @property
     def truth(self) -> BacklashModel:
@@ -279,9 +283,11 @@ class SimDriver(Driver):
     def _set_torque(self, enabled: bool) -> None:
         plant = self._device().plant
         plant.enable() if enabled else plant.disable()
+        self._last_slot = None
 
     def _set_period(self, period_s: float) -> None:
         self._device().plant.set_period(int(round(period_s * NS_PER_S)))
+        self._last_slot = None
 
     def _exchange(self, command: float) -> Reading:
         return self._request(command)
@@ -309,7 +315,15 @@ class SimDriver(Driver):
         device = self._device()
         if command is not None and not device.plant.enabled and device.boot_id == self._boot_id:
             raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
-        reply = device.request(command)
+        periods = None
+        slot = self.exchange_slot
+        if command is not None and slot is not None:
+            if self._last_slot is not None:
+                periods = slot - self._last_slot
+                if periods < 1:
+                    raise DriverError(f"{self.describe()}: slot {slot} does not follow slot {self._last_slot}")
+            self._last_slot = slot
+        reply = device.request(command, periods)
         if reply is None:
             self.clock.sleep_ns(self.timeout_ns)
             raise DriverTimeout(f"{self.describe()}: no reply within {self.timeout_ns / NS_PER_S:g} s")

@@ -75,15 +75,21 @@ class Refinement:
 class _OutputError:
     """Residual ``y_hat(p) - y`` of the free-run model, for the optimiser."""
 
-    def __init__(self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float) -> None:
+    def __init__(
+        self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float, valid: np.ndarray | None = None
+    ) -> None:
         self.u, self.y, self.y0 = u, y, y0
+        # lost samples (valid False) are simulated through but left out of the residual
+        self.keep = valid
         self.na, self.nb, self.delay = template.na, template.nb, template.delay
         self.x = np.empty_like(u)
         self.y_hat = np.empty_like(u)
         self.zone = np.empty(u.shape, dtype=np.int8)
         # Outside the stable region the simulation explodes; a large, constant
         # residual lets the trust region step back instead of failing on inf.
-        self.penalty = np.full(u.shape, 10.0 * (float(np.max(np.abs(y))) + float(np.std(y)) + 1.0))
+        used = y if valid is None else y[valid]
+        self.penalty = np.full(used.shape, 10.0 * (float(np.max(np.abs(used))) + float(np.std(used)) + 1.0))
+        self.y_used = used
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         na, nb = self.na, self.nb
@@ -96,6 +102,8 @@ class _OutputError:
         simulate_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), self.delay, m2, c1, c2,
                         self.u, self.y0, self.x, self.y_hat, self.zone)  # fmt: skip
         out = self.y_hat - self.y
+        if self.keep is not None:
+            out = out[self.keep]
         if not np.all(np.isfinite(out)):
             return self.penalty
         return out
@@ -129,6 +137,7 @@ def refine(
     *,
     y0: float | None = None,
     max_nfev: int | None = None,
+    valid: Sequence[bool] | np.ndarray | None = None,
 ) -> Refinement:
     """Fit all parameters of ``initial`` to ``(u, y)`` by simulation-error least squares.
 
@@ -142,6 +151,10 @@ def refine(
         Backlash output before the first sample; default ``y[0]``.
     max_nfev : int, optional
         Cap on the number of simulations (default: scipy's, 100 per parameter).
+    valid : array_like of bool, optional
+        ``False`` marks samples whose measurement was lost (a live session's
+        late, missed or timed-out samples): the model is simulated through
+        them with their ``u``, but their ``y`` (which may be NaN) is not fitted.
 
     Returns
     -------
@@ -156,17 +169,27 @@ def refine(
     linear block is kept by a penalty.
     """
     u_arr = validation.signal("u", u)
-    y_arr = validation.signal("y", y)
+    valid_arr: np.ndarray | None = None
+    if valid is None:
+        y_arr = validation.signal("y", y)
+    else:
+        valid_arr = np.asarray(valid, dtype=np.bool_)
+        y_raw = np.asarray(y, dtype=np.float64)
+        if valid_arr.shape != u_arr.shape or y_raw.shape != u_arr.shape:
+            raise ConfigError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {valid_arr.shape}")
+        y_arr = validation.signal("y (valid samples)", np.where(valid_arr, y_raw, 0.0))
     if u_arr.size != y_arr.size:
         raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    if u_arr.size <= initial.n_params:
-        raise ConfigError(f"{u_arr.size} samples cannot determine {initial.n_params} parameters")
-    start_y = float(y_arr[0]) if y0 is None else validation.real("y0", y0)
-    problem = _OutputError(u_arr, y_arr, initial, start_y)
+    used = u_arr.size if valid_arr is None else int(valid_arr.sum())
+    if used <= initial.n_params:
+        raise ConfigError(f"{used} samples cannot determine {initial.n_params} parameters")
+    first = 0 if valid_arr is None else int(np.argmax(valid_arr))
+    start_y = float(y_arr[first]) if y0 is None else validation.real("y0", y0)
+    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr)
 
     p0 = initial.values()
     lower = np.full(p0.size, -np.inf)
-    floor = _LOWER_BOUND_REL * max(float(np.std(y_arr)), 1e-12)
+    floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
     lower[-3:] = floor
     p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
 
@@ -177,14 +200,14 @@ def refine(
     model = problem.model(sol.x)
     residual = problem(sol.x)
     cov, stderr = output_error_jacobian(residual, sol.jac, p0.size)
-    y_hat = residual + y_arr
+    y_used = problem.y_used
     return Refinement(
         model=model,
         initial=initial,
         stderr=tuple(float(s) for s in stderr),
         covariance=cov,
-        nrmse=nrmse(y_arr, y_hat),
-        initial_nrmse=nrmse(y_arr, problem(p0) + y_arr),
+        nrmse=nrmse(y_used, residual + y_used),
+        initial_nrmse=nrmse(y_used, problem(p0) + y_used),
         residual_std=float(np.std(residual)),
         nfev=int(sol.nfev),
         success=bool(sol.success),

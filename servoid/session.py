@@ -435,6 +435,8 @@ class _Sampler:
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
         driver, clock, period = self.driver, self.clock, self.period_ns
+        if self.estimator is not None:
+            _warm_up(self.estimator)
         driver.set_sample_period(self.config.period_s)
         driver.enable()
         give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
@@ -453,7 +455,7 @@ class _Sampler:
             start = clock.now_ns()
             command = self.command_filter(reference) if self.command_filter is not None else reference
             try:
-                m = driver.exchange(command)
+                m = driver.exchange(command, slot=k)
             except DriverTimeout:
                 end = clock.now_ns()
                 self._timeout(k, scheduled, start, end, reference, command)
@@ -571,3 +573,12 @@ class _Sampler:
             driver_stats=DriverStats(**vars(self.driver.stats)),
             stopped=self.stopped,
         )
+
+
+def _warm_up(estimator: MRGIA) -> None:
+    """Compile the estimator's kernels now: a first call inside the loop would stall it for seconds."""
+    scratch = MRGIA(estimator.config)
+    for u, y in ((0.1, 0.0), (-0.1, 0.05), (0.2, -0.02)):
+        scratch.update(u, y)
+    scratch.skip(0.0)
+    _ = scratch.coverage
