@@ -26,7 +26,7 @@ import numpy as np
 
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
 from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
-from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
+from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
 from servoid.ident.model import BacklashModel
@@ -95,6 +95,12 @@ def _count(text: str) -> int:
     if value < 0:
         raise ValueError("must be an integer >= 0")
     return value
+
+
+def _clock(text: str) -> str:
+    if text not in ("real", "virtual"):
+        raise ValueError("choose real or virtual")
+    return text
 
 
 def _plant(text: str) -> str:
@@ -199,8 +205,9 @@ class SimDriver(Driver):
         Fault injection: go silent, or restart, after this many exchanges.
     seed : int
         Seed of the noise, drops and jitter.
-    clock : Clock, optional
-        Time source (not a URL option); default the real clock.
+    clock : Clock or {"real", "virtual"}, optional
+        Time source; default the real clock. ``virtual`` (also a URL option)
+        runs in simulated time: a session takes no wall time and repeats exactly.
     **kwargs
         Limits and units for :class:`~servoid.drivers.base.Driver`.
     """
@@ -217,6 +224,7 @@ class SimDriver(Driver):
         "mute_after": Option(_count, "stop answering after this many exchanges (fault injection)"),
         "restart_after": Option(_count, "restart after this many exchanges (fault injection)"),
         "seed": Option(_count, "seed of noise, drops and jitter (default 0)"),
+        "clock": Option(_clock, "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
     }
 
     def __init__(
@@ -232,7 +240,7 @@ class SimDriver(Driver):
         mute_after: int | None = None,
         restart_after: int | None = None,
         seed: int = 0,
-        clock: Clock | None = None,
+        clock: Clock | str | None = None,
         **kwargs: Any,
     ) -> None:
         if plant not in SIM_PLANTS:
@@ -252,7 +260,13 @@ class SimDriver(Driver):
         self.timeout_ns = int(round(timeout * NS_PER_S))
         self.mute_after, self.restart_after = mute_after, restart_after
         self.seed = seed
-        self.clock: Clock = clock if clock is not None else MonotonicClock()
+        if clock == "virtual":
+            clock = VirtualClock()
+        elif clock is None or clock == "real":
+            clock = MonotonicClock()
+        if not isinstance(clock, Clock):
+            raise ConfigError(f"clock (={clock!r}) must be 'real', 'virtual' or a Clock")
+        self.clock: Clock = clock
         self.device: SimDevice | None = None
         self._boot_id: int | None = None
         self._last_slot: int | None = None

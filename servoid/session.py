@@ -21,7 +21,10 @@ scheduled and actual times, the command, the position and a status:
     slot was skipped rather than sent in a burst. Nothing was sent: the servo
     held the previous command, which is what the row's ``u`` says.
 ``timeout``
-    Sent, but no reply came in time; ``u`` is the command sent, ``y`` unknown.
+    Sent, but no usable reply came in time (none, or a corrupted one); ``u``
+    is the command sent, ``y`` unknown. Whether the servo got the command is
+    unknown; the session assumes it did (a lost reply) and holds it in the
+    slots that follow.
 
 The estimator treats every sample it does not use as lost: ``MRGIA.skip(u)``
 propagates its model with the command the servo had, and the next used
@@ -53,7 +56,7 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.errors import ConfigError, DriverError, DriverTimeout, EstimatorDiverged, ServoidError
+from servoid.errors import ConfigError, DriverError, DriverTimeout, EstimatorDiverged, ProtocolError, ServoidError
 from servoid.ident.model import BacklashModel
 from servoid.ident.mrgia import MRGIA
 from servoid.recording import RecordingWriter
@@ -431,6 +434,7 @@ class _Sampler:
         self._shut = False
         self._next_progress = 0
         self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
+        self.held: float | None = None  # the command the servo holds (the last one sent)
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
@@ -456,13 +460,14 @@ class _Sampler:
             command = self.command_filter(reference) if self.command_filter is not None else reference
             try:
                 m = driver.exchange(command, slot=k)
-            except DriverTimeout:
+            except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
                 end = clock.now_ns()
                 self._timeout(k, scheduled, start, end, reference, command)
                 if end - last_reply > give_up_ns:
                     raise DriverTimeout(
-                        f"{driver.describe()} stopped answering: no reply for {(end - last_reply) / NS_PER_S:.3g} s"
-                    ) from None
+                        f"{driver.describe()} stopped answering: no usable reply for "
+                        f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})"
+                    ) from exc
             else:
                 end = clock.now_ns()
                 last_reply = end
@@ -471,14 +476,15 @@ class _Sampler:
         self._progress(clock.now_ns())
 
     def _missed(self, k: int, scheduled: int, reference: float) -> None:
-        held = self.driver.last_command
-        u = held if held is not None else 0.0  # before any command the servo holds where it was enabled
+        u = self.held if self.held is not None else 0.0  # before any command the servo holds where it was enabled
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, Status.MISSED))
 
     def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
-        # whether the servo applied the command is unknown; it is our best guess of what it had
+        # whether the servo applied the command is unknown (a lost reply or a lost
+        # request); a lost reply is taken as the likelier, so the servo holds it from now
         u = self.driver.limits.clamp(command, self.driver.last_command)
+        self.held = u
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, Status.TIMEOUT,
                          exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
@@ -494,6 +500,7 @@ class _Sampler:
                 late = late or abs((device_time - prev_t) - expected) >= self.config.period_s / 2
             self._last_device = (k, device_time)
         status = Status.LATE if late else Status.OK
+        self.held = m.command
         if status is Status.OK or self.config.use_late:
             self._estimate_update(m.command, m.position)
         else:

@@ -156,6 +156,7 @@ class FirmwareEmulator:
         binary = firmware_binary()
         self.process = subprocess.Popen(
             [str(binary), *self.options.arguments()], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            start_new_session=True,  # Ctrl-C in the terminal reaches the Python side, which stops it cleanly
         )  # fmt: skip
         lines = self._first_lines(2)
         if len(lines) < 2 or not lines[0].startswith("port ") or not lines[1].startswith("boot "):
