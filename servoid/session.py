@@ -456,8 +456,8 @@ class _Sampler:
                 self._missed(k, scheduled, reference)
                 continue
             clock.sleep_until_ns(scheduled)
-            start = clock.now_ns()
             command = self.command_filter(reference) if self.command_filter is not None else reference
+            start = clock.now_ns()  # after the filter: a slow filter makes the exchange late, and that shows
             try:
                 m = driver.exchange(command, slot=k)
             except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on

@@ -136,7 +136,8 @@ class SerialDriver(Driver):
     # ---- primitives -------------------------------------------------------------------
     def _open(self) -> None:
         try:
-            self._port = serial.Serial(self.port_name, self.baud, timeout=0, write_timeout=self.timeout)
+            # writing only blocks when the line is jammed: give it longer than a reply
+            self._port = serial.Serial(self.port_name, self.baud, timeout=0, write_timeout=max(1.0, self.timeout))
         except serial.SerialException as exc:
             raise DriverError(f"{self.describe()}: cannot open {self.port_name}: {exc}") from exc
         self._port.reset_input_buffer()
@@ -233,7 +234,10 @@ class SerialDriver(Driver):
         port = self._require_port()
         seq = self._seq
         self._seq = (self._seq + 1) % SEQ_MODULUS
-        port.write(encode(f"{seq} {verb}" if arg is None else f"{seq} {verb} {arg}"))
+        try:
+            port.write(encode(f"{seq} {verb}" if arg is None else f"{seq} {verb} {arg}"))
+        except serial.SerialTimeoutException as exc:
+            raise DriverTimeout(f"{self.describe()}: could not send {verb} (seq {seq}): {exc}") from exc
         deadline = time.perf_counter() + self.timeout
         corrupted = False
         while True:
