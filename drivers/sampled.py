@@ -20,7 +20,8 @@ points and keeps running on its own when the host falls silent:
   the previous command in periods, rounded (commands closer than one and a
   half periods are one sample each);
 * a read without a command runs the held samples due up to its time and
-  returns the latest;
+  returns the latest (the first request after the torque went on, command or
+  read, starts the count of sample times);
 * with the torque off the plant does not move and commands are refused.
 
 Without a period (``period_ns=None``) every command is one sample, whatever
@@ -161,7 +162,9 @@ class SampledPlant:
 
     def read(self, t_ns: int) -> PlantSample:
         """The reading of the latest sample at or before ``t_ns`` (running the held samples due)."""
-        if self.enabled and self.period_ns is not None and self._last_ns is not None:
+        if self.enabled and self.period_ns is not None:
+            if self._last_ns is None:
+                self._last_ns = t_ns  # sample times count from the first request, command or read
             due = (t_ns - self._last_ns) // self.period_ns
             for _ in range(max(due, 0)):
                 self._step(self.held)

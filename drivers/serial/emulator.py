@@ -106,7 +106,7 @@ class FirmwareOptions:
         """Command-line arguments of the firmware process."""
         m = self.model
         args = [
-            "--a", ",".join(repr(v) for v in m.a), "--b", ",".join(repr(v) for v in m.b),
+            "--a", ",".join(repr(float(v)) for v in m.a), "--b", ",".join(repr(float(v)) for v in m.b),
             "--delay", str(m.delay), "--m2", repr(m.m2), "--c1", repr(m.c1), "--c2", repr(m.c2),
             "--cpr", str(self.counts_per_rev), "--noise", repr(self.noise), "--seed", str(self.seed),
             "--flip-tx", repr(self.flip_tx), "--flip-rx", repr(self.flip_rx), "--drop", repr(self.drop),

@@ -180,7 +180,8 @@ static void handle(fw_state_t *fw, char *body, int n)
             return;
         }
         fw->streaming = (int)arg;
-        fw->next_stream_us = hal_micros() + fw->period_us;
+        fw->next_stream_us = hal_micros();
+        fw->have_stream_tick = 0;
         reply_ok(fw, seq);
         return;
     case 'Q':
@@ -225,9 +226,16 @@ void fw_poll(fw_state_t *fw)
     }
     now = hal_micros();
     if (fw->streaming && (int32_t)(now - fw->next_stream_us) >= 0) {
-        fw->next_stream_us += fw->period_us;
-        if ((int32_t)(now - fw->next_stream_us) >= 0) fw->next_stream_us = now + fw->period_us; /* fell behind: no burst */
-        reply_sample(fw, fw->stream_n++, "D", hal_encoder_read());
+        /* one frame per new sample of the position loop; after a stall only the
+         * latest is sent (its tick shows the gap), never a burst */
+        hal_sample_t s = hal_encoder_read();
+        if (!fw->have_stream_tick || s.tick != fw->stream_tick) {
+            reply_sample(fw, fw->stream_n++, "D", s);
+            fw->have_stream_tick = 1;
+            fw->stream_tick = s.tick;
+        }
+        fw->next_stream_us = s.t_us + fw->period_us;
+        if ((int32_t)(fw->next_stream_us - now) <= 0) fw->next_stream_us = now + fw->period_us / 4u;
     }
     if (fw->torque && fw->watchdog_ms && elapsed(now, fw->last_request_us, fw->watchdog_ms * 1000u)) {
         set_torque(fw, 0); /* the host went silent (crashed, unplugged): never leave the motor powered */

@@ -38,7 +38,9 @@ typedef struct {
     uint32_t last_slot;
     uint32_t last_request_us;
     int streaming;
-    uint32_t next_stream_us;
+    uint32_t next_stream_us;       /* when the loop's next sample is due */
+    int have_stream_tick;
+    uint32_t stream_tick;          /* loop sample of the last streamed frame */
     uint16_t stream_n;
     uint32_t rx_ok, rx_bad, tx;    /* frames accepted, rejected, sent */
 } fw_state_t;

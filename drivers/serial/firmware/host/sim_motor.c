@@ -152,7 +152,11 @@ hal_sample_t sim_motor_command(sim_motor_t *s, int32_t counts, uint32_t periods,
 
 hal_sample_t sim_motor_read(sim_motor_t *s, uint32_t now_us)
 {
-    if (s->enabled && s->period_us != 0 && s->started) {
+    if (s->enabled && s->period_us != 0 && !s->started) {
+        s->started = 1; /* the loop's sample times count from the first request, command or read */
+        s->last_us = now_us;
+    }
+    if (s->enabled && s->period_us != 0) {
         uint32_t due = (uint32_t)(now_us - s->last_us) / s->period_us;
         hold(s, due);
         s->last_us += due * s->period_us;
