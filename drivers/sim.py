@@ -18,12 +18,12 @@ absence) and detects the restart from the boot id.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
+from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
 from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
@@ -67,46 +67,6 @@ def reference_output_std(plant: SimPlant) -> float:
     """Standard deviation of the plant's output under its reference input (the base of ``snr``)."""
     u = np.random.default_rng(0).uniform(-plant.amplitude, plant.amplitude, 20_000)
     return float(np.std(simulate(plant.model, u).y_clean))
-
-
-def _probability(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value <= 1.0:
-        raise ValueError("must lie in [0, 1]")
-    return value
-
-
-def _non_negative(text: str) -> float:
-    value = float(text)
-    if not value >= 0.0 or math.isinf(value):
-        raise ValueError("must be a finite number >= 0")
-    return value
-
-
-def _positive(text: str) -> float:
-    value = float(text)
-    if not value > 0.0 or math.isinf(value):
-        raise ValueError("must be a finite number > 0")
-    return value
-
-
-def _count(text: str) -> int:
-    value = int(text)
-    if value < 0:
-        raise ValueError("must be an integer >= 0")
-    return value
-
-
-def _clock(text: str) -> str:
-    if text not in ("real", "virtual"):
-        raise ValueError("choose real or virtual")
-    return text
-
-
-def _plant(text: str) -> str:
-    if text not in SIM_PLANTS:
-        raise ValueError(f"choose one of {', '.join(SIM_PLANTS)}")
-    return text
 
 
 class SimDevice:
@@ -214,17 +174,17 @@ class SimDriver(Driver):
 
     scheme: ClassVar[str] = "sim"
     options: ClassVar[Mapping[str, Option]] = {
-        "plant": Option(_plant, f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
-        "snr": Option(_positive, "measurement noise as sqrt(var(y)/var(noise)) under the reference input"),
-        "noise": Option(_non_negative, "measurement noise standard deviation (plant unit)"),
-        "latency": Option(_non_negative, "reply delay (s)"),
-        "jitter": Option(_non_negative, "mean exponential extra reply delay (s)"),
-        "drop": Option(_probability, "probability that a reply is lost, in [0, 1]"),
-        "timeout": Option(_positive, "how long to wait for a reply (s, default 0.05)"),
-        "mute_after": Option(_count, "stop answering after this many exchanges (fault injection)"),
-        "restart_after": Option(_count, "restart after this many exchanges (fault injection)"),
-        "seed": Option(_count, "seed of noise, drops and jitter (default 0)"),
-        "clock": Option(_clock, "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
+        "plant": Option(opt.choice(*SIM_PLANTS), f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
+        "snr": Option(opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"),
+        "noise": Option(opt.number(low=0), "measurement noise standard deviation (plant unit)"),
+        "latency": Option(opt.number(low=0), "reply delay (s)"),
+        "jitter": Option(opt.number(low=0), "mean exponential extra reply delay (s)"),
+        "drop": Option(opt.number(low=0, high=1, what="a probability"), "probability that a reply is lost, in [0, 1]"),
+        "timeout": Option(opt.number(low=0, low_open=True), "how long to wait for a reply (s, default 0.05)"),
+        "mute_after": Option(opt.integer(), "stop answering after this many exchanges (fault injection)"),
+        "restart_after": Option(opt.integer(), "restart after this many exchanges (fault injection)"),
+        "seed": Option(opt.integer(), "seed of noise, drops and jitter (default 0)"),
+        "clock": Option(opt.choice("real", "virtual"), "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
     }
 
     def __init__(

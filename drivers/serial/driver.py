@@ -24,6 +24,7 @@ from typing import Any, ClassVar, Mapping
 
 import serial
 
+from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, DriverURL, Measurement, Option, Reading, UnitConversion
 from servoid.drivers.serial.protocol import (
     ERROR_CODES,
@@ -42,36 +43,12 @@ __all__ = ["SerialDriver"]
 #: giving the sample up: the corrupted frame was most likely the reply.
 CORRUPT_GRACE_S = 0.002
 
+#: User units the driver offers.
+UNITS = ("rad", "counts")
+
 #: Configuration requests (identity, torque, period) are retried this often;
 #: set points never are (a repeated set point would be a second sample).
 CONFIG_ATTEMPTS = 3
-
-
-def _baud(text: str) -> int:
-    value = int(text)
-    if value <= 0:
-        raise ValueError("must be a positive integer")
-    return value
-
-
-def _seconds(text: str) -> float:
-    value = float(text)
-    if not 0.0 < value < math.inf:
-        raise ValueError("must be a number of seconds > 0")
-    return value
-
-
-def _watchdog(text: str) -> float:
-    value = float(text)
-    if not 0.0 <= value <= 600.0:
-        raise ValueError("must lie in [0, 600] seconds (0: off)")
-    return value
-
-
-def _unit(text: str) -> str:
-    if text not in ("rad", "counts"):
-        raise ValueError("choose rad or counts")
-    return text
 
 
 class SerialDriver(Driver):
@@ -97,10 +74,10 @@ class SerialDriver(Driver):
 
     scheme: ClassVar[str] = "serial"
     options: ClassVar[Mapping[str, Option]] = {
-        "baud": Option(_baud, "line rate in bit/s (default 1000000)"),
-        "timeout": Option(_seconds, "seconds to wait for a reply (default 0.1)"),
-        "unit": Option(_unit, "user unit: rad or counts (default rad)"),
-        "watchdog": Option(_watchdog, "seconds without a request before the firmware drops the torque (default 0.5)"),
+        "baud": Option(opt.integer(minimum=1), "line rate in bit/s (default 1000000)"),
+        "timeout": Option(opt.number(low=0, low_open=True), "seconds to wait for a reply (default 0.1)"),
+        "unit": Option(opt.choice(*UNITS), "user unit: rad or counts (default rad)"),
+        "watchdog": Option(opt.number(low=0, high=600), "seconds without a request before the firmware drops the torque (0: off, default 0.5)"),
     }
     clock_wrap_s: ClassVar[float | None] = 2**32 / 1e6  # u32 microsecond counter
 
@@ -118,7 +95,9 @@ class SerialDriver(Driver):
             raise ConfigError("port (='') must name a serial device, e.g. serial:///dev/ttyUSB0")
         super().__init__(**kwargs)
         self.port_name = port
-        self.baud, self.timeout, self.unit, self.watchdog = baud, timeout, _unit(unit), watchdog
+        if unit not in UNITS:
+            raise ConfigError(f"unit (={unit!r}) must be one of {', '.join(UNITS)}")
+        self.baud, self.timeout, self.unit, self.watchdog = baud, timeout, unit, watchdog
         self._port: serial.Serial | None = None
         self._splitter = FrameSplitter()
         self._seq = 0

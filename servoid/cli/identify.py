@@ -72,8 +72,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )  # fmt: skip
     src = p.add_argument_group("record")
     src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
-    src.add_argument("--samples", type=int, default=5000, metavar="N", help="simulated samples (default 5000)")
-    src.add_argument("--seed", type=int, default=0, help="seed of the simulated input and noise (default 0)")
+    src.add_argument("--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)")
+    src.add_argument("--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)")
     src.add_argument("--snr", type=float, metavar="SNR",
                      help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
                           "(default: noise-free)")  # fmt: skip

@@ -93,6 +93,17 @@ class Transport:
 
 
 @contextlib.contextmanager
+def _handed_out(driver: Driver, limits: Limits | None) -> Iterator[Driver]:
+    """The driver with the test's limits, closed (torque off) whatever the test did."""
+    if limits is not None:
+        driver.limits = limits
+    try:
+        yield driver
+    finally:
+        driver.close()
+
+
+@contextlib.contextmanager
 def _sim(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     # driver_from_url first, so that the URL options are what is tested
     opts = [f"seed={faults.seed}", f"timeout={faults.timeout}", f"drop={faults.drop}"]
@@ -103,12 +114,8 @@ def _sim(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     driver = driver_from_url("sim://?" + "&".join(opts))
     assert isinstance(driver, SimDriver)
     driver.clock = VirtualClock()
-    if limits is not None:
-        driver.limits = limits
-    try:
+    with _handed_out(driver, limits):
         yield driver
-    finally:
-        driver.close()
 
 
 @contextlib.contextmanager
@@ -121,12 +128,8 @@ def _serial(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     )  # fmt: skip
     with FirmwareEmulator(options) as emu:
         driver = driver_from_url(f"{emu.url}?timeout={faults.timeout}")
-        if limits is not None:
-            driver.limits = limits
-        try:
+        with _handed_out(driver, limits):
             yield driver
-        finally:
-            driver.close()
 
 
 #: Every driver the contract tests run over.

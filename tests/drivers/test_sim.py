@@ -77,7 +77,7 @@ def test_url_options():
     for url, fragment in [
         ("sim://?drop=2", "drop='2' is invalid"),
         ("sim://?plant=rotor", "choose one of bench, paper"),
-        ("sim://?clock=wall", "choose real or virtual"),
+        ("sim://?clock=wall", "choose one of real, virtual"),
         ("sim://?snr=40&noise=0.1", "not both"),
         ("sim://?seed=-1", "seed='-1' is invalid"),
     ]:
