@@ -23,7 +23,7 @@ from servoid.ident.backlash import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
 
-__all__ = ["Refinement", "refine", "output_error_jacobian"]
+__all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
 #: Smallest dead zone and down-line slope the search may reach, relative to std(y).
 _LOWER_BOUND_REL = 1e-9
@@ -190,3 +190,44 @@ def refine(
         success=bool(sol.success),
         message=str(sol.message),
     )
+
+
+def arx_start(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, *, na: int, nb: int, delay: int
+) -> BacklashModel:
+    """A starting model that does not depend on the MRGIA: ARX for the linear block, a small backlash.
+
+    The linear block comes from the least-squares (equation-error) fit of
+    ``y(k) = -sum a_i y(k-i) + sum b_j u(k-d-j) + offset``, treating the
+    backlash as a disturbance (the offset absorbs ``c1 != c2``); it is
+    biased, but lands close enough for the output-error search where the
+    MRGIA does not converge (see
+    :func:`servoid.ident.mrgia.convergence_margin`). An unstable fit is
+    pulled inside the unit circle. The backlash starts with ``m2 = 1`` and
+    dead zones of 5 % of ``std(y)``.
+
+    Raises
+    ------
+    ConfigError
+        For records too short or arrays of different length.
+    """
+    u_arr = validation.signal("u", u)
+    y_arr = validation.signal("y", y)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    k0 = max(na, delay + nb)
+    rows = y_arr.size - k0
+    if rows <= na + nb + 2:
+        raise ConfigError(f"{y_arr.size} samples are too few for an ARX start with na={na}, nb={nb}, delay={delay}")
+    cols = [-y_arr[k0 - i : y_arr.size - i] for i in range(1, na + 1)]
+    cols += [u_arr[k0 - delay - j : u_arr.size - delay - j] for j in range(nb + 1)]
+    cols.append(np.ones(rows))
+    theta, *_ = np.linalg.lstsq(np.column_stack(cols), y_arr[k0:], rcond=None)
+    a = theta[:na]
+    b = theta[na : na + nb + 1]
+    while np.max(np.abs(np.roots(np.r_[1.0, a]))) >= 0.995:
+        a = a * 0.95 ** np.arange(1, na + 1)  # scales every pole by 0.95
+    if not np.any(b):
+        b = np.r_[max(float(np.std(y_arr)) / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
+    dead = max(0.05 * float(np.std(y_arr)), 1e-9)
+    return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)

@@ -160,6 +160,7 @@ def result_json(record: Record, result: Identification, paths: dict[str, str]) -
         "samples": result.samples,
         "fit_nrmse": result.fit_nrmse,
         "stderr": result.stderr,
+        "refined_from": result.refined_from,
         "source": record.source,
         "units": {"input": record.input_unit, "output": record.output_unit},
         "mrgia": {
