@@ -31,7 +31,7 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -148,7 +148,7 @@ class MRGIAConfig:
         object.__setattr__(self, "_theta0", th)
 
     @classmethod
-    def paper(cls, *, na: int = 2, nb: int = 0, delay: int = 1, epsilon: float = 0.0) -> "MRGIAConfig":
+    def paper(cls, *, na: int = 2, nb: int = 0, delay: int = 1, epsilon: float = 0.0) -> MRGIAConfig:
         """The algorithm exactly as the paper prints it: no projection, no recovery."""
         return cls(na=na, nb=nb, delay=delay, epsilon=epsilon, project=False, recover=False)
 

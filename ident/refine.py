@@ -12,7 +12,7 @@ parameter error from ~4e-3 (MRGIA) to ~1e-3 at 5000 samples.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from scipy.optimize import least_squares

@@ -28,7 +28,8 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 from servoid import __version__
 from servoid.errors import DataError, ModelError

@@ -109,8 +109,8 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
         raise ConfigError(
-            f"the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
-            f"--na/--nb/--delay apply to --data recordings"
+            "the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
+            "--na/--nb/--delay apply to --data recordings"
         )
     rng = np.random.default_rng(args.seed)
     u = rng.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, size=args.samples)
