@@ -105,6 +105,18 @@ class MRGIAConfig:
         Samples after a start or a recovery before the coverage is judged.
     max_recoveries : int
         After this many recoveries the run is left alone and reported unsettled.
+    rho_floor : float
+        Tracking mode: ``rho(k)`` never falls below this, so the estimator
+        keeps forgetting old data at the rate ``1 - rho_floor`` per update and
+        follows slowly drifting parameters (0: the paper's ``rho``, which
+        decays to zero, so the estimator eventually stops learning).
+    process_noise : float
+        Tracking mode: ``q`` added to the diagonal of ``P`` at each update,
+        i.e. the parameters are modelled as a random walk of variance ``q``
+        per update (the Kalman-filter view of tracking).
+    p_max : float
+        Tracking mode: cap on the diagonal of ``P``, so that directions the
+        data do not excite for a long time cannot wind up (inf: no cap).
     """
 
     na: int = 2
@@ -121,6 +133,9 @@ class MRGIAConfig:
     coverage_window: int = 200
     warmup: int = 300
     max_recoveries: int = 20
+    rho_floor: float = 0.0
+    process_noise: float = 0.0
+    p_max: float = float("inf")
     _theta0: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -135,6 +150,10 @@ class MRGIAConfig:
         validation.integer("coverage_window", self.coverage_window, minimum=1)
         validation.integer("warmup", self.warmup, minimum=0)
         validation.integer("max_recoveries", self.max_recoveries, minimum=0)
+        validation.in_unit_interval("rho_floor", self.rho_floor, open_low=False)
+        validation.non_negative("process_noise", self.process_noise)
+        if not self.p_max > 0:
+            raise ConfigError(f"p_max (={self.p_max!r}) must be > 0")
         n = na + nb + 4
         theta0 = paper_theta0(na, nb) if self.theta0 is None else tuple(self.theta0)
         if len(theta0) != n:
@@ -170,6 +189,9 @@ class MRGIAConfig:
         cfg[_k.CFG_PROJECT] = 1.0 if self.project else 0.0
         cfg[_k.CFG_STUCK_BELOW] = self.stuck_below if self.recover else 0.0
         cfg[_k.CFG_WARMUP] = self.warmup
+        cfg[_k.CFG_RHO_FLOOR] = self.rho_floor
+        cfg[_k.CFG_PROCESS_NOISE] = self.process_noise
+        cfg[_k.CFG_P_MAX] = self.p_max
         return cfg
 
     def initial_state(self) -> np.ndarray:
