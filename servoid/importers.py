@@ -69,7 +69,7 @@ def read_emps(path: str | os.PathLike[str], *, decimate: int = 1) -> Recording:
         raise DataError(f"{p}: no such file")
     try:
         data = loadmat(p)
-    except (MatReadError, ValueError, OSError) as exc:
+    except (MatReadError, ValueError, OSError, IndexError, TypeError) as exc:  # scipy's reader fails in many ways
         raise DataError(f"{p}: not a MATLAB .mat file ({exc})") from exc
     missing = [k for k in ("t", "qg", "qm") if k not in data]
     if missing:

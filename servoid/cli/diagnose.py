@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     output_unit = args.unit or train.metadata.get("unit", "unit")
     input_unit = train.metadata.get("input_unit", "unit")
     started = time.perf_counter()
-    with _term.progress("candidates", len(config.candidates) * config.max_effects, enabled=not args.json) as bar:
+    with _term.progress("candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal) as bar:
         done = [0]
 
         def step(name: str) -> None:
