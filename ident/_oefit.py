@@ -15,12 +15,15 @@ from typing import Any, Callable, ContextManager
 import numpy as np
 from scipy.optimize import least_squares
 
+from servoid import validation
+from servoid.errors import ConfigError
+
 try:  # pragma: no cover - a dependency of servoid; without it fits are merely slower on a busy machine
     from threadpoolctl import threadpool_limits
 except ImportError:  # pragma: no cover
     threadpool_limits = None
 
-__all__ = ["OEFit", "fit_output_error", "covariance_from_jacobian", "failure_residual", "single_threaded_blas"]
+__all__ = ["OEFit", "fit_output_error", "covariance_from_jacobian", "failure_residual", "single_threaded_blas", "fit_record"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,24 @@ class OEFit:
     nfev: int
     success: bool
     message: str
+
+
+def fit_record(u: Any, y: Any, n_params: int, y0: float | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Validate a record for an output-error fit: ``(u, y, y0)`` with ``y0`` defaulting to ``y[0]``.
+
+    Raises
+    ------
+    ConfigError
+        Non-finite values, different lengths, or too few samples for ``n_params``.
+    """
+    u_arr = validation.signal("u", u)
+    y_arr = validation.signal("y", y)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    if u_arr.size <= n_params:
+        raise ConfigError(f"{u_arr.size} samples cannot determine {n_params} parameters")
+    start_y = float(y_arr[0]) if y0 is None else validation.real("y0", y0)
+    return u_arr, y_arr, start_y
 
 
 def failure_residual(y: np.ndarray) -> np.ndarray:

@@ -19,10 +19,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from servoid import validation
-from servoid.errors import ConfigError, ModelError
-from servoid.ident._jit import jit
-from servoid.ident._oefit import failure_residual, fit_output_error
-from servoid.ident.backlash import backlash_step, schur_stable
+from servoid.errors import ModelError
+from servoid.ident._oefit import failure_residual, fit_output_error, fit_record
+from servoid.ident.backlash import extended_kernel, schur_stable
 from servoid.ident.effects import EFFECTS, KernelArgs, get_effect
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
@@ -39,78 +38,6 @@ __all__ = [
 
 #: Smallest dead zone and down-line slope the search may reach, relative to std(y) (as in refine).
 _LOWER_BOUND_REL = 1e-9
-
-
-@jit
-def extended_kernel(
-    a: np.ndarray,
-    b: np.ndarray,
-    delay: int,
-    m2: float,
-    c1: float,
-    c2: float,
-    saturation: float,
-    dead_band: float,
-    friction: float,
-    u: np.ndarray,
-    y0: float,
-    x_out: np.ndarray,
-    y_out: np.ndarray,
-    zone_out: np.ndarray,
-) -> None:
-    """Free-run simulation of the extended model (see :mod:`servoid.ident.effects`).
-
-    Per sample: the input blocks turn ``u`` into ``w`` (saturation, then dead
-    band); the linear block computes
-    ``x(k) = -sum a_i x(k-i) + sum b_j (w(k-d-j) - friction s(k-j))`` with
-    ``s(k) = sign(x(k-1) - x(k-2))``; the backlash of
-    :func:`~servoid.ident.backlash.backlash_step` gives ``y``. Inputs and
-    ``x`` before the first sample are zero, the backlash output ``y0``.
-    With ``saturation = inf``, ``dead_band = 0`` and ``friction = 0`` this is
-    :func:`~servoid.ident.backlash.simulate_kernel` exactly.
-    """
-    na = a.shape[0]
-    nb = b.shape[0] - 1
-    n = u.shape[0]
-    w = np.empty(n)
-    s = np.zeros(n)
-    x_prev = 0.0
-    x_prev2 = 0.0
-    y_prev = y0
-    for k in range(n):
-        v = u[k]
-        if v > saturation:
-            v = saturation
-        elif v < -saturation:
-            v = -saturation
-        if v > dead_band:
-            v -= dead_band
-        elif v < -dead_band:
-            v += dead_band
-        else:
-            v = 0.0
-        w[k] = v
-        if x_prev > x_prev2:
-            s[k] = 1.0
-        elif x_prev < x_prev2:
-            s[k] = -1.0
-        x = 0.0
-        for i in range(1, na + 1):
-            if k - i >= 0:
-                x -= a[i - 1] * x_out[k - i]
-        for j in range(nb + 1):
-            idx = k - delay - j
-            if idx >= 0:
-                x += b[j] * w[idx]
-            if friction != 0.0 and k - j >= 0:
-                x -= b[j] * friction * s[k - j]
-        y, zone = backlash_step(x, x_prev, y_prev, m2, c1, c2)
-        zone_out[k] = zone
-        x_out[k] = x
-        y_out[k] = y
-        x_prev2 = x_prev
-        x_prev = x
-        y_prev = y
 
 
 @dataclass(frozen=True)
@@ -434,13 +361,7 @@ def fit_extended(
     (:attr:`servoid.ident.effects.Effect.bounds`); an unstable linear block
     gets a large constant residual.
     """
-    u_arr = validation.signal("u", u)
-    y_arr = validation.signal("y", y)
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    if u_arr.size <= initial.n_params:
-        raise ConfigError(f"{u_arr.size} samples cannot determine {initial.n_params} parameters")
-    start_y = float(y_arr[0]) if y0 is None else validation.real("y0", y0)
+    u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
     layout = _Layout(initial, u_arr, y_arr)
     problem = _ExtendedOutputError(layout, u_arr, y_arr, start_y)
     fit = fit_output_error(problem, layout.vector(initial), layout.lower, layout.upper, max_nfev=max_nfev)

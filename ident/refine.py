@@ -15,9 +15,7 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from servoid import validation
-from servoid.errors import ConfigError
-from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error
+from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 from servoid.ident.backlash import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
@@ -145,13 +143,7 @@ def refine(
     step. Bounds keep ``m2``, ``c1`` and ``c2`` positive; stability of the
     linear block is kept by a penalty.
     """
-    u_arr = validation.signal("u", u)
-    y_arr = validation.signal("y", y)
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    if u_arr.size <= initial.n_params:
-        raise ConfigError(f"{u_arr.size} samples cannot determine {initial.n_params} parameters")
-    start_y = float(y_arr[0]) if y0 is None else validation.real("y0", y0)
+    u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
     problem = _OutputError(u_arr, y_arr, initial, start_y)
 
     p0 = initial.values()
