@@ -15,10 +15,7 @@ from dataclasses import dataclass
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
-
-from servoid import validation
-from servoid.errors import ConfigError
+from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 from servoid.ident.backlash import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
@@ -81,9 +78,8 @@ class _OutputError:
         self.x = np.empty_like(u)
         self.y_hat = np.empty_like(u)
         self.zone = np.empty(u.shape, dtype=np.int8)
-        # Outside the stable region the simulation explodes; a large, constant
-        # residual lets the trust region step back instead of failing on inf.
-        self.penalty = np.full(u.shape, 10.0 * (float(np.max(np.abs(y))) + float(np.std(y)) + 1.0))
+        # Outside the stable region the simulation explodes.
+        self.penalty = failure_residual(y)
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         na, nb = self.na, self.nb
@@ -108,18 +104,10 @@ class _OutputError:
 def output_error_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:
     """Covariance and standard errors ``s^2 (J^T J)^+`` of a least-squares fit.
 
-    ``s^2 = sum(residual^2) / (N - p)``. Directions the data do not determine
-    (singular ``J^T J``) get NaN standard errors rather than a made-up number.
+    See :func:`servoid.ident._oefit.covariance_from_jacobian` (kept here for
+    callers of this module).
     """
-    dof = max(residual.size - n_params, 1)
-    s2 = float(residual @ residual) / dof
-    jtj = jac.T @ jac
-    cov = s2 * np.linalg.pinv(jtj)
-    rank = np.linalg.matrix_rank(jtj)
-    stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    if rank < n_params:
-        stderr[:] = np.nan
-    return cov, stderr
+    return covariance_from_jacobian(residual, jac, n_params)
 
 
 def refine(
@@ -155,13 +143,7 @@ def refine(
     step. Bounds keep ``m2``, ``c1`` and ``c2`` positive; stability of the
     linear block is kept by a penalty.
     """
-    u_arr = validation.signal("u", u)
-    y_arr = validation.signal("y", y)
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    if u_arr.size <= initial.n_params:
-        raise ConfigError(f"{u_arr.size} samples cannot determine {initial.n_params} parameters")
-    start_y = float(y_arr[0]) if y0 is None else validation.real("y0", y0)
+    u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
     problem = _OutputError(u_arr, y_arr, initial, start_y)
 
     p0 = initial.values()
@@ -170,25 +152,20 @@ def refine(
     lower[-3:] = floor
     p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
 
-    sol = least_squares(
-        problem, p0, bounds=(lower, np.full(p0.size, np.inf)),
-        method="trf", x_scale="jac", diff_step=1e-7, max_nfev=max_nfev,
-    )  # fmt: skip
-    model = problem.model(sol.x)
-    residual = problem(sol.x)
-    cov, stderr = output_error_jacobian(residual, sol.jac, p0.size)
-    y_hat = residual + y_arr
+    fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)
+    model = problem.model(fit.x)
+    y_hat = fit.residual + y_arr
     return Refinement(
         model=model,
         initial=initial,
-        stderr=tuple(float(s) for s in stderr),
-        covariance=cov,
+        stderr=tuple(float(s) for s in fit.stderr),
+        covariance=fit.covariance,
         nrmse=nrmse(y_arr, y_hat),
         initial_nrmse=nrmse(y_arr, problem(p0) + y_arr),
-        residual_std=float(np.std(residual)),
-        nfev=int(sol.nfev),
-        success=bool(sol.success),
-        message=str(sol.message),
+        residual_std=float(np.std(fit.residual)),
+        nfev=fit.nfev,
+        success=fit.success,
+        message=fit.message,
     )
 
 
