@@ -11,10 +11,13 @@ parameter error from ~4e-3 (MRGIA) to ~1e-3 at 5000 samples.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
+
+from servoid import validation
+from servoid.errors import ConfigError
 from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 from servoid.ident.backlash import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
