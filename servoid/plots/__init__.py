@@ -6,6 +6,7 @@ Shared helpers: :func:`pyplot` (matplotlib with the Agg backend) and
 """
 
 from servoid.plots._base import pyplot, save
+from servoid.plots.compensation import plot_robustness, plot_tracking
 from servoid.plots.identify import plot_backlash, plot_convergence, plot_fit
 
-__all__ = ["pyplot", "save", "plot_convergence", "plot_fit", "plot_backlash"]
+__all__ = ["pyplot", "save", "plot_convergence", "plot_fit", "plot_backlash", "plot_tracking", "plot_robustness"]
