@@ -6,7 +6,8 @@ live driver), so that all of them write the same outputs:
 ``recording.csv``
     The record (``t`` when known, ``u``, ``y``, plus any extra columns).
 ``model.json``
-    The best model, versioned (:mod:`servoid.modelfile`).
+    The best model, versioned (:mod:`servoid.modelfile`), with the fit's
+    residual RMS as the noise the smoothing band of its inverse is set for.
 ``convergence.png``, ``fit.png``, ``backlash.png``
     Parameter estimates against samples; measured against simulated output;
     the identified backlash loop.
@@ -99,6 +100,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         source=record.source,
         samples=result.samples,
         servo=record.servo,
+        noise_std=result.fit_nrmse * float(np.std(record.y)),  # the residual RMS; the band follows from it
     )
     paths["model"] = str(save_model(out_dir / "model.json", content))
     if plots:

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from servoid.errors import ModelError
+from servoid.errors import DataError, ModelError
 from servoid.extendedfile import load_extended_model, save_extended_model
 from servoid.ident import PAPER_PLANT, BacklashModel, free_run
 from servoid.ident._jit import python_version
@@ -120,11 +120,17 @@ def test_model_json_round_trip(tmp_path):
     assert load_extended_model(plain)[0] == ExtendedModel(PAPER_PLANT)
 
 
-@pytest.mark.parametrize("effects, fragment", [({"a": 1}, "must be a list"), ([{"name": "dead_zone"}], "keys 'name' and 'parameters'"),
-                                               ([{"name": "dead_zone", "parameters": {"width": -1}}], "must be >= 0")])
-def test_a_bad_effects_entry_is_named(tmp_path, effects, fragment):
+@pytest.mark.parametrize(
+    "effects, error, fragment",
+    [
+        ({"a": 1}, DataError, "'effects' must be a list of model extensions"),  # caught when the file is read
+        ([{"name": "dead_zone"}], ModelError, "keys 'name' and 'parameters'"),
+        ([{"name": "dead_zone", "parameters": {"width": -1}}], ModelError, "must be >= 0"),
+    ],
+)
+def test_a_bad_effects_entry_is_named(tmp_path, effects, error, fragment):
     path = save_model(tmp_path / "m.json", ModelFile(model=PAPER_PLANT, extra={"effects": effects}))
-    with pytest.raises(ModelError, match=fragment):
+    with pytest.raises(error, match=fragment):
         load_extended_model(path)
 
 

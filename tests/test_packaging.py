@@ -35,6 +35,9 @@ def test_wheel_installs_every_package(tmp_path):
     import zipfile
 
     names = zipfile.ZipFile(wheel).namelist()
+    # data files the exporters read at run time
+    for data in ("servoid/export/templates/backlash_compensator.h", "servoid/model.schema.json"):
+        assert data in names, data
     for pillar in ("ident", "drivers", "excitation"):
         for init in (ROOT / pillar).rglob("__init__.py"):
             rel = init.relative_to(ROOT / pillar).as_posix()

@@ -6,6 +6,7 @@ Shared helpers: :func:`pyplot` (matplotlib with the Agg backend) and
 """
 
 from servoid.plots._base import pyplot, save
+from servoid.plots.compensation import plot_robustness, plot_tracking
 from servoid.plots.diagnose import plot_candidates, plot_diagnosis_fit, plot_regimes, plot_residual_tests
 from servoid.plots.identify import plot_backlash, plot_convergence, plot_fit
 
@@ -19,4 +20,6 @@ __all__ = [
     "plot_regimes",
     "plot_residual_tests",
     "plot_candidates",
+    "plot_tracking",
+    "plot_robustness",
 ]
