@@ -80,6 +80,9 @@ N_SCALARS = 14
 #: Below this share of samples moving one way, that side is not judged.
 MIN_MOVE_SHARE = 0.02
 
+#: A measured move counts for the line coverage when |dy| >= this times epsilon.
+COVERAGE_MOVE_FACTOR = 6.0
+
 # return codes of mrgia_step
 STEP_PRIMED = 0  # first sample after start or a gap: y(k-1) unknown, nothing estimated
 STEP_HELD = 1  # Phi = 0: memory zone, nothing updated (eq. 42)
@@ -348,11 +351,18 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
                 code = STEP_UPDATED
 
         # after the divergence checks, so that a diverging sample changes nothing
+        # Coverage counts only clear moves, |dy| >= 6 epsilon (~5 noise std):
+        # with output noise about half the samples in the play cross epsilon
+        # itself (9 % cross 3 epsilon) and the model rightly keeps them off the
+        # lines; counting them made a long one-sided stretch look stuck.
         alpha = cfg[CFG_COVERAGE_ALPHA]
-        state[osc + SC_MOVE_UP] += alpha * (g4 - state[osc + SC_MOVE_UP])
-        state[osc + SC_MOVE_DOWN] += alpha * (g5 - state[osc + SC_MOVE_DOWN])
-        state[osc + SC_LINE_UP] += alpha * (up - state[osc + SC_LINE_UP])
-        state[osc + SC_LINE_DOWN] += alpha * (down - state[osc + SC_LINE_DOWN])
+        clear = COVERAGE_MOVE_FACTOR * eps
+        move_up = 1.0 if (g4 == 1.0 and dy >= clear) else 0.0
+        move_down = 1.0 if (g5 == 1.0 and -dy >= clear) else 0.0
+        state[osc + SC_MOVE_UP] += alpha * (move_up - state[osc + SC_MOVE_UP])
+        state[osc + SC_MOVE_DOWN] += alpha * (move_down - state[osc + SC_MOVE_DOWN])
+        state[osc + SC_LINE_UP] += alpha * (up * move_up - state[osc + SC_LINE_UP])
+        state[osc + SC_LINE_DOWN] += alpha * (down * move_down - state[osc + SC_LINE_DOWN])
         state[osc + SC_PHI] = phi
 
     # advance: x-hat(k) (computed with theta-hat(k-1)), u(k), y(k), t
