@@ -12,7 +12,9 @@ Conventions: ``u`` is in the unit of the command, time in samples,
 frequencies in cycles per sample (0 to 0.5).
 """
 
+from servoid.excitation.design import Design, Prior, ServoLimits, design
 from servoid.excitation.generate import SignalState, generate, sample, stream
+from servoid.excitation.report import ExcitationReport, InputStats, ModelExcitation, Verdict, assess
 from servoid.excitation.specs import (
     KINDS,
     ChirpSpec,
@@ -41,4 +43,13 @@ __all__ = [
     "generate",
     "sample",
     "stream",
+    "assess",
+    "ExcitationReport",
+    "InputStats",
+    "ModelExcitation",
+    "Verdict",
+    "design",
+    "Design",
+    "Prior",
+    "ServoLimits",
 ]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from servoid import validation
 from servoid.errors import ConfigError, ModelError
 from servoid.excitation.generate import sample
-from servoid.excitation.report import ExcitationReport, Verdict, assess
+from servoid.excitation.report import ExcitationReport, Level, Verdict, assess, worst_level
 from servoid.excitation.specs import SignalSpec, StepsSpec, UniformSpec
 from servoid.ident.model import BacklashModel
 
@@ -192,9 +192,14 @@ class Design:
     reasons: tuple[str, ...]
 
     @property
+    def level(self) -> Level:
+        """The worst applicable verdict level."""
+        return worst_level(self.verdicts)
+
+    @property
     def sufficient(self) -> bool:
         """True when no applicable verdict is ``insufficient``."""
-        return all(v.level != "insufficient" for v in self.verdicts)
+        return self.level != "insufficient"
 
 
 def _spec_for(amplitude: float, limits: ServoLimits) -> SignalSpec:

@@ -35,7 +35,16 @@ from servoid.excitation.regressor import regressor
 from servoid.ident.model import BacklashModel
 from servoid.ident.simulate import Simulation, simulate
 
-__all__ = ["Verdict", "InputStats", "ModelExcitation", "ExcitationReport", "assess", "input_stats", "through_model"]
+__all__ = [
+    "Verdict",
+    "InputStats",
+    "ModelExcitation",
+    "ExcitationReport",
+    "assess",
+    "input_stats",
+    "through_model",
+    "worst_level",
+]
 
 Level = Literal["ok", "warning", "insufficient"]
 
@@ -88,6 +97,10 @@ class Verdict:
     level: Level
     topic: str
     message: str
+
+    def to_dict(self) -> dict[str, str]:
+        """``{"level", "topic", "message"}``."""
+        return {"level": self.level, "topic": self.topic, "message": self.message}
 
 
 @dataclass(frozen=True)
@@ -218,13 +231,12 @@ class ExcitationReport:
     @property
     def sufficient(self) -> bool:
         """True when no verdict is ``insufficient``."""
-        return all(v.level != "insufficient" for v in self.verdicts)
+        return worst_level(self.verdicts) != "insufficient"
 
     @property
     def level(self) -> Level:
         """The worst verdict level."""
-        levels = {v.level for v in self.verdicts}
-        return "insufficient" if "insufficient" in levels else "warning" if "warning" in levels else "ok"
+        return worst_level(self.verdicts)
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict (no per-sample arrays)."""
@@ -239,7 +251,7 @@ class ExcitationReport:
                 "pe_condition": [_finite_or_none(c) for c in sig.pe_condition],
             },
             "needed_order": self.needed_order,
-            "verdicts": [{"level": v.level, "topic": v.topic, "message": v.message} for v in self.verdicts],
+            "verdicts": [v.to_dict() for v in self.verdicts],
         }  # fmt: skip
         tm = self.through_model
         if tm is not None:
@@ -253,6 +265,12 @@ class ExcitationReport:
                 "beyond_crossing": tm.beyond_crossing,
             }  # fmt: skip
         return out
+
+
+def worst_level(verdicts: Sequence[Verdict]) -> Level:
+    """The worst level among ``verdicts`` (``ok`` when there are none)."""
+    levels = {v.level for v in verdicts}
+    return "insufficient" if "insufficient" in levels else "warning" if "warning" in levels else "ok"
 
 
 def _finite_or_none(value: float) -> float | None:

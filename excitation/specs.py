@@ -12,23 +12,20 @@ Every kind shares three keys that keep the signal safe:
 ``rate`` (default ``inf``, no limit)
     Largest change between consecutive samples, unit of ``u`` per sample.
 
-The other keys belong to one kind (time is counted in samples, frequency in
-cycles per sample, 0 to 0.5):
+The other keys belong to one kind (time in samples, frequency in cycles per
+sample, 0 to 0.5); each class below documents its keys, and :func:`grammar`
+lists them with their defaults:
 
 =========== ================================================================
-kind        keys (defaults)
+kind        what it is, and its keys
 =========== ================================================================
 uniform     uniform bounded white noise, the paper's input (Section 4)
-prbs        ``hold=1`` samples per bit, ``order=10`` register bits
-            (a maximum-length sequence of period ``2^order - 1`` bits)
-steps       ``hold=5`` samples per step, ``levels=0`` (0: any value in the
-            bound, else that many evenly spaced levels)
-multisine   ``bands=0.01-0.25`` (several joined by ``+``), ``period=1000``;
-            Schroeder phases
-chirp       ``f0=0.005``, ``f1=0.25``, ``period=1000`` samples per sweep,
-            ``sweep=linear`` (or ``log``)
-levels      ``count=3`` operating levels, ``dwell=500`` samples at each,
-            ``dither=amplitude/count`` around each level, ``hold=1``
+prbs        a maximum-length binary sequence: ``hold``, ``order``
+steps       random steps: ``hold``, ``levels``
+multisine   equal-amplitude cosines with Schroeder phases: ``bands``, ``period``
+chirp       a swept sine: ``f0``, ``f1``, ``period``, ``sweep``
+levels      dithered visits to operating levels: ``count``, ``dwell``,
+            ``dither``, ``hold``
 =========== ================================================================
 
 :func:`parse_spec` reads the text form, :func:`format_spec` writes it back
@@ -40,7 +37,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, fields
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, ClassVar
 
 from servoid import validation
@@ -91,7 +88,6 @@ class SignalSpec:
     """
 
     kind: ClassVar[str] = ""
-    summary: ClassVar[str] = ""
 
     amplitude: float
     offset: float = 0.0
@@ -135,7 +131,6 @@ class UniformSpec(SignalSpec):
     """Uniform bounded white noise on ``[offset - amplitude, offset + amplitude]``: the paper's input."""
 
     kind: ClassVar[str] = "uniform"
-    summary: ClassVar[str] = "uniform bounded white noise (the paper's input)"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -153,7 +148,6 @@ class PRBSSpec(SignalSpec):
     """
 
     kind: ClassVar[str] = "prbs"
-    summary: ClassVar[str] = "maximum-length pseudo-random binary sequence"
 
     hold: int = 1
     order: int = 10
@@ -186,7 +180,6 @@ class StepsSpec(SignalSpec):
     """
 
     kind: ClassVar[str] = "steps"
-    summary: ClassVar[str] = "multi-level random steps with a hold time"
 
     hold: int = 5
     levels: int = 0
@@ -219,7 +212,6 @@ class MultisineSpec(SignalSpec):
     """
 
     kind: ClassVar[str] = "multisine"
-    summary: ClassVar[str] = "multisine with Schroeder phases (low crest factor)"
 
     bands: tuple[tuple[float, float], ...] = ((0.01, 0.25),)
     period: int = 1000
@@ -273,7 +265,6 @@ class ChirpSpec(SignalSpec):
     """
 
     kind: ClassVar[str] = "chirp"
-    summary: ClassVar[str] = "swept sine (chirp)"
 
     f0: float = 0.005
     f1: float = 0.25
@@ -315,11 +306,10 @@ class LevelsSpec(SignalSpec):
     """
 
     kind: ClassVar[str] = "levels"
-    summary: ClassVar[str] = "random steps between operating levels, dithered at each"
 
     count: int = 3
     dwell: int = 500
-    dither: float | None = None
+    dither: float | None = field(default=None, metadata={"default": "amplitude/count"})
     hold: int = 1
 
     def __post_init__(self) -> None:
@@ -369,8 +359,17 @@ def format_spec(spec: SignalSpec) -> str:
 
 
 def grammar() -> str:
-    """One line per kind with its keys: what error messages and ``--help`` show."""
-    return "\n".join(f"  {kind:10s} {', '.join(cls.keys())}" for kind, cls in KINDS.items())
+    """One line per kind with its keys and their defaults: what ``--help`` shows."""
+    lines = []
+    for kind, cls in KINDS.items():
+        keys = []
+        for f in fields(cls):
+            if f.name in ("amplitude", "offset", "rate"):
+                continue
+            default = f.metadata.get("default", _format_value(f.default) if f.default is not MISSING else "")
+            keys.append(f"{f.name}={default}")
+        lines.append(f"  {kind:10s} {', '.join(keys) if keys else '(only the shared keys)'}")
+    return "\n".join(lines)
 
 
 def _kinds_hint() -> str:

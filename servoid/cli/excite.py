@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Sequence
 
 import numpy as np
 from rich.markup import escape
@@ -14,7 +14,7 @@ from servoid.cli import _term
 from servoid.errors import ConfigError
 from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sample
 from servoid.excitation.design import Design, Prior, ServoLimits, design
-from servoid.excitation.report import ExcitationReport, assess
+from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
 from servoid.excitation.specs import grammar
 from servoid.ident.model import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
@@ -37,13 +37,11 @@ SPEC is kind:key=value,... ; every kind takes
   amplitude  half-width of the bound around offset, unit of u (required)
   offset     operating point, unit of u (default 0); the signal starts there
   rate       largest change per sample, unit of u (default inf: no limit)
-and its own keys (time in samples, frequency in cycles per sample, 0-0.5):
+and its own keys, shown with their defaults (time in samples, frequency in
+cycles per sample, 0 to 0.5; docs/excitation.md explains every key):
 {grammar()}
 Every sample stays inside [offset - amplitude, offset + amplitude], also
-under the rate limit. Defaults: prbs hold=1 order=10; steps hold=5 levels=0
-(any value); multisine bands=0.01-0.25 period=1000; chirp f0=0.005 f1=0.25
-period=1000 sweep=linear; levels count=3 dwell=500 dither=amplitude/count
-hold=1. docs/excitation.md explains every key.
+under the rate limit.
 
 --design proposes a signal instead: from the command range (--range), the
 largest step per sample (--max-step), the settling time (--settle, with
@@ -207,7 +205,7 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
     return rows
 
 
-def _print_verdicts(verdicts: Any) -> None:
+def _print_verdicts(verdicts: Sequence[Verdict]) -> None:
     colour = {"ok": "green", "warning": "yellow", "insufficient": "red"}
     for v in verdicts:
         _term.stdout.print(f"[{colour[v.level]}]{v.level:12s}[/{colour[v.level]}] {escape(v.message)}")
@@ -244,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
 
         paths["plot"] = str(plot_excitation(
             u, report, args.plot, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
-            input_unit="" if args.unit == "unit" else args.unit, title=spec.kind,
+            input_unit="" if args.unit == "unit" else args.unit, title=spec.kind, level=worst_level(verdicts),
         ))  # fmt: skip
 
     if args.json:
@@ -253,7 +251,11 @@ def run(args: argparse.Namespace) -> int:
             "sample_period_s": args.sample_period, "model_source": model_source,
             "report": report.to_dict(), "outputs": paths,
         }  # fmt: skip
-        obj["report"]["verdicts"] = [{"level": v.level, "topic": v.topic, "message": v.message} for v in verdicts]
+        # a design judges only the verdicts that apply to its prior
+        obj["report"].update(
+            verdict=worst_level(verdicts), sufficient=worst_level(verdicts) != "insufficient",
+            verdicts=[v.to_dict() for v in verdicts],
+        )  # fmt: skip
         if proposal is not None:
             obj["design"] = {"spec": format_spec(proposal.spec), "samples": proposal.samples,
                              "duration_s": proposal.duration_s, "reasons": list(proposal.reasons)}  # fmt: skip

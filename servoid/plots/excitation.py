@@ -32,6 +32,7 @@ def plot_excitation(
     window: int = 600,
     input_unit: str = "",
     title: str = "Excitation",
+    level: str | None = None,
 ) -> Path:
     """Time series, amplitude histogram and zone occupancy of an input.
 
@@ -53,7 +54,10 @@ def plot_excitation(
     input_unit : str
         Unit of ``u`` for the axis labels.
     title : str
-        Figure title; the report's overall verdict is appended.
+        Figure title; the overall verdict is appended.
+    level : str, optional
+        That verdict, when it is not the report's own (a design judges only
+        the verdicts that apply to its prior).
     """
     plt = _pyplot()
     u_arr = np.asarray(u, dtype=float)
@@ -111,6 +115,6 @@ def plot_excitation(
         ax.set_ylabel("condition of R_m")
         ax.set_title(f"persistent excitation: order {report.signal.pe_order}")
         ax.grid(alpha=0.3, which="both")
-    fig.suptitle(f"{title}: {report.level}")
+    fig.suptitle(f"{title}: {level or report.level}")
     fig.tight_layout()
     return _save(fig, path)
