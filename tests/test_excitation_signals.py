@@ -180,3 +180,15 @@ def test_levels_visit_every_level_each_cycle():
         np.testing.assert_allclose(sorted(cycle), [-3.0, 0.0, 3.0])
     dithered = sample(LevelsSpec(amplitude=3.0, count=3, dwell=100), 3000, seed=8)
     assert 0.9 < np.ptp(dithered.reshape(-1, 100), axis=1).min() <= 2.0  # dither amplitude 1 around each level
+
+
+def test_the_compiled_rate_limit_equals_its_python_original():
+    from servoid.excitation.shaping import rate_limit_kernel
+    from servoid.ident._jit import python_version
+
+    target = np.random.default_rng(2).uniform(-1.0, 1.0, 500)
+    compiled, plain = np.empty(500), np.empty(500)
+    last_c = rate_limit_kernel(target, 0.3, 0.07, -1.0, 1.0, compiled)
+    last_p = python_version(rate_limit_kernel)(target, 0.3, 0.07, -1.0, 1.0, plain)
+    np.testing.assert_array_equal(compiled, plain)
+    assert last_c == last_p == compiled[-1]
