@@ -320,7 +320,8 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
         chosen = min(found * MARGIN, half)
         reasons.append(
             f"amplitude {chosen:.4g}: the smallest that passes the report on the prior ({found:.4g}, Remark 2: "
-            f"as small as will do) x {MARGIN} for a rough prior" + (", capped by the range" if chosen == half else "")
+            f"as small as will do) x {MARGIN}, a margin for an uncertain prior"
+            + (", capped by the range" if chosen == half else "")
         )
     spec = _spec_for(chosen, limits)
     reasons.append(f"offset {limits.centre:.4g}: the middle of the range [{limits.position_min:g}, {limits.position_max:g}]")
