@@ -37,7 +37,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 from servoid import validation
@@ -178,8 +178,9 @@ class Cia402Driver(CanDriver):
             )
         node.nmt.send_command(_NMT_PRE_OPERATIONAL)
         if profile.state_of(self._sdo_read(0x6041, what="the statusword")) in _POWERED:
-            node.sdo[0x6040].raw = _DISABLE_VOLTAGE  # left enabled by an earlier session: torque off first
-        node.sdo[0x6060].raw = mode_code
+            # left enabled by an earlier session: torque off first
+            self._sdo_call(lambda: setattr(node.sdo[0x6040], "raw", _DISABLE_VOLTAGE), "switch it off (0x6040)")
+        self._sdo_call(lambda: setattr(node.sdo[0x6060], "raw", mode_code), f"set mode of operation {mode_code} (0x6060)")
         shown = self._sdo_read(0x6061, what="the mode of operation display")
         if shown != mode_code:
             raise DeviceFault(f"{self._who()} did not take mode of operation {mode_code}: 0x6061 shows {shown}")
@@ -199,7 +200,7 @@ class Cia402Driver(CanDriver):
             if not rated:
                 raise ConfigError(f"{self._who()} reports no motor rated torque (0x6076): torque mode cannot scale Nm")
         self._set_units(counts, rated_torque_mnm=rated)
-        self._map_pdos(0x607A if self.mode == "position" else 0x6071)
+        self._sdo_call(lambda: self._map_pdos(0x607A if self.mode == "position" else 0x6071), "map the PDOs")
         node.emcy.add_callback(self._on_emcy)
         self._info = self._read_identity(counts, rated)
         node.nmt.send_command(_NMT_OPERATIONAL)
@@ -353,6 +354,16 @@ class Cia402Driver(CanDriver):
         except DriverTimeout:
             return ""
         return f" (error code 0x603F = 0x{code:04X}: {profile.emcy_text(code)})" if code else ""
+
+    def _sdo_call(self, action: Callable[[], Any], what: str) -> Any:
+        """SDO downloads (``action``) with canopen's errors said in the drive's terms."""
+        canopen = import_vendor("canopen")
+        try:
+            return action()
+        except canopen.SdoCommunicationError as exc:
+            raise DriverTimeout(f"{self._who()} stopped answering SDO requests while trying to {what}") from exc
+        except canopen.SdoAbortedError as exc:
+            raise ProtocolError(f"{self._who()} refused to {what}: {exc}") from exc
 
     def _sdo_read(self, index: int, subindex: int | None = None, *, what: str, optional: bool = False) -> Any:
         """One SDO upload; no answer is DriverTimeout, an abort raises unless ``optional`` (then None)."""
