@@ -15,6 +15,10 @@ from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.can._bus import BusAddress
 from servoid.recording import RecordingWriter
 
+#: Reply timeout, s, for tests that exchange many samples and do not test timeouts: a loaded
+#: shared machine can stall a thread for tens of milliseconds, which is not what they test.
+PATIENT_S = 1.0
+
 
 def private_bus() -> BusAddress:
     """A python-can virtual channel no other test uses (channels are global to the process)."""

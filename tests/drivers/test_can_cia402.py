@@ -21,7 +21,7 @@ from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolErro
 from servoid.ident.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import bench_input, private_bus, recorded_run
+from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
 from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
 
 COUNT = 2 * math.pi / SIM_COUNTS_PER_REV
@@ -35,7 +35,7 @@ def drive():
 
 def test_positions_follow_the_bench_plant_to_within_an_increment(drive):
     u = bench_input(400, seed=1)
-    with driver_from_url(drive.url()) as servo:
+    with driver_from_url(drive.url(timeout=PATIENT_S)) as servo:
         assert isinstance(servo, Cia402Driver) and not drive.power_on
         servo.enable()
         assert drive.nmt_state == "OPERATIONAL" and drive.state == "OPERATION ENABLED" and drive.mode == 8
@@ -50,7 +50,7 @@ def test_positions_follow_the_bench_plant_to_within_an_increment(drive):
 
 def test_torque_mode_scales_nm_by_the_rated_torque(drive):
     u = bench_input(300, seed=2)  # Nm
-    with driver_from_url(drive.url(mode="torque")) as servo:
+    with driver_from_url(drive.url(mode="torque", timeout=PATIENT_S)) as servo:
         servo.enable()
         assert drive.mode == 10
         assert servo.command_unit.unit == "Nm" and servo.identity["rated_torque_mNm"] == SIM_RATED_TORQUE_MNM

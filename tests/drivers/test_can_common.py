@@ -21,7 +21,7 @@ from servoid.errors import ConfigError, DriverError, DriverTimeout
 from servoid.ident.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import bench_input, free_udp_port, private_bus, recorded_run
+from .can_helpers import PATIENT_S, bench_input, free_udp_port, private_bus, recorded_run
 from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
 
 
@@ -104,7 +104,7 @@ def test_the_emulator_in_another_process_over_udp_multicast(protocol):
         url = proc.stdout.readline().strip()
         assert url.startswith("can://udp_multicast/239.74.163.2?") and f"port={port}" in url, proc.stderr.read()
         u = bench_input(300, seed=22)
-        with driver_from_url(url) as servo:
+        with driver_from_url(f"{url}&timeout={PATIENT_S}") as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
         assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 1e-4

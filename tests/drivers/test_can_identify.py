@@ -16,7 +16,7 @@ from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can.simulated import simulated_drive
 from servoid.ident import MRGIAConfig, identify, simulate
 
-from .can_helpers import bench_input, private_bus
+from .can_helpers import PATIENT_S, bench_input, private_bus
 from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
 
 SAMPLES = 2500
@@ -26,7 +26,7 @@ SAMPLES = 2500
 def test_a_simulated_drive_identifies_like_the_plant_itself(protocol, mode):
     u = bench_input(SAMPLES, seed=31)
     with simulated_drive(protocol, bus=private_bus()) as drive:
-        with driver_from_url(drive.url(mode=mode)) as servo:
+        with driver_from_url(drive.url(mode=mode, timeout=PATIENT_S)) as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
     config = MRGIAConfig(rho_exponent=0.75)

@@ -21,7 +21,7 @@ from servoid.errors import DeviceFault, DriverTimeout
 from servoid.ident.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import bench_input, private_bus, recorded_run
+from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
 from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
 
 FLOAT32_TURN = 2 * math.pi * 2.0**-22  # resolution of a float32 position near one turn, rad
@@ -36,7 +36,7 @@ def axis():
 @pytest.mark.parametrize("mode", ["position", "torque"])
 def test_positions_follow_the_bench_plant(axis, mode):
     u = bench_input(400, seed=11)
-    with driver_from_url(axis.url(mode=mode)) as servo:
+    with driver_from_url(axis.url(mode=mode, timeout=PATIENT_S)) as servo:
         assert isinstance(servo, OdriveDriver) and not axis.power_on
         servo.enable()
         assert axis.power_on and axis.control_mode == proto.CONTROL_MODES[mode]
