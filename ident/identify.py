@@ -203,14 +203,19 @@ def identify(
             "no valid model: the MRGIA estimate is invalid and refinement was not requested "
             "(drop --no-refine, or check the orders and the input)"
         )
-    margin = convergence_margin(model.a)
     online_poor = mrgia_nrmse is None or (refinement is not None and mrgia_nrmse > 2.0 * fit + 0.02)
-    if margin < 0.0 and online_poor:
+    if online_poor and refinement is not None:
+        margin = convergence_margin(model.a)
+        why = (
+            f": its convergence condition |A(e^jw) - 1| < 1 fails for this linear block (margin {margin:.2f}); "
+            "sample more slowly"
+            if margin < 0.0
+            else " (a whiter input, e.g. uniform noise, helps the online estimate)"
+        )
         warnings.append(
             f"the MRGIA's online estimate did not converge here (fit NRMSE "
-            f"{'n/a' if mrgia_nrmse is None else f'{mrgia_nrmse:.3g}'} against {fit:.3g} refined): its "
-            f"convergence condition |A(e^jw) - 1| < 1 fails for this linear block (margin {margin:.2f}); "
-            "trust the refined model, or sample more slowly"
+            f"{'n/a' if mrgia_nrmse is None else f'{mrgia_nrmse:.3g}'} against {fit:.3g} refined from the "
+            f"{refined_from} start){why}; the refined model is the one to use"
         )
     return Identification(
         model=model,

@@ -79,3 +79,16 @@ def test_a_slow_plant_is_identified_from_the_arx_start_and_the_user_is_told():
     assert any("convergence condition" in w for w in result.warnings)
     arx = __import__("servoid.ident", fromlist=["arx_start"]).arx_start(u, sim.y, na=2, nb=0, delay=1)
     assert arx.max_relative_error(plant) > 0.1  # the start alone is not the answer: refinement is
+
+
+def test_an_online_estimate_that_did_not_converge_is_named_even_when_the_refined_model_is_right():
+    """Held PRBS (hold 3), noise-free: the MRGIA settles on a wrong model; the ARX start rescues the fit."""
+    from servoid.excitation import sample
+    from servoid.ident import simulate
+
+    u = sample("prbs:amplitude=2.406,hold=3", 5000, seed=0)
+    y = simulate(PAPER_PLANT, u).y
+    result = identify(u, y, MRGIAConfig(rho_exponent=0.75))
+    assert result.mrgia.settled and result.mrgia_model.max_relative_error(PAPER_PLANT) > 0.1
+    assert result.refined_from == "arx" and result.model.max_relative_error(PAPER_PLANT) < 1e-9
+    assert any("did not converge here" in w and "whiter input" in w for w in result.warnings)
