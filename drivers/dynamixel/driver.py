@@ -295,12 +295,13 @@ class DynamixelDriver(Driver):
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
-        self._requested_limits = self.limits
+        self._requested_limits: Limits = self.limits
         self._port: _Port | None = None
         self._ph: Any = None
         self._goal_writer: Any = None
         self._owner = 0
         self._info: dict[str, Any] = {}
+        self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
 
     @classmethod
     def from_url(cls, url: DriverURL) -> "DynamixelDriver":
@@ -353,24 +354,29 @@ class DynamixelDriver(Driver):
 
     def _set_torque(self, enabled: bool) -> None:
         with self._open_port().patience(SETUP_LATENCY_MS):
-            self._switch_torque(enabled)
+            if enabled:
+                self._torque_on()
+            else:
+                self._torque_off()
 
-    def _switch_torque(self, enabled: bool) -> None:
-        if not enabled:
-            # switching off matters most when the line is bad: try again before giving up
-            for attempt in range(TORQUE_OFF_ATTEMPTS):
-                try:
-                    self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
-                    return
-                except DriverError:
-                    if attempt == TORQUE_OFF_ATTEMPTS - 1:
-                        raise
+    def _torque_on(self) -> None:
         # start from where the servo is (position) or from rest (current, PWM): no jump
-        start = self._read_value(ct.PRESENT_POSITION) if self._goal is ct.GOAL_POSITION else 0
+        start = 0
         if self._goal is ct.GOAL_POSITION:
-            start = min(max(start, self._info["min_count"]), self._info["max_count"])
+            low, high = self._position_range
+            start = min(max(self._read_value(ct.PRESENT_POSITION), low), high)
         self._write_value(self._goal, start)
         self._write_value(ct.TORQUE_ENABLE, 1)
+
+    def _torque_off(self) -> None:
+        # switching off matters most when the line is bad: try again before giving up
+        for attempt in range(TORQUE_OFF_ATTEMPTS):
+            try:
+                self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
+                return
+            except DriverError:
+                if attempt == TORQUE_OFF_ATTEMPTS - 1:
+                    raise
 
     def _exchange(self, command: float) -> Reading:
         self._require_owner()
@@ -385,7 +391,7 @@ class DynamixelDriver(Driver):
         return self._present()
 
     def _identity(self) -> dict[str, Any]:
-        return {key: value for key, value in self._info.items() if not key.endswith("_count")}
+        return dict(self._info)
 
     # ---- public extras ------------------------------------------------------------------------
     def reboot(self) -> None:
@@ -426,6 +432,10 @@ class DynamixelDriver(Driver):
             self._write_value(ct.RETURN_DELAY_TIME, self.return_delay_us // 2)
             return_delay = self.return_delay_us // 2
         self._info = self._describe_state(state, model, return_delay)
+        self._position_range = (
+            ct.decode_value(ct.MIN_POSITION_LIMIT, state, ct.MIN_POSITION_LIMIT.address),
+            ct.decode_value(ct.MAX_POSITION_LIMIT, state, ct.MAX_POSITION_LIMIT.address),
+        )
         self.limits = self._servo_limits(state)
         self._goal_writer = GroupSyncWrite(self._port, self._ph, self._goal.address, self._goal.size)
         self._goal_writer.addParam(self.servo_id, list(ct.encode_value(self._goal, 0)))
@@ -468,21 +478,16 @@ class DynamixelDriver(Driver):
             "port": self.port,
             "operating_mode": self.mode,
             "return_delay_us": 2 * return_delay,
-            "min_count": value(ct.MIN_POSITION_LIMIT),
-            "max_count": value(ct.MAX_POSITION_LIMIT),
-            "current_limit_count": value(ct.CURRENT_LIMIT),
-            "pwm_limit_count": value(ct.PWM_LIMIT),
         }
 
     def _servo_limits(self, state: bytes) -> Limits:
         """The requested limits narrowed to the servo's own (the servo ignores goals beyond them)."""
-        info = self._info
         if self._goal is ct.GOAL_POSITION:
-            low, high = info["min_count"], info["max_count"]
-        elif self._goal is ct.GOAL_CURRENT:
-            low, high = -info["current_limit_count"], info["current_limit_count"]
+            low, high = self._position_range
         else:
-            low, high = -info["pwm_limit_count"], info["pwm_limit_count"]
+            limit_field = ct.CURRENT_LIMIT if self._goal is ct.GOAL_CURRENT else ct.PWM_LIMIT
+            high = ct.decode_value(limit_field, state, limit_field.address)
+            low = -high
         unit = self.command_unit
         servo_low, servo_high = unit.to_user(low), unit.to_user(high)
         asked = self._requested_limits

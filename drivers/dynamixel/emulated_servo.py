@@ -62,7 +62,7 @@ PWM_GAIN = 0.01
 
 _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
 #: Operating mode -> the goal entry whose write advances the plant.
-_GOAL_OF_MODE = {
+_GOAL_OF_MODE: dict[int, Field] = {
     **{mode: ct.GOAL_POSITION for mode in _POSITION_MODES},
     OperatingMode.CURRENT: ct.GOAL_CURRENT,
     OperatingMode.PWM: ct.GOAL_PWM,

@@ -391,6 +391,7 @@ class DynamixelEmulator:
     def start(self) -> "DynamixelEmulator":
         """Serve from a daemon thread (for logic tests; timing needs :class:`EmulatorProcess`)."""
         if self._thread is None:
+            self._stop.clear()
             self._thread = threading.Thread(target=self.serve_forever, name=f"dxl-emulator {self.port}", daemon=True)
             self._thread.start()
         return self
@@ -426,7 +427,6 @@ class DynamixelEmulator:
 
     def serve_forever(self) -> None:
         """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground)."""
-        self._stop.clear()
         while not self._stop.is_set():
             ready, _, _ = select.select([self._master, self._wake_r], [], [], IDLE_DISCARD_S)
             if self._wake_r in ready:
