@@ -62,7 +62,8 @@ import abc
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Mapping
+from typing import Any, ClassVar
+from collections.abc import Callable, Mapping
 
 from servoid import validation
 from servoid.errors import ConfigError, DriverError, DriverTimeout, PositionOutOfRange, ServoidError
@@ -406,7 +407,7 @@ class Driver(abc.ABC):
         return kwargs
 
     @classmethod
-    def from_url(cls, url: DriverURL) -> "Driver":
+    def from_url(cls, url: DriverURL) -> Driver:
         """Build a driver (not yet open) from a parsed URL.
 
         The default passes the parsed options as keywords; drivers whose URL
@@ -426,7 +427,7 @@ class Driver(abc.ABC):
     def torque_enabled(self) -> bool:
         return self._torque
 
-    def open(self) -> "Driver":
+    def open(self) -> Driver:
         """Open the transport (torque stays off until :meth:`enable`); returns self."""
         if self._is_open:
             return self
@@ -483,7 +484,7 @@ class Driver(abc.ABC):
             except Exception as exc:  # noqa: BLE001
                 log.warning("%s: error while closing: %s", self.describe(), exc)
 
-    def __enter__(self) -> "Driver":
+    def __enter__(self) -> Driver:
         return self.open()
 
     def __exit__(self, *exc: object) -> None:

@@ -51,7 +51,7 @@ def schemes() -> tuple[str, ...]:
     return tuple(sorted(_REGISTRY))
 
 
-def parse_url(url: str) -> "DriverURL":
+def parse_url(url: str) -> DriverURL:
     """Split a driver URL into scheme, host, path and options.
 
     Raises
@@ -75,7 +75,7 @@ def parse_url(url: str) -> "DriverURL":
     return DriverURL(raw=url, scheme=scheme, host=parts.netloc, path=parts.path, options=options)
 
 
-def driver_class(scheme: str) -> type["Driver"]:
+def driver_class(scheme: str) -> type[Driver]:
     """The driver class for ``scheme``, imported now.
 
     Raises
@@ -102,7 +102,7 @@ def driver_class(scheme: str) -> type["Driver"]:
     return getattr(module, class_name)  # type: ignore[no-any-return]
 
 
-def driver_from_url(url: str) -> "Driver":
+def driver_from_url(url: str) -> Driver:
     """Build the driver a URL names (not yet open: use it as a context manager).
 
     Examples

@@ -12,10 +12,19 @@ time is counted in samples; ``u`` is in the unit of the command and ``y``,
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import M1, BacklashModel
-from servoid.ident.mrgia import MRGIA, MRGIAConfig, MRGIAResult, RecoveryEvent, Step, noise_epsilon, run_mrgia
+from servoid.ident.mrgia import (
+    MRGIA,
+    MRGIAConfig,
+    MRGIAResult,
+    RecoveryEvent,
+    Step,
+    convergence_margin,
+    noise_epsilon,
+    run_mrgia,
+)
 from servoid.ident.paper import PAPER_PLANT
 from servoid.ident.plant import Plant
-from servoid.ident.refine import Refinement, refine
+from servoid.ident.refine import Refinement, arx_start, refine
 from servoid.ident.simulate import Simulation, free_run, noise_std_for_snr, simulate
 
 __all__ = [
@@ -34,8 +43,10 @@ __all__ = [
     "Step",
     "run_mrgia",
     "noise_epsilon",
+    "convergence_margin",
     "Refinement",
     "refine",
+    "arx_start",
     "Identification",
     "identify",
     "check_record",

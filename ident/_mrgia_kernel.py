@@ -26,6 +26,9 @@ __all__ = [
     "CFG_PROJECT",
     "CFG_STUCK_BELOW",
     "CFG_WARMUP",
+    "CFG_RHO_FLOOR",
+    "CFG_PROCESS_NOISE",
+    "CFG_P_MAX",
     "STEP_STUCK",
     "mrgia_recover",
     "CFG_SIZE",
@@ -47,7 +50,10 @@ CFG_COVERAGE_ALPHA = 2
 CFG_PROJECT = 3  # 1: refuse updates that leave the feasible set (see _feasible)
 CFG_STUCK_BELOW = 4  # a line coverage below this after the warm-up flags the run as stuck (0: never)
 CFG_WARMUP = 5  # samples after a start or a recovery before the coverage is judged
-CFG_SIZE = 6
+CFG_RHO_FLOOR = 6  # tracking: rho(t) never falls below this (0: the paper's rho)
+CFG_PROCESS_NOISE = 7  # tracking: q added to P's diagonal at each update (random-walk parameters)
+CFG_P_MAX = 8  # tracking: cap on P's diagonal elements (inf: none)
+CFG_SIZE = 9
 
 # scalar slots, after the arrays (offsets relative to StateLayout.scalars)
 SC_S = 0  # S(k), eq. (19)
@@ -73,6 +79,9 @@ N_SCALARS = 14
 
 #: Below this share of samples moving one way, that side is not judged.
 MIN_MOVE_SHARE = 0.02
+
+#: A measured move counts for the line coverage when |dy| >= this times epsilon.
+COVERAGE_MOVE_FACTOR = 6.0
 
 # return codes of mrgia_step
 STEP_PRIMED = 0  # first sample after start or a gap: y(k-1) unknown, nothing estimated
@@ -273,9 +282,10 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
             for i in range(n):
                 e -= h[i] * state[i]  # eq. (17)
 
-            rho = (t + 1.0) ** (-r)
-            rho_prev = t ** (-r)
-            mu = rho_prev / rho * (1.0 - rho)  # eq. (30)
+            floor = cfg[CFG_RHO_FLOOR]
+            rho = max((t + 1.0) ** (-r), floor)
+            rho_prev = max(t ** (-r), floor)
+            mu = rho_prev / rho * (1.0 - rho)  # eq. (30); constant 1 - floor once at the floor
             sigma = state[osc + SC_SIGMA] + rho * (e * e - state[osc + SC_SIGMA])  # eq. (22)
 
             ph = np.zeros(n)
@@ -293,14 +303,28 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
             kg = ph / s  # eq. (20)
 
             # eq. (21), Joseph form, upper triangle then mirrored
+            q = cfg[CFG_PROCESS_NOISE]
             p_new = np.empty(n * n)
             for i in range(n):
                 for j in range(i, n):
                     v = (
                         state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]
                     ) / mu + sigma * kg[i] * kg[j]
+                    if i == j:
+                        v += q  # tracking: parameters as a random walk of variance q per update
                     p_new[i * n + j] = v
                     p_new[j * n + i] = v
+            # tracking: cap P's diagonal by a congruence D P D with D diagonal,
+            # which keeps P symmetric positive definite (unexcited directions
+            # would otherwise grow without bound under forgetting)
+            p_max = cfg[CFG_P_MAX]
+            for i in range(n):
+                pii = p_new[i * n + i]
+                if pii > p_max:
+                    sc = math.sqrt(p_max / pii)
+                    for j in range(n):
+                        p_new[i * n + j] *= sc
+                        p_new[j * n + i] *= sc
             ok_flag = True
             for i in range(n):
                 if not math.isfinite(p_new[i * n + i]) or p_new[i * n + i] <= 0.0:
@@ -327,11 +351,18 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
                 code = STEP_UPDATED
 
         # after the divergence checks, so that a diverging sample changes nothing
+        # Coverage counts only clear moves, |dy| >= 6 epsilon (~5 noise std):
+        # with output noise about half the samples in the play cross epsilon
+        # itself (9 % cross 3 epsilon) and the model rightly keeps them off the
+        # lines; counting them made a long one-sided stretch look stuck.
         alpha = cfg[CFG_COVERAGE_ALPHA]
-        state[osc + SC_MOVE_UP] += alpha * (g4 - state[osc + SC_MOVE_UP])
-        state[osc + SC_MOVE_DOWN] += alpha * (g5 - state[osc + SC_MOVE_DOWN])
-        state[osc + SC_LINE_UP] += alpha * (up - state[osc + SC_LINE_UP])
-        state[osc + SC_LINE_DOWN] += alpha * (down - state[osc + SC_LINE_DOWN])
+        clear = COVERAGE_MOVE_FACTOR * eps
+        move_up = 1.0 if (g4 == 1.0 and dy >= clear) else 0.0
+        move_down = 1.0 if (g5 == 1.0 and -dy >= clear) else 0.0
+        state[osc + SC_MOVE_UP] += alpha * (move_up - state[osc + SC_MOVE_UP])
+        state[osc + SC_MOVE_DOWN] += alpha * (move_down - state[osc + SC_MOVE_DOWN])
+        state[osc + SC_LINE_UP] += alpha * (up * move_up - state[osc + SC_LINE_UP])
+        state[osc + SC_LINE_DOWN] += alpha * (down * move_down - state[osc + SC_LINE_DOWN])
         state[osc + SC_PHI] = phi
 
     # advance: x-hat(k) (computed with theta-hat(k-1)), u(k), y(k), t

@@ -11,7 +11,7 @@ import numpy as np
 
 from servoid.ident._jit import jit
 
-__all__ = ["backlash_step", "simulate_kernel", "schur_stable", "ZONE_UP", "ZONE_DOWN", "ZONE_MEMORY"]
+__all__ = ["backlash_step", "simulate_kernel", "extended_kernel", "schur_stable", "ZONE_UP", "ZONE_DOWN", "ZONE_MEMORY"]
 
 #: Zone codes returned per sample by :func:`simulate_kernel`.
 ZONE_UP = 1
@@ -59,6 +59,83 @@ def backlash_step(x: float, x_prev: float, y_prev: float, m2: float, c1: float, 
 
 
 @jit
+def extended_kernel(
+    a: np.ndarray,
+    b: np.ndarray,
+    delay: int,
+    m2: float,
+    c1: float,
+    c2: float,
+    saturation: float,
+    dead_band: float,
+    friction: float,
+    u: np.ndarray,
+    y0: float,
+    x_out: np.ndarray,
+    y_out: np.ndarray,
+    zone_out: np.ndarray,
+) -> None:
+    """Free-run simulation of the extended model (the blocks of :mod:`servoid.ident.effects`).
+
+    Per sample: the input blocks turn ``u`` into ``w`` (saturation, then dead
+    band); the linear block computes
+    ``x(k) = -sum a_i x(k-i) + sum b_j (w(k-d-j) - friction s(k-j))`` with
+    ``s(k) = sign(x(k-1) - x(k-2))``; the backlash of
+    :func:`backlash_step` gives ``y``. Inputs and
+    ``x`` before the first sample are zero, the backlash output ``y0``.
+    With ``saturation = inf``, ``dead_band = 0`` and ``friction = 0`` this is
+    :func:`simulate_kernel` (which calls it so).
+    """
+    na = a.shape[0]
+    nb = b.shape[0] - 1
+    n = u.shape[0]
+    shaped = saturation < np.inf or dead_band > 0.0
+    # Only the effects in use get their arrays: the plain model (simulate_kernel)
+    # then runs as fast as before the effects existed.
+    w = np.empty(n if shaped else 0)
+    s = np.zeros(n if friction != 0.0 else 0)
+    x_prev = 0.0
+    x_prev2 = 0.0
+    y_prev = y0
+    for k in range(n):
+        if shaped:
+            v = u[k]
+            if v > saturation:
+                v = saturation
+            elif v < -saturation:
+                v = -saturation
+            if v > dead_band:
+                v -= dead_band
+            elif v < -dead_band:
+                v += dead_band
+            else:
+                v = 0.0
+            w[k] = v
+        if friction != 0.0:
+            if x_prev > x_prev2:
+                s[k] = 1.0
+            elif x_prev < x_prev2:
+                s[k] = -1.0
+        x = 0.0
+        for i in range(1, na + 1):
+            if k - i >= 0:
+                x -= a[i - 1] * x_out[k - i]
+        for j in range(nb + 1):
+            idx = k - delay - j
+            if idx >= 0:
+                x += b[j] * (w[idx] if shaped else u[idx])
+            if friction != 0.0 and k - j >= 0:
+                x -= b[j] * friction * s[k - j]
+        y, zone = backlash_step(x, x_prev, y_prev, m2, c1, c2)
+        zone_out[k] = zone
+        x_out[k] = x
+        y_out[k] = y
+        x_prev2 = x_prev
+        x_prev = x
+        y_prev = y
+
+
+@jit
 def simulate_kernel(
     a: np.ndarray,
     b: np.ndarray,
@@ -79,26 +156,7 @@ def simulate_kernel(
     Fills ``x_out``, ``y_out`` and ``zone_out`` (``ZONE_UP``, ``ZONE_DOWN``
     or ``ZONE_MEMORY``) in place.
     """
-    na = a.shape[0]
-    nb = b.shape[0] - 1
-    n = u.shape[0]
-    x_prev = 0.0
-    y_prev = y0
-    for k in range(n):
-        x = 0.0
-        for i in range(1, na + 1):
-            if k - i >= 0:
-                x -= a[i - 1] * x_out[k - i]
-        for j in range(nb + 1):
-            idx = k - delay - j
-            if idx >= 0:
-                x += b[j] * u[idx]
-        y, zone = backlash_step(x, x_prev, y_prev, m2, c1, c2)
-        zone_out[k] = zone
-        x_out[k] = x
-        y_out[k] = y
-        x_prev = x
-        y_prev = y
+    extended_kernel(a, b, delay, m2, c1, c2, np.inf, 0.0, 0.0, u, y0, x_out, y_out, zone_out)
 
 
 @jit

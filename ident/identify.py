@@ -8,7 +8,8 @@ with the free-run fit of the best one.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable, Literal, Sequence
+from typing import Literal
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -16,8 +17,8 @@ from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIAConfig, MRGIAResult, run_mrgia
-from servoid.ident.refine import Refinement, refine
+from servoid.ident.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
+from servoid.ident.refine import Refinement, arx_start, refine
 from servoid.ident.simulate import free_run
 
 __all__ = ["Identification", "identify", "check_record"]
@@ -40,7 +41,12 @@ class Identification:
     mrgia_model : BacklashModel or None
         The MRGIA estimate as a model, None when it is not a valid model.
     refinement : Refinement or None
-        The output-error refinement, when it ran.
+        The output-error refinement that won, when refinement ran.
+    refined_from : {"mrgia", "arx"} or None
+        Which start that refinement came from: the MRGIA estimate, or the
+        MRGIA-independent ARX start (:func:`servoid.ident.refine.arx_start`).
+    start_nrmse : dict
+        Free-run NRMSE reached from each start that was tried.
     samples : int
         Length of the record.
     fit_nrmse : float
@@ -57,6 +63,8 @@ class Identification:
     mrgia: MRGIAResult
     mrgia_model: BacklashModel | None
     refinement: Refinement | None
+    refined_from: str | None
+    start_nrmse: dict[str, float]
     samples: int
     fit_nrmse: float
     mrgia_nrmse: float | None
@@ -156,7 +164,8 @@ def identify(
         warnings.append(
             "the MRGIA did not settle: at the end, line coverage is "
             f"up {online.coverage[0]:.2f} / down {online.coverage[1]:.2f} "
-            f"(below {config.stuck_below}); the input may not reach both backlash lines"
+            f"(below {config.stuck_below}): the input may not reach both backlash lines, "
+            "or the online estimate has not converged"
         )
 
     mrgia_model: BacklashModel | None
@@ -168,15 +177,31 @@ def identify(
         mrgia_model, mrgia_nrmse = None, None
         warnings.append(str(exc))
 
+    # Refine from the MRGIA estimate and from a start that does not depend on
+    # it: where the MRGIA's convergence condition fails (slow plants), its
+    # estimate can sit in another basin of the output error. Keep the best fit.
     refinement: Refinement | None = None
+    refined_from: str | None = None
+    start_nrmse: dict[str, float] = {}
     if refine_model:
-        start = mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
-        refinement = refine(u_arr, y_arr, start, y0=y0, valid=keep)
+        starts: dict[str, BacklashModel] = {
+            "mrgia": mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
+        }
+        try:
+            starts["arx"] = arx_start(u_arr, y_arr, na=config.na, nb=config.nb, delay=config.delay, valid=keep)
+        except (ConfigError, ModelError):
+            pass
+        for name, start in starts.items():
+            candidate = refine(u_arr, y_arr, start, y0=y0, valid=keep)
+            start_nrmse[name] = candidate.nrmse
+            if refinement is None or candidate.nrmse < refinement.nrmse:
+                refinement, refined_from = candidate, name
+        assert refinement is not None
         if not refinement.success:
             warnings.append(f"the refinement did not converge: {refinement.message}")
         if mrgia_nrmse is not None and refinement.nrmse > mrgia_nrmse:
             warnings.append("the refinement fits worse than the MRGIA estimate; keeping the MRGIA estimate")
-            refinement = None
+            refinement, refined_from = None, None
 
     if refinement is not None:
         model, method, fit = refinement.model, "mrgia+oe", refinement.nrmse
@@ -187,12 +212,28 @@ def identify(
             "no valid model: the MRGIA estimate is invalid and refinement was not requested "
             "(drop --no-refine, or check the orders and the input)"
         )
+    online_poor = mrgia_nrmse is None or (refinement is not None and mrgia_nrmse > 2.0 * fit + 0.02)
+    if online_poor and refinement is not None:
+        margin = convergence_margin(model.a)
+        why = (
+            f": its convergence condition |A(e^jw) - 1| < 1 fails for this linear block (margin {margin:.2f}); "
+            "sample more slowly"
+            if margin < 0.0
+            else " (a whiter input, e.g. uniform noise, helps the online estimate)"
+        )
+        warnings.append(
+            f"the MRGIA's online estimate did not converge here (fit NRMSE "
+            f"{'n/a' if mrgia_nrmse is None else f'{mrgia_nrmse:.3g}'} against {fit:.3g} refined from the "
+            f"{refined_from} start){why}; the refined model is the one to use"
+        )
     return Identification(
         model=model,
         method=method,  # type: ignore[arg-type]
         mrgia=online,
         mrgia_model=mrgia_model,
         refinement=refinement,
+        refined_from=refined_from,
+        start_nrmse=start_nrmse,
         samples=int(u_arr.size),
         fit_nrmse=fit,
         mrgia_nrmse=mrgia_nrmse,

@@ -31,7 +31,8 @@ causal beyond ``x*``, where a reversal then jumps between the lines.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -179,7 +180,7 @@ class BacklashModel:
         return np.array([*self.a, *self.b, self.m2 - M1, self.c1, self.c2], dtype=np.float64)
 
     @classmethod
-    def from_theta(cls, theta: Sequence[float] | np.ndarray, *, na: int, nb: int, delay: int) -> "BacklashModel":
+    def from_theta(cls, theta: Sequence[float] | np.ndarray, *, na: int, nb: int, delay: int) -> BacklashModel:
         """Build a model from the parameter vector of eq. (15).
 
         Raises
@@ -217,7 +218,7 @@ class BacklashModel:
         """Parameter values in the order of :attr:`names`, with ``m2`` itself (not ``m2 - 1``)."""
         return np.array([*self.a, *self.b, self.m2, self.c1, self.c2], dtype=np.float64)
 
-    def max_relative_error(self, truth: "BacklashModel") -> float:
+    def max_relative_error(self, truth: BacklashModel) -> float:
         """Largest ``|p - p_true| / |p_true|`` over the parameters, ``m2`` itself included.
 
         This is the paper's "maximum relative error of the parameters" (Section 4).
@@ -244,7 +245,7 @@ class BacklashModel:
         }
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> "BacklashModel":
+    def from_dict(cls, data: Mapping[str, Any]) -> BacklashModel:
         """Inverse of :meth:`to_dict`; missing or unknown keys raise :class:`ModelError`."""
         if not isinstance(data, Mapping):
             raise ModelError(f"a model must be a JSON object, got {type(data).__name__}")

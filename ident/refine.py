@@ -11,19 +11,19 @@ parameter error from ~4e-3 (MRGIA) to ~1e-3 at 5000 samples.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 from servoid.ident.backlash import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
 from servoid.ident.model import BacklashModel
 
-__all__ = ["Refinement", "refine", "output_error_jacobian"]
+__all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
 #: Smallest dead zone and down-line slope the search may reach, relative to std(y).
 _LOWER_BOUND_REL = 1e-9
@@ -85,11 +85,9 @@ class _OutputError:
         self.x = np.empty_like(u)
         self.y_hat = np.empty_like(u)
         self.zone = np.empty(u.shape, dtype=np.int8)
-        # Outside the stable region the simulation explodes; a large, constant
-        # residual lets the trust region step back instead of failing on inf.
-        used = y if valid is None else y[valid]
-        self.penalty = np.full(used.shape, 10.0 * (float(np.max(np.abs(used))) + float(np.std(used)) + 1.0))
-        self.y_used = used
+        # Outside the stable region the simulation explodes.
+        self.y_used = y if valid is None else y[valid]
+        self.penalty = failure_residual(self.y_used)
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         na, nb = self.na, self.nb
@@ -116,18 +114,10 @@ class _OutputError:
 def output_error_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:
     """Covariance and standard errors ``s^2 (J^T J)^+`` of a least-squares fit.
 
-    ``s^2 = sum(residual^2) / (N - p)``. Directions the data do not determine
-    (singular ``J^T J``) get NaN standard errors rather than a made-up number.
+    See :func:`servoid.ident._oefit.covariance_from_jacobian` (kept here for
+    callers of this module).
     """
-    dof = max(residual.size - n_params, 1)
-    s2 = float(residual @ residual) / dof
-    jtj = jac.T @ jac
-    cov = s2 * np.linalg.pinv(jtj)
-    rank = np.linalg.matrix_rank(jtj)
-    stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    if rank < n_params:
-        stderr[:] = np.nan
-    return cov, stderr
+    return covariance_from_jacobian(residual, jac, n_params)
 
 
 def refine(
@@ -168,23 +158,11 @@ def refine(
     step. Bounds keep ``m2``, ``c1`` and ``c2`` positive; stability of the
     linear block is kept by a penalty.
     """
-    u_arr = validation.signal("u", u)
     valid_arr: np.ndarray | None = None
     if valid is None:
-        y_arr = validation.signal("y", y)
+        u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
     else:
-        valid_arr = np.asarray(valid, dtype=np.bool_)
-        y_raw = np.asarray(y, dtype=np.float64)
-        if valid_arr.shape != u_arr.shape or y_raw.shape != u_arr.shape:
-            raise ConfigError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {valid_arr.shape}")
-        y_arr = validation.signal("y (valid samples)", np.where(valid_arr, y_raw, 0.0))
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    used = u_arr.size if valid_arr is None else int(valid_arr.sum())
-    if used <= initial.n_params:
-        raise ConfigError(f"{used} samples cannot determine {initial.n_params} parameters")
-    first = 0 if valid_arr is None else int(np.argmax(valid_arr))
-    start_y = float(y_arr[first]) if y0 is None else validation.real("y0", y0)
+        u_arr, y_arr, start_y, valid_arr = _masked_record(u, y, valid, initial.n_params, y0)
     problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr)
 
     p0 = initial.values()
@@ -193,23 +171,93 @@ def refine(
     lower[-3:] = floor
     p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
 
-    sol = least_squares(
-        problem, p0, bounds=(lower, np.full(p0.size, np.inf)),
-        method="trf", x_scale="jac", diff_step=1e-7, max_nfev=max_nfev,
-    )  # fmt: skip
-    model = problem.model(sol.x)
-    residual = problem(sol.x)
-    cov, stderr = output_error_jacobian(residual, sol.jac, p0.size)
+    fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)
+    model = problem.model(fit.x)
     y_used = problem.y_used
     return Refinement(
         model=model,
         initial=initial,
-        stderr=tuple(float(s) for s in stderr),
-        covariance=cov,
-        nrmse=nrmse(y_used, residual + y_used),
+        stderr=tuple(float(s) for s in fit.stderr),
+        covariance=fit.covariance,
+        nrmse=nrmse(y_used, fit.residual + y_used),
         initial_nrmse=nrmse(y_used, problem(p0) + y_used),
-        residual_std=float(np.std(residual)),
-        nfev=int(sol.nfev),
-        success=bool(sol.success),
-        message=str(sol.message),
+        residual_std=float(np.std(fit.residual)),
+        nfev=fit.nfev,
+        success=fit.success,
+        message=fit.message,
     )
+
+
+def _masked_record(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray,
+    n_params: int, y0: float | None,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`fit_record` for a record with lost samples: their ``y`` (maybe NaN) becomes 0, never fitted."""
+    u_arr = validation.signal("u", u)
+    valid_arr = np.asarray(valid, dtype=np.bool_)
+    y_raw = np.asarray(y, dtype=np.float64)
+    if valid_arr.shape != u_arr.shape or y_raw.shape != u_arr.shape:
+        raise ConfigError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {valid_arr.shape}")
+    y_arr = validation.signal("y (valid samples)", np.where(valid_arr, y_raw, 0.0))
+    used = int(valid_arr.sum())
+    if used <= n_params:
+        raise ConfigError(f"{used} samples cannot determine {n_params} parameters")
+    start_y = float(y_arr[int(np.argmax(valid_arr))]) if y0 is None else validation.real("y0", y0)
+    return u_arr, y_arr, start_y, valid_arr
+
+
+def arx_start(
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    *,
+    na: int,
+    nb: int,
+    delay: int,
+    valid: Sequence[bool] | np.ndarray | None = None,
+) -> BacklashModel:
+    """A starting model that does not depend on the MRGIA: ARX for the linear block, a small backlash.
+
+    The linear block comes from the least-squares (equation-error) fit of
+    ``y(k) = -sum a_i y(k-i) + sum b_j u(k-d-j) + offset``, treating the
+    backlash as a disturbance (the offset absorbs ``c1 != c2``); it is
+    biased, but lands close enough for the output-error search where the
+    MRGIA does not converge (see
+    :func:`servoid.ident.mrgia.convergence_margin`). An unstable fit is
+    pulled inside the unit circle. The backlash starts with ``m2 = 1`` and
+    dead zones of 5 % of ``std(y)``.
+
+    With ``valid`` (False: a lost sample, whose ``y`` may be NaN), only the
+    equations whose ``y`` terms were all measured are used.
+
+    Raises
+    ------
+    ConfigError
+        For records too short or arrays of different length.
+    """
+    if valid is None:
+        u_arr, y_arr = validation.signal("u", u), validation.signal("y", y)
+        keep = np.ones(u_arr.size, dtype=np.bool_)
+    else:
+        u_arr, y_arr, _, keep = _masked_record(u, y, valid, na + nb + 2, None)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    k0 = max(na, delay + nb)
+    rows = y_arr.size - k0
+    usable = keep[k0:].copy()
+    for i in range(1, na + 1):
+        usable &= keep[k0 - i : keep.size - i]
+    if int(usable.sum()) <= na + nb + 2:
+        raise ConfigError(f"{y_arr.size} samples are too few for an ARX start with na={na}, nb={nb}, delay={delay}")
+    cols = [-y_arr[k0 - i : y_arr.size - i] for i in range(1, na + 1)]
+    cols += [u_arr[k0 - delay - j : u_arr.size - delay - j] for j in range(nb + 1)]
+    cols.append(np.ones(rows))
+    theta, *_ = np.linalg.lstsq(np.column_stack(cols)[usable], y_arr[k0:][usable], rcond=None)
+    a = theta[:na]
+    b = theta[na : na + nb + 1]
+    while np.max(np.abs(np.roots(np.r_[1.0, a]))) >= 0.995:
+        a = a * 0.95 ** np.arange(1, na + 1)  # scales every pole by 0.95
+    y_std = float(np.std(y_arr[keep]))
+    if not np.any(b):
+        b = np.r_[max(y_std / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
+    dead = max(0.05 * y_std, 1e-9)
+    return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)

@@ -1,50 +1,71 @@
-"""``model.json``: an identified model on disk, versioned.
+"""``model.json``: an identified model and its compensation parameters on disk, versioned.
 
-Schema ``servoid.model``, version 1::
+Schema ``servoid.model``, version 2 (documented field by field, with units, in
+``docs/model-schema.md``; machine-readable as the JSON Schema
+``servoid/model.schema.json``)::
 
     {
       "schema": "servoid.model",
-      "version": 1,
+      "version": 2,
       "model": {"a": [...], "b": [...], "delay": 1, "m1": 1.0, "m2": ..., "c1": ..., "c2": ...},
       "stderr": {"a1": ..., ..., "c2": ...} | null,
       "units": {"input": "<unit of u>", "output": "<unit of y, x, c1, c2>",
                 "time": "sample", "sample_period_s": <float> | null},
       "method": "mrgia" | "mrgia+oe",
-      "fit_nrmse": <free-run NRMSE on the identification record>,
+      "fit_nrmse": <free-run NRMSE on the identification record> | null,
       "identified": {"at": "<ISO 8601 UTC>", "source": "<sim://... | file | driver URL>",
-                     "samples": <int>, "servoid_version": "<x.y.z>"},
-      "servo": {<identity reported by the driver>} | null
+                     "samples": <int> | null, "servoid_version": "<x.y.z>"},
+      "servo": {<identity reported by the driver>} | null,
+      "compensation": {"band": <smoothing band of the backlash inverse, output unit>,
+                       "noise_std": <output noise it was chosen for, output unit> | null},
+      "effects": [<model extension>, ...]          (optional, see docs/diagnose.md)
     }
 
-Units: ``c1`` and ``c2`` are in the output unit, ``delay`` in samples; the
-output unit is whatever the recording was in (``rad``, ``counts``, or the
-user's unit, as stated).
+Units: ``c1``, ``c2`` and the band are in the output unit, ``delay`` in
+samples; the output unit is whatever the recording was in (``rad``,
+``counts``, or the user's unit, as stated).
+
+Versions: version 1 (no ``compensation``) is still read; its band is then
+servoid's default (:func:`servoid.ident.compensate.default_band`) and
+:attr:`ModelFile.read_version` says so. Unknown top-level keys, ``effects``
+among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
-from servoid import __version__
-from servoid.errors import DataError, ModelError
+from servoid import __version__, validation
+from servoid.errors import ConfigError, DataError, ModelError
+from servoid.ident.compensate import default_band
 from servoid.ident.model import BacklashModel
 
-__all__ = ["SCHEMA", "VERSION", "ModelFile", "save_model", "load_model"]
+__all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model"]
 
 SCHEMA = "servoid.model"
-VERSION = 1
+VERSION = 2
+#: Versions this servoid reads; it writes :data:`VERSION`.
+READABLE_VERSIONS = (1, 2)
+#: Top-level key of the optional list of model extensions (docs/diagnose.md).
+EFFECTS_KEY = "effects"
 
 
 @dataclass(frozen=True)
 class ModelFile:
     """The content of a ``model.json``.
 
-    Attributes mirror the schema in the module docstring.
+    Attributes mirror the schema in the module docstring; ``band`` and
+    ``noise_std`` are ``compensation.band`` (``None``: servoid's default for
+    the model, see :attr:`compensation_band`) and ``compensation.noise_std``
+    (the identification's residual RMS), ``read_version`` the version the
+    file had when it was read (``None`` for content made in memory).
     """
 
     model: BacklashModel
@@ -60,6 +81,35 @@ class ModelFile:
     servoid_version: str = __version__
     servo: dict[str, Any] | None = None
     extra: dict[str, Any] = field(default_factory=dict)
+    band: float | None = None
+    noise_std: float | None = None
+    read_version: int | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("band", "noise_std"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, validation.non_negative(name, getattr(self, name)))
+
+    @property
+    def compensation_band(self) -> float:
+        """The smoothing band of the backlash inverse, output unit (stored, or servoid's default)."""
+        return default_band(self.model, noise_std=self.noise_std) if self.band is None else self.band
+
+    @property
+    def effects(self) -> list[Any]:
+        """The model extensions stored under ``effects`` (an empty list when there are none)."""
+        return list(self.extra.get(EFFECTS_KEY) or [])
+
+    def effect_names(self) -> list[str]:
+        """A short name for each entry of :attr:`effects`, for messages."""
+        names = []
+        for entry in self.effects:
+            if isinstance(entry, Mapping):
+                label = next((entry[k] for k in ("name", "effect", "kind", "type") if k in entry), None)
+                names.append(str(label) if label is not None else "unnamed")
+            else:
+                names.append(str(entry))
+        return names
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object of the schema."""
@@ -67,7 +117,8 @@ class ModelFile:
             "schema": SCHEMA,
             "version": VERSION,
             "model": self.model.to_dict(),
-            "stderr": self.stderr,
+            # JSON has no NaN: a standard error the data do not determine is null
+            "stderr": None if self.stderr is None else {k: _finite_or_none(v) for k, v in self.stderr.items()},
             "units": {
                 "input": self.input_unit,
                 "output": self.output_unit,
@@ -83,9 +134,18 @@ class ModelFile:
                 "servoid_version": self.servoid_version,
             },
             "servo": self.servo,
+            "compensation": {"band": self.compensation_band, "noise_std": self.noise_std},
         }
         out.update(self.extra)
         return out
+
+    def to_json(self) -> str:
+        """The file's text: :meth:`to_dict` pretty-printed, with a final newline."""
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+
+def _finite_or_none(value: Any) -> Any:
+    return value if not isinstance(value, float) or math.isfinite(value) else None
 
 
 def _now() -> str:
@@ -96,7 +156,7 @@ def save_model(path: str | os.PathLike[str], content: ModelFile) -> Path:
     """Write ``content`` as ``model.json`` (pretty-printed, UTF-8); return the path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    p.write_text(json.dumps(content.to_dict(), indent=2) + "\n", encoding="utf-8")
+    p.write_text(content.to_json(), encoding="utf-8")
     return p
 
 
@@ -122,23 +182,56 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         found = data.get("schema") if isinstance(data, Mapping) else type(data).__name__
         raise DataError(f"{p}: not a servoid model file (schema {found!r}, expected {SCHEMA!r})")
     version = data.get("version")
-    if version != VERSION:
-        if isinstance(version, int) and version > VERSION:
-            raise DataError(f"{p}: schema version {version} is newer than this servoid reads ({VERSION}); upgrade servoid")
-        raise DataError(f"{p}: schema version {version!r} is not supported (this servoid reads version {VERSION})")
-    for key in ("model", "units", "identified"):
+    if isinstance(version, bool) or not isinstance(version, int):
+        raise DataError(f"{p}: schema version {version!r} is not a version number (this servoid reads {_readable()})")
+    if version > VERSION:
+        raise DataError(f"{p}: schema version {version} is newer than this servoid reads ({_readable()}); upgrade servoid")
+    if version not in READABLE_VERSIONS:
+        raise DataError(f"{p}: schema version {version} is older than any this servoid reads ({_readable()})")
+    required = ("model", "units", "identified") + (("compensation",) if version >= 2 else ())
+    for key in required:
         if key not in data:
-            raise DataError(f"{p}: missing field {key!r}")
+            raise DataError(f"{p}: missing field {key!r} (required in version {version})")
     try:
         model = BacklashModel.from_dict(data["model"])
     except ModelError as exc:
         raise ModelError(f"{p}: {exc}") from exc
-    units = data["units"] or {}
-    ident = data["identified"] or {}
-    known = {"schema", "version", "model", "stderr", "units", "method", "fit_nrmse", "identified", "servo"}
+    units = _section(p, data, "units")
+    ident = _section(p, data, "identified")
+    band = noise = None
+    if version >= 2:
+        comp = _section(p, data, "compensation")
+        if "band" not in comp:
+            raise DataError(f"{p}: missing field 'compensation.band' (the smoothing band, output unit)")
+        try:
+            band = validation.non_negative("compensation.band", comp["band"])
+            if comp.get("noise_std") is not None:
+                noise = validation.non_negative("compensation.noise_std", comp["noise_std"])
+        except ConfigError as exc:
+            raise DataError(f"{p}: {exc}") from None
+    for key in ("stderr", "servo"):
+        if data.get(key) is not None and not isinstance(data[key], Mapping):
+            raise DataError(f"{p}: {key!r} must be an object or null, got {type(data[key]).__name__}")
+    stderr = data.get("stderr")
+    if stderr is not None:
+        for name, value in stderr.items():
+            if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+                raise DataError(f"{p}: stderr.{name} (={value!r}) must be a number or null")
+        # files of servoid 0.1 wrote NaN (not JSON) where the data left a parameter undetermined
+        stderr = {k: _finite_or_none(v) for k, v in stderr.items()}
+    period = units.get("sample_period_s")
+    if period is not None and not (_is_number(period) and period > 0):
+        raise DataError(f"{p}: units.sample_period_s (={period!r}) must be a positive number of seconds or null")
+    if data.get(EFFECTS_KEY) is not None and not isinstance(data[EFFECTS_KEY], list):
+        raise DataError(
+            f"{p}: {EFFECTS_KEY!r} must be a list of model extensions (see docs/diagnose.md), "
+            f"got {type(data[EFFECTS_KEY]).__name__}"
+        )
+    known = {"schema", "version", "model", "stderr", "units", "method", "fit_nrmse", "identified", "servo",
+             "compensation"}  # fmt: skip
     return ModelFile(
         model=model,
-        stderr=data.get("stderr"),
+        stderr=stderr,
         input_unit=str(units.get("input", "unit")),
         output_unit=str(units.get("output", "unit")),
         sample_period_s=units.get("sample_period_s"),
@@ -150,4 +243,23 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         servoid_version=str(ident.get("servoid_version", "")),
         servo=data.get("servo"),
         extra={k: v for k, v in data.items() if k not in known},
+        band=band,
+        noise_std=noise,
+        read_version=version,
     )
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _readable() -> str:
+    return "versions " + ", ".join(map(str, READABLE_VERSIONS))
+
+
+def _section(path: Path, data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    """``data[key]`` as an object (``null`` reads as empty), or a one-line DataError."""
+    value = data.get(key) or {}
+    if not isinstance(value, Mapping):
+        raise DataError(f"{path}: {key!r} must be an object, got {type(value).__name__}")
+    return value

@@ -25,7 +25,8 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Mapping, Sequence
+from typing import IO, Any
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -236,7 +237,7 @@ class RecordingWriter:
             self._fh.close()
             self._fh = None
 
-    def __enter__(self) -> "RecordingWriter":
+    def __enter__(self) -> RecordingWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -6,7 +6,8 @@ live driver), so that all of them write the same outputs:
 ``recording.csv``
     The record (``t`` when known, ``u``, ``y``, plus any extra columns).
 ``model.json``
-    The best model, versioned (:mod:`servoid.modelfile`).
+    The best model, versioned (:mod:`servoid.modelfile`), with the fit's
+    residual RMS as the noise the smoothing band of its inverse is set for.
 ``convergence.png``, ``fit.png``, ``backlash.png``
     Parameter estimates against samples; measured against simulated output;
     the identified backlash loop.
@@ -74,6 +75,11 @@ class Record:
     acquisition: dict[str, Any] | None = None
 
     @property
+    def y_used(self) -> np.ndarray:
+        """The measured outputs identification uses: all of ``y``, or its valid samples."""
+        return self.y if self.valid is None else self.y[self.valid]
+
+    @property
     def sample_period_s(self) -> float | None:
         if self.t is None or self.t.size < 2:
             return None
@@ -107,6 +113,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         source=record.source,
         samples=result.samples,
         servo=record.servo,
+        noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
     )
     paths["model"] = str(save_model(out_dir / "model.json", content))
     if plots:
@@ -168,6 +175,7 @@ def result_json(record: Record, result: Identification, paths: dict[str, str]) -
         "samples": result.samples,
         "fit_nrmse": result.fit_nrmse,
         "stderr": result.stderr,
+        "refined_from": result.refined_from,
         "source": record.source,
         "units": {"input": record.input_unit, "output": record.output_unit},
         "mrgia": {

@@ -6,7 +6,7 @@ import pytest
 from servoid.cli import main
 from servoid.ident import PAPER_PLANT
 from servoid.modelfile import load_model
-from servoid.recording import read_recording, write_recording
+from servoid.recording import read_recording
 
 
 def run_json(capsys, *argv):

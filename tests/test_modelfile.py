@@ -12,7 +12,7 @@ def test_roundtrip(tmp_path):
                         samples=5000, fit_nrmse=0.02, sample_period_s=0.002)
     p = save_model(tmp_path / "model.json", content)
     data = json.loads(p.read_text())
-    assert data["schema"] == "servoid.model" and data["version"] == 1
+    assert data["schema"] == "servoid.model" and data["version"] == 2
     assert data["model"] == {"a": [0.45, 0.55], "b": [0.8], "delay": 1, "m1": 1.0, "m2": 1.5, "c1": 0.5, "c2": 1.0}
     back = load_model(p)
     assert back.model == PAPER_PLANT
@@ -33,7 +33,7 @@ def _write(tmp_path, obj):
         ({"schema": "other"}, "not a servoid model file (schema 'other'"),
         ([1, 2], "not a servoid model file"),
         ({"schema": "servoid.model", "version": 9}, "version 9 is newer"),
-        ({"schema": "servoid.model", "version": 0}, "version 0 is not supported"),
+        ({"schema": "servoid.model", "version": 0}, "version 0 is older than any this servoid reads"),
         ({"schema": "servoid.model", "version": 1, "units": {}, "identified": {}}, "missing field 'model'"),
     ],
 )

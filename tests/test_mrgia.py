@@ -183,3 +183,62 @@ def test_an_invalid_estimate_is_not_handed_out_as_a_model():
     est = MRGIA(MRGIAConfig.paper())  # theta(0) has c1 = c2 = 0
     with pytest.raises(ModelError, match="not a valid model: c1 \\(=0.0\\) must be > 0"):
         est.model
+
+
+def _drifting_record(n: int, c_sum: np.ndarray, seed: int, u: np.ndarray | None = None):
+    """The paper's plant with c1 = 0.4 c_sum(k), c2 = 0.6 c_sum(k), SNR 40, stepped by Plant."""
+    from servoid.ident import BacklashModel, Plant
+
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-2.406, 2.406, n) if u is None else u
+    plant = Plant(PAPER_PLANT)
+    y = np.empty(n)
+    for k in range(n):
+        if k == 0 or c_sum[k] != c_sum[k - 1]:
+            plant.model = BacklashModel(a=(0.45, 0.55), b=(0.8,), delay=1, m2=1.5, c1=0.4 * c_sum[k], c2=0.6 * c_sum[k])
+        y[k] = plant.step(u[k])
+    sd = np.std(y) / 40
+    return u, y + rng.normal(0, sd, n), sd
+
+
+def test_tracking_mode_follows_a_growing_dead_zone_that_the_paper_settings_miss():
+    n = 60_000
+    c_sum = np.r_[np.ones(10_000), np.linspace(1.0, 1.3, 50_000)]
+    u, y, sd = _drifting_record(n, c_sum, seed=3)
+    track = run_mrgia(u, y, MRGIAConfig.tracking(epsilon=noise_epsilon(sd)), record_every=1000)
+    static = run_mrgia(u, y, MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(sd)), record_every=1000)
+    dead = lambda r: r.values_history()[:, 4] + r.values_history()[:, 5]  # noqa: E731
+    assert abs(dead(track)[-1] - 1.3) < 0.03
+    assert abs(dead(static)[-1] - 1.3) > 3 * abs(dead(track)[-1] - 1.3)
+
+
+def test_tracking_mode_keeps_P_bounded_and_positive_under_one_sided_excitation():
+    # a slow rising sawtooth that drops in one step: the down line is (almost) never visited
+    rng = np.random.default_rng(1)
+    n = 40_000
+    saw = (np.arange(n) % 400) / 400 * 4.8 - 2.4 + rng.uniform(-0.05, 0.05, n)
+    u = np.r_[rng.uniform(-2.406, 2.406, 10_000), saw]
+    u, y, sd = _drifting_record(u.size, np.ones(u.size), seed=1, u=u)
+    est = MRGIA(MRGIAConfig.tracking(epsilon=noise_epsilon(sd), p_max=np.inf))
+    forgetting = MRGIA(MRGIAConfig(epsilon=noise_epsilon(sd), rho_floor=3e-3))
+    worst = {"tracking": 0.0, "forgetting": 0.0}
+    for k in range(u.size):
+        est.update(u[k], y[k])
+        forgetting.update(u[k], y[k])
+        if k % 1000 == 999:
+            P = est.P
+            assert np.all(np.linalg.eigvalsh(P) > 0)
+            worst["tracking"] = max(worst["tracking"], float(np.max(np.diag(P))))
+            worst["forgetting"] = max(worst["forgetting"], float(np.max(np.diag(forgetting.P))))
+    assert not est.recoveries, "a one-sided stretch is not a stuck run"
+    assert worst["tracking"] < 1e-3
+    assert worst["forgetting"] > 1000 * worst["tracking"]  # why tracking mode is a random walk, not forgetting
+
+
+def test_p_max_caps_the_diagonal_and_keeps_P_positive(paper_clean):
+    est = MRGIA(MRGIAConfig(p0=1e6, p_max=0.01))
+    for u, y in zip(paper_clean.u[:500], paper_clean.y[:500]):
+        est.update(u, y)
+        if est.updates:
+            assert np.max(np.diag(est.P)) <= 0.01 * (1 + 1e-12)
+    assert np.all(np.linalg.eigvalsh(est.P) > 0)

@@ -35,6 +35,9 @@ def test_wheel_installs_every_package(tmp_path):
     import zipfile
 
     names = zipfile.ZipFile(wheel).namelist()
+    # data files the exporters read at run time
+    for data in ("servoid/export/templates/backlash_compensator.h", "servoid/model.schema.json"):
+        assert data in names, data
     # the serial servo's firmware sources, which `servoid emulate serial` compiles
     for source in (ROOT / "drivers" / "serial" / "firmware").rglob("*.[ch]"):
         rel = source.relative_to(ROOT / "drivers").as_posix()

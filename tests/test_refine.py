@@ -55,3 +55,40 @@ def test_identify_reports_an_unsettled_run():
     result = identify(rec.u, rec.y, MRGIAConfig(recover=False))
     assert not result.mrgia.settled
     assert any("did not settle" in w for w in result.warnings)
+
+
+@pytest.mark.parametrize("a, margin", [((0.45, 0.55), 0.0), ((-1.2, 0.36), -0.56), ((-0.5, 0.06), 0.44)])
+def test_convergence_margin(a, margin):
+    from servoid.ident import convergence_margin
+
+    assert convergence_margin(a) == pytest.approx(margin, abs=1e-3)
+
+
+def test_a_slow_plant_is_identified_from_the_arx_start_and_the_user_is_told():
+    """Double pole at 0.8: the MRGIA's convergence condition fails (margin -1.24) and its estimate is useless."""
+    from servoid.ident import simulate
+
+    plant = BacklashModel(a=(-1.6, 0.64), b=(0.04,), delay=1, m2=1.2, c1=0.1, c2=0.15)
+    rng = np.random.default_rng(0)
+    u = rng.uniform(-1, 1, 5000)
+    sim = simulate(plant, u, snr=40, rng=rng)
+    result = identify(u, sim.y, MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(sim.noise_std)))
+    assert result.refined_from == "arx"
+    assert result.start_nrmse["arx"] < result.start_nrmse["mrgia"]
+    assert result.model.max_relative_error(plant) < 1e-2
+    assert any("convergence condition" in w for w in result.warnings)
+    arx = __import__("servoid.ident", fromlist=["arx_start"]).arx_start(u, sim.y, na=2, nb=0, delay=1)
+    assert arx.max_relative_error(plant) > 0.1  # the start alone is not the answer: refinement is
+
+
+def test_an_online_estimate_that_did_not_converge_is_named_even_when_the_refined_model_is_right():
+    """Held PRBS (hold 3), noise-free: the MRGIA settles on a wrong model; the ARX start rescues the fit."""
+    from servoid.excitation import sample
+    from servoid.ident import simulate
+
+    u = sample("prbs:amplitude=2.406,hold=3", 5000, seed=0)
+    y = simulate(PAPER_PLANT, u).y
+    result = identify(u, y, MRGIAConfig(rho_exponent=0.75))
+    assert result.mrgia.settled and result.mrgia_model.max_relative_error(PAPER_PLANT) > 0.1
+    assert result.refined_from == "arx" and result.model.max_relative_error(PAPER_PLANT) < 1e-9
+    assert any("did not converge here" in w and "whiter input" in w for w in result.warnings)

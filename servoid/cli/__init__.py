@@ -19,7 +19,7 @@ import importlib
 import pkgutil
 import sys
 from types import ModuleType
-from typing import Sequence
+from collections.abc import Sequence
 
 from servoid import __version__
 from servoid.errors import ConfigError, DataError, ModelError, ServoidError

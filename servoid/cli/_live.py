@@ -1,7 +1,8 @@
 """``servoid identify --driver URL``: identify a live servo through any driver.
 
-The excitation (uniform white noise of ``--amplitude`` around the driver's
-``centre``, ``--samples`` long, seeded by ``--seed``) runs through the
+The excitation (``--excitation SPEC``, else uniform white noise of
+``--amplitude``; around the driver's ``centre``, ``--samples`` long, seeded
+by ``--seed``) runs through the
 sampling session at ``--rate``; the recording is written to
 ``OUT/recording.csv`` as samples arrive; the online MRGIA runs meanwhile and
 the progress line shows it. The record then goes through the same
@@ -21,6 +22,7 @@ from servoid.cli import _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.errors import ConfigError
+from servoid.excitation import UniformSpec, parse_spec, sample
 from servoid.ident.mrgia import MRGIA, MRGIAConfig, noise_epsilon
 from servoid.recording import Recording
 from servoid.report import Record
@@ -48,9 +50,14 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 
 def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
-    """The input of a live run: seeded uniform white noise, ``centre +/- amplitude``."""
-    rng = np.random.default_rng(args.seed)
-    return centre + rng.uniform(-amplitude, amplitude, size=args.samples)
+    """The input of a live run: ``--excitation SPEC`` around ``centre``, else uniform noise ``centre +/- amplitude``."""
+    if args.excitation is not None:
+        if args.amplitude is not None:
+            raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
+        spec = parse_spec(args.excitation)
+    else:
+        spec = UniformSpec(amplitude=amplitude)
+    return centre + sample(spec, args.samples, seed=args.seed)
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:

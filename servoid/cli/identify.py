@@ -10,6 +10,7 @@ import numpy as np
 
 from servoid.cli import _live, _term
 from servoid.errors import ConfigError
+from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
 from servoid.ident.mrgia import MRGIAConfig, noise_epsilon
 from servoid.ident.paper import (
@@ -39,7 +40,8 @@ model online, sample by sample; an output-error fit then refines it offline.
 Where the record comes from:
   (default)      the simulated servo of the paper's Section 4 (a1 .45, a2 .55,
                  b0 .8, d 1, m2 1.5, c1 .5, c2 1) driven by uniform bounded
-                 white noise of variance {PAPER_INPUT_VARIANCE} (|u| <= {PAPER_INPUT_AMPLITUDE:.3f})
+                 white noise of variance {PAPER_INPUT_VARIANCE} (|u| <= {PAPER_INPUT_AMPLITUDE:.3f}),
+                 or by --excitation SPEC (see `servoid excite --help`)
   --data FILE    a CSV recording with a header row and columns u, y (and t in
                  seconds, optional); lines starting with '#' are metadata
   --driver URL   a live servo (sim://, serial://, can://, dxl://), excited at
@@ -58,6 +60,7 @@ EPILOG = """\
 examples:
   servoid identify
   servoid identify --snr 43 --samples 20000 --seed 3
+  servoid identify --snr 43 --excitation prbs:amplitude=1.5,hold=3
   servoid identify --data bench.csv --na 2 --nb 1 --delay 2 --epsilon 0.004 --unit rad
   servoid identify --json --no-plots > result.json
   servoid identify --driver "sim://?snr=40" --rate 500 --samples 5000
@@ -77,6 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     src.add_argument("--snr", type=float, metavar="SNR",
                      help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
                           "(default: noise-free)")  # fmt: skip
+    src.add_argument("--excitation", metavar="SPEC",
+                     help="input of the simulated or live servo, e.g. prbs:amplitude=1.5,hold=3 or "
+                          "multisine:amplitude=2,bands=0.01-0.2 (default: the paper's uniform noise)")  # fmt: skip
     src.add_argument("--unit", metavar="UNIT",
                      help="unit of y (rad, counts, mm, ...); default from the recording's '# unit:' line")  # fmt: skip
     _live.add_options(p)
@@ -114,13 +120,18 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
         raise ConfigError(
-            f"the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
-            f"--na/--nb/--delay apply to --data recordings"
+            "the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
+            "--na/--nb/--delay apply to --data recordings"
         )
-    rng = np.random.default_rng(args.seed)
-    u = rng.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, size=args.samples)
-    sim = simulate(PAPER_PLANT, u, snr=args.snr, rng=rng)
+    spec = UniformSpec(amplitude=PAPER_INPUT_AMPLITUDE) if args.excitation is None else parse_spec(args.excitation)
+    u = sample(spec, args.samples, seed=args.seed)
+    # The noise continues default_rng(seed)'s stream after the input's draws, as
+    # when the input was drawn here: the default run is unchanged.
+    noise_bits = np.random.PCG64(args.seed)
+    noise_bits.advance(args.samples)
+    sim = simulate(PAPER_PLANT, u, snr=args.snr, rng=np.random.Generator(noise_bits))
     source = f"sim://paper?samples={args.samples}&seed={args.seed}" + (f"&snr={args.snr:g}" if args.snr else "")
+    source += f"&excitation={format_spec(spec)}"
     record = Record(
         u=sim.u, y=sim.y, source=source, truth=PAPER_PLANT, output_unit=args.unit or "unit",
         input_unit="unit", extra={"y_clean": sim.y_clean},
@@ -146,6 +157,8 @@ def get_record(args: argparse.Namespace) -> tuple[Record, float]:
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
+        if args.excitation is not None:
+            raise ConfigError("--excitation drives the simulated servo; a --data recording already holds its input")
         return _from_file(args)
     return _simulated(args)
 

@@ -6,6 +6,20 @@ Shared helpers: :func:`pyplot` (matplotlib with the Agg backend) and
 """
 
 from servoid.plots._base import pyplot, save
+from servoid.plots.compensation import plot_robustness, plot_tracking
+from servoid.plots.diagnose import plot_candidates, plot_diagnosis_fit, plot_regimes, plot_residual_tests
 from servoid.plots.identify import plot_backlash, plot_convergence, plot_fit
 
-__all__ = ["pyplot", "save", "plot_convergence", "plot_fit", "plot_backlash"]
+__all__ = [
+    "pyplot",
+    "save",
+    "plot_convergence",
+    "plot_fit",
+    "plot_backlash",
+    "plot_diagnosis_fit",
+    "plot_regimes",
+    "plot_residual_tests",
+    "plot_candidates",
+    "plot_tracking",
+    "plot_robustness",
+]

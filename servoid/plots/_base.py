@@ -22,7 +22,7 @@ def pyplot() -> Any:
     return plt
 
 
-def save(fig: "Figure", path: str | os.PathLike[str]) -> Path:
+def save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     """Write ``fig`` as PNG (parent folders created), close it, return the path."""
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,397 @@
+"""A CANopen CiA 402 servo drive in cyclic synchronous position or torque mode, through canopen.
+
+Opening (:meth:`Cia402Driver._open`), all by SDO while the drive is
+PRE-OPERATIONAL:
+
+1. read the device type (0x1000): no answer is :class:`~servoid.errors.DriverTimeout`,
+   a profile other than 402 is :class:`~servoid.errors.ProtocolError`;
+2. check the mode is supported (0x6502), switch a drive left enabled off,
+   set the mode of operation (0x6060: 8 CSP or 10 CST) and read it back (0x6061);
+3. read the encoder resolution (0x608F) unless ``counts_per_rev`` is given,
+   and in torque mode the rated torque (0x6076);
+4. map RPDO1 = controlword + target position (or target torque) and
+   TPDO1 = statusword + position actual value, both synchronous (transmission
+   type 1), and switch PDOs 2-4 off;
+5. NMT start (OPERATIONAL).
+
+Each cyclic exchange is RPDO1 then SYNC, answered by TPDO1: the drive
+applies the target on the SYNC and reports the statusword and the actual
+position it measured. Torque on walks the state machine (Switch On Disabled
+-> Ready to Switch On -> Switched On -> Operation Enabled) through the same
+cycle, holding the target on the actual position so nothing jumps; torque
+off is "disable voltage" (transition 9), confirmed by the statusword.
+
+Errors: an EMCY from the drive, or a statusword that leaves Operation
+Enabled during the run, is :class:`~servoid.errors.DeviceFault` (with the EMCY
+code and 0x603F error code); no TPDO within ``timeout`` after a SYNC is
+:class:`~servoid.errors.DriverTimeout`. Closing switches the torque off and
+sends the drive back to PRE-OPERATIONAL.
+
+Units: positions in encoder increments (native), radians for the user;
+torques in per mille of the rated torque (native), Nm for the user. The
+driver has no device clock to offer (``device_time`` is None).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar
+
+from servoid import validation
+from servoid.drivers.base import Limits, Option, Reading, UnitConversion
+from servoid.drivers.can import cia402_od as profile
+from servoid.drivers.can._bus import import_vendor
+from servoid.drivers.can.driver import DEFAULT_NODES, DEFAULT_TIMEOUT_S, CanDriver, parse_bool
+from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
+
+__all__ = ["Cia402Driver"]
+
+_OE = "OPERATION ENABLED"
+
+#: State -> the controlword that moves it one step towards Operation Enabled.
+_TOWARDS_ENABLED = {
+    "SWITCH ON DISABLED": 0x0006,  # shutdown (2)
+    "READY TO SWITCH ON": 0x0007,  # switch on (3)
+    "SWITCHED ON": 0x000F,  # enable operation (4)
+    "QUICK STOP ACTIVE": 0x0000,  # disable voltage (12), then up again
+    "NOT READY TO SWITCH ON": 0x0000,  # wait for the drive's own transition 1
+    "FAULT REACTION ACTIVE": 0x0000,  # wait for transition 14
+}
+_ENABLE_OPERATION = 0x000F
+_DISABLE_VOLTAGE = 0x0000
+_POWERED = ("OPERATION ENABLED", "QUICK STOP ACTIVE", "SWITCHED ON")
+_INT32 = (-(1 << 31), (1 << 31) - 1)
+_INT16 = (-(1 << 15), (1 << 15) - 1)
+_NMT_OPERATIONAL, _NMT_PRE_OPERATIONAL = 0x01, 0x80
+
+
+def _counts(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise ValueError("must be >= 1")
+    return value
+
+
+class Cia402Driver(CanDriver):
+    """A CiA 402 drive over CANopen (see the module docstring).
+
+    Parameters
+    ----------
+    interface, channel, node, mode, bitrate, port, timeout, limits
+        As for :class:`~servoid.drivers.can.driver.CanDriver`; node 1..127.
+    counts_per_rev : int, optional
+        Encoder increments per revolution; default: read from the drive (0x608F).
+    fault_reset : bool
+        Reset a drive found in FAULT when switching the torque on (controlword
+        bit 7); default False, which reports the fault instead.
+    """
+
+    protocol = "cia402"
+    options: ClassVar[Mapping[str, Option]] = {
+        **CanDriver.options,
+        "counts_per_rev": Option(_counts, "encoder increments per revolution (default: the drive's 0x608F)"),
+        "fault_reset": Option(parse_bool, "reset a drive found in FAULT on enable: 1 or 0 (default 0)"),
+    }
+
+    def __init__(
+        self,
+        *,
+        interface: str,
+        channel: str = "",
+        node: int = DEFAULT_NODES["cia402"],
+        mode: str = "position",
+        bitrate: int | None = None,
+        port: int | None = None,
+        timeout: float = DEFAULT_TIMEOUT_S,
+        counts_per_rev: int | None = None,
+        fault_reset: bool = False,
+        limits: Limits | None = None,
+    ) -> None:
+        super().__init__(
+            interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
+            timeout=timeout, limits=limits,
+        )  # fmt: skip
+        if not 1 <= self.node <= 127:
+            raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")
+        self.counts_per_rev = None if counts_per_rev is None else validation.integer("counts_per_rev", counts_per_rev, minimum=1)
+        self.fault_reset = bool(fault_reset)
+        if self.counts_per_rev is not None:
+            self._set_units(self.counts_per_rev, rated_torque_mnm=None)
+        self._network: Any = None
+        self._node: Any = None
+        self._cw: Any = None
+        self._target: Any = None
+        self._rpdo: Any = None
+        self._reply = threading.Condition()
+        self._replies = 0  # TPDOs received
+        self._cycles = 0  # SYNCs sent
+        self._statusword = 0
+        self._position = 0
+        self._emcy: deque[Any] = deque()  # appended by canopen's thread, taken by ours
+        self._info: dict[str, Any] = {}
+
+    # ---- units -----------------------------------------------------------------------------
+    def _set_units(self, counts_per_rev: int, *, rated_torque_mnm: int | None) -> None:
+        self.position_unit = UnitConversion("rad", scale=2 * math.pi / counts_per_rev)
+        if self.mode == "torque" and rated_torque_mnm is not None:
+            # target torque is in per mille of the rated torque: 1 unit = rated/1000 mNm
+            self.command_unit = UnitConversion("Nm", scale=rated_torque_mnm / 1e6)
+        elif self.mode == "position":
+            self.command_unit = self.position_unit
+
+    # ---- primitives ------------------------------------------------------------------------
+    def _open(self) -> None:
+        canopen = import_vendor("canopen")
+        self._replies, self._cycles, self._statusword, self._position = 0, 0, 0, 0
+        self._emcy.clear()
+        network = canopen.Network(self.address.open())
+        network.NOTIFIER_CYCLE = 0.05  # so that closing does not wait a second for the reader thread
+        node = canopen.RemoteNode(self.node, profile.object_dictionary(self.node))
+        node.sdo.RESPONSE_TIMEOUT = max(self.timeout, 0.3)
+        network.add_node(node)
+        network.connect()
+        self._network, self._node = network, node
+        try:
+            self._configure(canopen)
+        except BaseException:
+            self._network, self._node = None, None
+            network.disconnect()
+            raise
+
+    def _configure(self, canopen: Any) -> None:
+        node = self._node
+        device_type = self._sdo_read(0x1000, what="the device type")
+        if device_type & 0xFFFF != 402:
+            raise ProtocolError(
+                f"{self._who()} is not a CiA 402 drive: device type 0x{device_type:08X}, "
+                "expected profile 402 (0x0192) in the low 16 bits"
+            )
+        mode_code = profile.MODES[self.mode]
+        supported = self._sdo_read(0x6502, what="the supported drive modes")
+        if not supported & profile.SUPPORTED_MODE_BITS[mode_code]:
+            raise ConfigError(
+                f"{self._who()} does not support cyclic synchronous {self.mode} mode "
+                f"(supported drive modes 0x6502 = 0x{supported:08X})"
+            )
+        node.nmt.send_command(_NMT_PRE_OPERATIONAL)
+        if profile.state_of(self._sdo_read(0x6041, what="the statusword")) in _POWERED:
+            # left enabled by an earlier session: torque off first
+            self._sdo_call(lambda: setattr(node.sdo[0x6040], "raw", _DISABLE_VOLTAGE), "switch it off (0x6040)")
+        self._sdo_call(lambda: setattr(node.sdo[0x6060], "raw", mode_code), f"set mode of operation {mode_code} (0x6060)")
+        shown = self._sdo_read(0x6061, what="the mode of operation display")
+        if shown != mode_code:
+            raise DeviceFault(f"{self._who()} did not take mode of operation {mode_code}: 0x6061 shows {shown}")
+        counts = self.counts_per_rev
+        if counts is None:
+            increments = self._sdo_read(0x608F, 1, what="the encoder resolution", optional=True)
+            revolutions = self._sdo_read(0x608F, 2, what="the encoder resolution", optional=True) or 1
+            if not increments:
+                raise ConfigError(
+                    f"{self._who()} does not report its encoder resolution (0x608F): "
+                    "give counts_per_rev=<increments per revolution> in the URL"
+                )
+            counts = max(round(increments / revolutions), 1)
+        rated = None
+        if self.mode == "torque":
+            rated = self._sdo_read(0x6076, what="the motor rated torque", optional=True)
+            if not rated:
+                raise ConfigError(f"{self._who()} reports no motor rated torque (0x6076): torque mode cannot scale Nm")
+        self._set_units(counts, rated_torque_mnm=rated)
+        self._sdo_call(lambda: self._map_pdos(0x607A if self.mode == "position" else 0x6071), "map the PDOs")
+        node.emcy.add_callback(self._on_emcy)
+        self._info = self._read_identity(counts, rated)
+        node.nmt.send_command(_NMT_OPERATIONAL)
+
+    def _map_pdos(self, target_index: int) -> None:
+        node = self._node
+        for n in range(1, 5):
+            for maps in (node.rpdo, node.tpdo):
+                pdo = maps[n]
+                pdo.clear()
+                pdo.cob_id = pdo.predefined_cob_id
+                pdo.trans_type = 1  # synchronous: applied / sent on every SYNC
+                pdo.enabled = n == 1
+        node.rpdo[1].add_variable(0x6040)
+        node.rpdo[1].add_variable(target_index)
+        node.tpdo[1].add_variable(0x6041)
+        node.tpdo[1].add_variable(0x6064)
+        node.tpdo[1].add_callback(self._on_tpdo)
+        for maps in (node.rpdo, node.tpdo):
+            for n in range(1, 5):
+                maps[n].save()
+        self._rpdo = node.rpdo[1]
+        self._cw, self._target = self._rpdo[0x6040], self._rpdo[target_index]
+
+    def _close(self) -> None:
+        network, self._network = self._network, None
+        if network is None:
+            return
+        try:
+            self._node.nmt.send_command(_NMT_PRE_OPERATIONAL)  # stop the PDOs
+        finally:
+            network.disconnect()
+
+    def _set_torque(self, enabled: bool) -> None:
+        if enabled:
+            self._enable()
+            return
+        statusword, _ = self._cycle(_DISABLE_VOLTAGE, self._hold_target())
+        state = profile.state_of(statusword)
+        if state in _POWERED:
+            raise DeviceFault(f"{self._who()} did not switch off: still {state} (statusword 0x{statusword:04X})")
+
+    def _enable(self) -> None:
+        self._emcy.clear()
+        statusword, _ = self._cycle(_TOWARDS_ENABLED["SWITCH ON DISABLED"], self._hold_target())
+        deadline_cycles = max(20, int(1.0 / self.timeout))
+        reset_sent = False
+        for _ in range(deadline_cycles):
+            self._raise_emcy()
+            state = profile.state_of(statusword)
+            if state == _OE:
+                return
+            if state == "FAULT":
+                if not self.fault_reset:
+                    raise DeviceFault(
+                        f"{self._who()} is in FAULT{self._error_code_text()}: clear the cause, then reset it "
+                        "(add fault_reset=1 to the URL to reset it on enable)"
+                    )
+                if reset_sent:
+                    raise DeviceFault(f"{self._who()} stays in FAULT after a fault reset{self._error_code_text()}")
+                self._cycle(_DISABLE_VOLTAGE, self._hold_target())
+                controlword, reset_sent = profile.CW_FAULT_RESET, True
+            else:
+                controlword = _TOWARDS_ENABLED.get(state, _DISABLE_VOLTAGE)
+            statusword, _ = self._cycle(controlword, self._hold_target())
+        raise DeviceFault(
+            f"{self._who()} did not reach Operation Enabled in {deadline_cycles} cycles: "
+            f"stuck in {profile.state_of(statusword)} (statusword 0x{statusword:04X})"
+        )
+
+    def _exchange(self, command: float) -> Reading:
+        self._raise_emcy()
+        statusword, position = self._cycle(_ENABLE_OPERATION, command)
+        self._raise_emcy()
+        state = profile.state_of(statusword)
+        if state != _OE:
+            raise DeviceFault(
+                f"{self._who()} left Operation Enabled: statusword 0x{statusword:04X} = {state}"
+                f"{self._error_code_text() if state == 'FAULT' else ''}"
+            )
+        return Reading(position=float(position))
+
+    def _read(self) -> Reading:
+        return Reading(position=float(self._sdo_read(0x6064, what="the actual position")))
+
+    def _identity(self) -> dict[str, Any]:
+        return dict(self._info)
+
+    # ---- the cycle -------------------------------------------------------------------------
+    def _cycle(self, controlword: int, target: float) -> tuple[int, int]:
+        """RPDO1 (controlword, target) then SYNC; wait for TPDO1; return (statusword, position)."""
+        low, high = _INT32 if self.mode == "position" else _INT16
+        value = round(target)
+        if not low <= value <= high:
+            raise ConfigError(
+                f"target (={value} drive units) is outside the drive's range {low}..{high}; "
+                "set min/max in the URL to keep commands in range"
+            )
+        self._cw.raw = controlword
+        self._target.raw = value
+        with self._reply:
+            if self._replies < self._cycles:
+                # the last cycle timed out: let its TPDO arrive now rather than answer this one
+                self._reply.wait_for(lambda: self._replies >= self._cycles, self.timeout)
+            before = self._replies
+            self._cycles = before + 1
+        self._rpdo.transmit()
+        self._network.sync.transmit()
+        with self._reply:
+            if not self._reply.wait_for(lambda: self._replies > before, self.timeout):
+                raise DriverTimeout(
+                    f"{self._who()}: no TPDO within {self.timeout * 1e3:.0f} ms after SYNC (the drive stopped answering)"
+                )
+            return self._statusword, self._position
+
+    def _hold_target(self) -> float:
+        """The target that keeps the drive where it is: the actual position, or zero torque."""
+        if self.mode == "torque":
+            return 0.0
+        return float(self._position if self._replies else self._sdo_read(0x6064, what="the actual position"))
+
+    # ---- callbacks (canopen's notifier thread) --------------------------------------------------
+    def _on_tpdo(self, pdo: Any) -> None:
+        statusword, position = int(pdo[0x6041].raw), int(pdo[0x6064].raw)
+        with self._reply:
+            self._statusword, self._position = statusword, position
+            self._replies += 1
+            self._reply.notify_all()
+
+    def _on_emcy(self, error: Any) -> None:
+        if error.code & 0xFF00:  # 0x00xx is "error reset / no error"
+            self._emcy.append(error)
+
+    # ---- helpers -------------------------------------------------------------------------------
+    def _raise_emcy(self) -> None:
+        errors = []
+        while self._emcy:
+            errors.append(self._emcy.popleft())
+        if not errors:
+            return
+        first = errors[0]
+        more = f" (and {len(errors) - 1} more)" if len(errors) > 1 else ""
+        raise DeviceFault(
+            f"{self._who()} reported {profile.emcy_text(first.code, first.register)}{more}; "
+            f"state {profile.state_of(self._statusword)}"
+        )
+
+    def _error_code_text(self) -> str:
+        try:
+            code = self._sdo_read(0x603F, what="the error code", optional=True)
+        except DriverTimeout:
+            return ""
+        return f" (error code 0x603F = 0x{code:04X}: {profile.emcy_text(code)})" if code else ""
+
+    def _sdo_call(self, action: Callable[[], Any], what: str) -> Any:
+        """SDO downloads (``action``) with canopen's errors said in the drive's terms."""
+        canopen = import_vendor("canopen")
+        try:
+            return action()
+        except canopen.SdoCommunicationError as exc:
+            raise DriverTimeout(f"{self._who()} stopped answering SDO requests while trying to {what}") from exc
+        except canopen.SdoAbortedError as exc:
+            raise ProtocolError(f"{self._who()} refused to {what}: {exc}") from exc
+
+    def _sdo_read(self, index: int, subindex: int | None = None, *, what: str, optional: bool = False) -> Any:
+        """One SDO upload; no answer is DriverTimeout, an abort raises unless ``optional`` (then None)."""
+        canopen = import_vendor("canopen")
+        entry = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
+        try:
+            return entry.raw
+        except canopen.SdoCommunicationError as exc:
+            raise DriverTimeout(
+                f"{self._who()} does not answer (no SDO reply reading {what}, 0x{index:04X}, "
+                f"in {self._node.sdo.RESPONSE_TIMEOUT:g} s): is it powered, is node={self.node} right, "
+                "is the bit rate right?"
+            ) from exc
+        except canopen.SdoAbortedError as exc:
+            if optional:
+                return None
+            raise ProtocolError(f"{self._who()} refused to give {what} (0x{index:04X}): {exc}") from exc
+
+    def _read_identity(self, counts_per_rev: int, rated_torque_mnm: int | None) -> dict[str, Any]:
+        info: dict[str, Any] = {"protocol": "CiA 402", "node": self.node, "mode": self.mode, "counts_per_rev": counts_per_rev}
+        if rated_torque_mnm is not None:
+            info["rated_torque_mNm"] = rated_torque_mnm
+        names = {
+            "device_name": (0x1008, None), "hardware_version": (0x1009, None), "software_version": (0x100A, None),
+            "vendor_id": (0x1018, 1), "product_code": (0x1018, 2), "revision": (0x1018, 3), "serial_number": (0x1018, 4),
+        }  # fmt: skip
+        for key, (index, sub) in names.items():
+            value = self._sdo_read(index, sub, what=key.replace("_", " "), optional=True)
+            if value not in (None, ""):
+                info[key] = value
+        return info

@@ -1,0 +1,351 @@
+"""A simulated CiA 402 servo drive: a canopen LocalNode with the bench plant behind it.
+
+The drive is what a CANopen master meets on a real bus: an SDO server on its
+object dictionary (:mod:`servoid.drivers.can.cia402_od`), NMT slave, boot-up
+message, EMCY producer, PDOs mapped by the master through SDO, and the CiA
+402 state machine driven by the controlword (0x6040) and shown in the
+statusword (0x6041), in cyclic synchronous position (8) or torque (10) mode.
+
+Cycle (sample-synchronous, see :mod:`servoid.drivers.can._sim_axis`): the
+RPDOs the master sends are latched, and on each SYNC the drive applies the
+latched controlword, advances the plant one sample with the latched target
+(only in Operation Enabled), and answers with its TPDOs (statusword, actual
+position). Positions are in encoder increments, ``counts_per_rev`` per
+revolution (0x608F); torques in per mille of the rated torque (0x6071, 0x6076).
+
+Faults for tests, each applied at the next SYNC so that tests are
+deterministic: :meth:`SimCia402Drive.inject_fault` (FAULT with an EMCY),
+:meth:`SimCia402Drive.drop_out` (leaves Operation Enabled without an EMCY,
+like a lost enable input) and :meth:`SimCia402Drive.mute` (the drive keeps
+listening and obeying, but sends nothing: a broken transmitter).
+
+Not modelled: a SYNC/heartbeat watchdog (real drives fault when the master
+goes quiet, 0x6007), the quick stop ramp, event-driven PDOs.
+
+Examples
+--------
+>>> with SimCia402Drive(node=1, bus=BusAddress("virtual", "bench")) as drive:   # doctest: +SKIP
+...     with driver_from_url(drive.url()) as servo:
+...         servo.enable()
+...         servo.exchange(0.1)
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+from typing import Any
+
+from servoid import validation
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.can import cia402_od as profile
+from servoid.drivers.can._bus import BusAddress, import_vendor
+from servoid.drivers.can._sim_axis import TORQUE_GAIN
+from servoid.drivers.can._sim_base import SimDrive
+from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.errors import ConfigError
+from servoid.ident.model import BacklashModel
+
+__all__ = ["SimCia402Drive", "SIM_COUNTS_PER_REV", "SIM_RATED_TORQUE_MNM"]
+
+log = logging.getLogger("servoid.drivers.can.sim")
+
+#: Encoder increments per revolution of the simulated drive (a 17-bit encoder).
+SIM_COUNTS_PER_REV = 1 << 17
+
+#: Rated torque of the simulated drive, mNm (target torque 1000 per mille = 1 Nm).
+SIM_RATED_TORQUE_MNM = 1000
+
+_OE = "OPERATION ENABLED"
+_QSA = "QUICK STOP ACTIVE"
+_SOD = "SWITCH ON DISABLED"
+_POWERED = (_OE, _QSA)
+_VOLTAGE = ("READY TO SWITCH ON", "SWITCHED ON", _OE, _QSA)
+_MODES = tuple(profile.MODES.values())  # the modes of operation the drive accepts: CSP, CST
+_REMOTE = 0x0200  # statusword bit 9: the drive follows the controlword
+_VOLTAGE_ENABLED = 0x0010  # statusword bit 4
+_CSP_FOLLOWING = 0x1000  # statusword bit 12 in CSP/CST: the target is followed
+
+
+def _next_state(state: str, controlword: int) -> str:
+    """CiA 402 device control (transitions 2-12 and 16) for one controlword."""
+    disable_voltage = controlword & 0x82 == 0x00
+    quick_stop = controlword & 0x86 == 0x02
+    shutdown = controlword & 0x87 == 0x06
+    switch_on = controlword & 0x8F == 0x07
+    enable = controlword & 0x8F == 0x0F
+    if state == _SOD:
+        return "READY TO SWITCH ON" if shutdown else state  # 2
+    if state == "READY TO SWITCH ON":
+        if disable_voltage or quick_stop:
+            return _SOD  # 7
+        if switch_on:
+            return "SWITCHED ON"  # 3
+        return _OE if enable else state  # 3 + 4, as most drives do
+    if state == "SWITCHED ON":
+        if disable_voltage or quick_stop:
+            return _SOD  # 10
+        if shutdown:
+            return "READY TO SWITCH ON"  # 6
+        return _OE if enable else state  # 4
+    if state == _OE:
+        if disable_voltage:
+            return _SOD  # 9
+        if quick_stop:
+            return _QSA  # 11
+        if shutdown:
+            return "READY TO SWITCH ON"  # 8
+        return "SWITCHED ON" if switch_on else state  # 5
+    if state == _QSA:
+        if disable_voltage:
+            return _SOD  # 12
+        return _OE if enable else state  # 16
+    return state
+
+
+class SimCia402Drive(SimDrive):
+    """A simulated CiA 402 drive on a python-can bus (see the module docstring).
+
+    Parameters
+    ----------
+    node : int
+        CANopen node id, 1..127.
+    bus, model, torque_gain
+        As for :class:`~servoid.drivers.can._sim_base.SimDrive`.
+    counts_per_rev : int
+        Encoder increments per revolution, reported in 0x608F.
+    rated_torque_mnm : int
+        Motor rated torque (0x6076), mNm.
+    device_type : int
+        What 0x1000 says (default a CiA 402 servo drive; tests set others).
+    """
+
+    protocol = "cia402"
+
+    def __init__(
+        self,
+        *,
+        node: int = DEFAULT_NODES["cia402"],
+        bus: BusAddress | None = None,
+        model: BacklashModel = BENCH_PLANT,
+        counts_per_rev: int = SIM_COUNTS_PER_REV,
+        rated_torque_mnm: int = SIM_RATED_TORQUE_MNM,
+        torque_gain: float = TORQUE_GAIN,
+        device_type: int = profile.DEVICE_TYPE_402,
+    ) -> None:
+        node = validation.integer("node", node, minimum=1)
+        if node > 127:
+            raise ConfigError(f"node (={node}) must be 1..127 for a CANopen drive")
+        super().__init__(node=node, bus=bus, model=model, torque_gain=torque_gain)
+        self.counts_per_rev = validation.integer("counts_per_rev", counts_per_rev, minimum=1)
+        self.rated_torque_mnm = validation.integer("rated_torque_mnm", rated_torque_mnm, minimum=1)
+        self.device_type = validation.integer("device_type", device_type, minimum=0)
+        self.state = _SOD
+        self.mode = 0
+        self.error_code = 0
+        self.syncs = 0
+        self._controlword = 0
+        self._pending: list[tuple[str, Any]] = []
+        self._lock = threading.RLock()
+        self._network: Any = None
+        self._node: Any = None
+        self._rx: dict[int, Any] = {}
+        self._tx_maps: list[Any] = []
+        self._subscribed: list[tuple[int, Any]] = []
+
+    # ---- life cycle ----------------------------------------------------------------------
+    def start(self) -> SimCia402Drive:
+        """Connect to the bus and boot (boot-up message, then PRE-OPERATIONAL)."""
+        if self._network is not None:
+            return self
+        canopen = import_vendor("canopen")
+        dictionary = profile.object_dictionary(self.node)
+        dictionary[0x1000].default = self.device_type
+        dictionary[0x1008].default = "servoid simulated CiA 402 drive"
+        dictionary[0x1009].default = "sim"
+        dictionary[0x100A].default = "servoid"
+        dictionary[0x1018][2].default = 0x0402
+        dictionary[0x1018][4].default = self.node
+        dictionary[0x6076].default = self.rated_torque_mnm
+        dictionary[0x608F][1].default = self.counts_per_rev
+        network = _network_class(canopen)(self.bus.open())
+        network.NOTIFIER_CYCLE = 0.05  # so that stop() does not wait a second for the reader thread
+        network.drive = self
+        node = canopen.LocalNode(self.node, dictionary)
+        node.add_read_callback(self._on_read)
+        node.add_write_callback(self._on_write)
+        network.add_node(node)
+        network.subscribe(0x80, self._on_sync)
+        network.subscribe(0, self._on_nmt)  # after the node's own NMT slave has seen the command
+        self._network, self._node = network, node
+        network.connect()
+        node.nmt.send_command(0x81)  # reset: boot-up message
+        node.nmt.send_command(0x80)  # pre-operational
+        return self
+
+    def stop(self) -> None:
+        """Leave the bus; idempotent."""
+        network, self._network = self._network, None
+        if network is not None:
+            network.disconnect()
+
+    # ---- what tests look at ----------------------------------------------------------------
+    @property
+    def power_on(self) -> bool:
+        """Whether the power stage is on (Operation Enabled or Quick Stop Active)."""
+        return self.state in _POWERED
+
+    @property
+    def nmt_state(self) -> str:
+        return str(self._node.nmt.state) if self._node is not None else "STOPPED"
+
+    @property
+    def statusword(self) -> int:
+        sw = profile.statusword_of(self.state) | _REMOTE
+        if self.state in _VOLTAGE:
+            sw |= _VOLTAGE_ENABLED
+        if self.state == _OE:
+            sw |= _CSP_FOLLOWING
+        return sw
+
+    @property
+    def position_counts(self) -> int:
+        return round(self.axis.position / (2 * math.pi) * self.counts_per_rev)
+
+    def status(self) -> str:
+        """One line for a terminal."""
+        return (
+            f"node {self.node}: NMT {self.nmt_state}, {self.state}, mode {self.mode}, "
+            f"{self.syncs} SYNCs, position {self.axis.position:+.4f} rad"
+        )
+
+    # ---- fault injection (applied at the next SYNC) -------------------------------------------
+    def inject_fault(self, code: int = 0x2310, register: int = 0x03) -> None:
+        """Fault at the next SYNC: FAULT state, power off, EMCY ``code`` (default 0x2310, over-current)."""
+        with self._lock:
+            self._pending.append(("fault", (code, register)))
+
+    def drop_out(self, state: str = _SOD) -> None:
+        """Leave Operation Enabled at the next SYNC without an EMCY (a lost enable input)."""
+        with self._lock:
+            self._pending.append(("drop", state))
+
+    # ---- bus callbacks (the canopen notifier thread) ------------------------------------------
+    def _on_read(self, *, index: int, subindex: int, od: Any) -> Any:  # noqa: ARG002 - canopen's signature
+        live = {
+            0x1001: 0x01 if self.state == "FAULT" else 0,
+            0x603F: self.error_code,
+            0x6041: self.statusword,
+            0x6061: self.mode,
+            0x6064: self.position_counts,
+            0x6077: 0,
+        }
+        return live.get(index)
+
+    def _on_write(self, *, index: int, subindex: int, od: Any, data: bytes) -> None:  # noqa: ARG002
+        canopen = import_vendor("canopen")
+        value = od.decode_raw(data)
+        with self._lock:
+            if index == 0x6060:
+                if value not in _MODES:
+                    raise canopen.SdoAbortedError(0x06090030)  # value range of parameter exceeded
+                self.mode = int(value)
+            elif index == 0x6040:
+                self._apply_controlword(int(value))
+            elif index == 0x6076:
+                self.rated_torque_mnm = max(int(value), 1)
+
+    def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
+        with self._lock:
+            if self.nmt_state == "OPERATIONAL":
+                self._read_pdo_configuration()
+            elif self.power_on:
+                # the master left OPERATIONAL with the drive enabled: disable (0x6007 option "disable voltage")
+                log.info("node %d: NMT left OPERATIONAL while enabled, disabling", self.node)
+                self.state = _SOD
+
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
+        with self._lock:
+            self.syncs += 1
+            if self.nmt_state == "OPERATIONAL" and 0x6040 in self._rx:
+                self._apply_controlword(int(self._rx[0x6040].raw))
+            self._apply_pending()  # after the master's command, so that the injected state is what it sees
+            if self.nmt_state != "OPERATIONAL":
+                return
+            if self.state == _OE and self.mode in _MODES:
+                self.axis.step(self._target(), torque=self.mode == profile.MODES["torque"])
+            else:
+                self.axis.hold()
+            self._stall()
+            for pdo in self._tx_maps:
+                if self.syncs % max(pdo.trans_type, 1) == 0:
+                    for var in pdo:
+                        var.set_data(self._node.get_data(var.index, var.subindex))
+                    pdo.transmit()
+
+    # ---- helpers -------------------------------------------------------------------------------
+    def _target(self) -> float:
+        """The latched target as the plant's input: rad, or Nm in torque mode."""
+        if self.mode == profile.MODES["torque"]:
+            var = self._rx.get(0x6071)
+            return 0.0 if var is None else var.raw / 1000.0 * self.rated_torque_mnm / 1000.0
+        var = self._rx.get(0x607A)
+        return self.axis.position if var is None else var.raw * 2 * math.pi / self.counts_per_rev
+
+    def _apply_controlword(self, controlword: int) -> None:
+        rising_reset = controlword & profile.CW_FAULT_RESET and not self._controlword & profile.CW_FAULT_RESET
+        self._controlword = controlword
+        if self.state == "FAULT":
+            if rising_reset:
+                self.state, self.error_code = _SOD, 0  # 15
+            return
+        self.state = _next_state(self.state, controlword)
+
+    def _apply_pending(self) -> None:
+        for kind, arg in self._pending:
+            if kind == "fault":
+                code, register = arg
+                self.state, self.error_code = "FAULT", code
+                self._node.emcy.send(code, register)
+            elif kind == "drop":
+                self.state = arg
+        self._pending.clear()
+
+    def _read_pdo_configuration(self) -> None:
+        """Take the PDO mapping the master wrote (over SDO) into effect, as a drive does on NMT start."""
+        for cob_id, callback in self._subscribed:
+            self._network.unsubscribe(cob_id, callback)
+        self._subscribed.clear()
+        self._node.rpdo.read()
+        self._node.tpdo.read()
+        self._rx = {}
+        for pdo in self._node.rpdo.map.values():
+            if pdo.enabled:
+                self._subscribed.append((pdo.cob_id, pdo.on_message))
+                self._rx.update({var.index: var for var in pdo})
+        self._tx_maps = [p for p in self._node.tpdo.map.values() if p.enabled and p.trans_type and p.trans_type <= 240]
+        for pdo in self._node.tpdo.map.values():
+            if pdo.enabled:
+                # a LocalNode's TPDO subscribes to its own COB-ID; nothing is to be received there
+                self._subscribed.append((pdo.cob_id, pdo.on_message))
+
+
+_NETWORK_CLASS: Any = None
+
+
+def _network_class(canopen: Any) -> Any:
+    """A canopen Network whose transmitter the simulated drive can switch off (:meth:`mute`)."""
+    global _NETWORK_CLASS
+    if _NETWORK_CLASS is None:
+
+        class _DriveNetwork(canopen.Network):  # type: ignore[misc, name-defined]
+            drive: SimCia402Drive | None = None
+
+            def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:
+                if self.drive is not None and self.drive._muted:
+                    return
+                super().send_message(can_id, data, remote)
+
+        _NETWORK_CLASS = _DriveNetwork
+    return _NETWORK_CLASS

@@ -1,0 +1,200 @@
+"""A simulated ODrive axis speaking CAN Simple, with the bench plant behind it.
+
+It answers what :class:`~servoid.drivers.can.odrive.OdriveDriver` and a user's
+own CAN Simple code send: Set_Axis_State (IDLE / CLOSED_LOOP_CONTROL),
+Set_Controller_Mode, Set_Input_Pos, Set_Input_Torque, Clear_Errors, Estop, and
+remote requests for Get_Encoder_Estimates, Get_Error, Get_Version and the
+heartbeat; it sends a heartbeat every ``heartbeat_ms`` and at once on every
+change of axis state or error.
+
+Sample-synchronous (see :mod:`servoid.drivers.can._sim_axis`): each
+Set_Input_Pos (or Set_Input_Torque) advances the plant one sample, in
+closed-loop control only; the estimates then report the new position.
+
+Faults for tests, applied at the next Set_Input_* so that tests are
+deterministic: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms to
+IDLE and says why in the heartbeat, as the firmware does) and
+:meth:`SimOdriveAxis.mute` (receives and obeys, sends nothing).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from typing import Any
+
+from servoid import validation
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.can import odrive_protocol as proto
+from servoid.drivers.can._bus import BusAddress, import_vendor
+from servoid.drivers.can._sim_axis import TORQUE_GAIN
+from servoid.drivers.can._sim_base import SimDrive
+from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.errors import ConfigError
+from servoid.ident.model import BacklashModel
+
+__all__ = ["SimOdriveAxis", "SIM_VERSION"]
+
+#: What the simulated axis answers to Get_Version: protocol 2, hardware 0.0.0 (none), firmware 0.6.10.
+SIM_VERSION = (2, 0, 0, 0, 0, 6, 10, 0)
+
+_TWO_PI = 2 * math.pi
+
+
+class SimOdriveAxis(SimDrive):
+    """A simulated ODrive axis on a python-can bus (see the module docstring).
+
+    Parameters
+    ----------
+    node : int
+        CAN Simple node id, 0..63.
+    bus, model, torque_gain
+        As for :class:`~servoid.drivers.can._sim_base.SimDrive`.
+    heartbeat_ms : float
+        Period of the cyclic heartbeat, ms (ODrive's default 100).
+    """
+
+    protocol = "odrive"
+
+    def __init__(
+        self,
+        *,
+        node: int = DEFAULT_NODES["odrive"],
+        bus: BusAddress | None = None,
+        model: BacklashModel = BENCH_PLANT,
+        torque_gain: float = TORQUE_GAIN,
+        heartbeat_ms: float = 100.0,
+    ) -> None:
+        node = validation.integer("node", node, minimum=0)
+        if node > 63:
+            raise ConfigError(f"node (={node}) must be 0..63 for ODrive CAN Simple")
+        super().__init__(node=node, bus=bus, model=model, torque_gain=torque_gain)
+        self.heartbeat_s = validation.positive("heartbeat_ms", heartbeat_ms) / 1000.0
+        self.axis_state = proto.IDLE
+        self.axis_error = 0
+        self.control_mode = proto.CONTROL_MODES["position"]
+        self.inputs = 0
+        self._input = 0.0
+        self._pending_error = 0
+        self._can: Any = None
+        self._bus: Any = None
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    # ---- life cycle ----------------------------------------------------------------------
+    def start(self) -> SimOdriveAxis:
+        """Connect to the bus and start answering (in a thread of its own)."""
+        if self._bus is not None:
+            return self
+        self._can = import_vendor("can")
+        self._bus = self.bus.open(can_filters=proto.node_filter(self.node))
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._serve, name=f"sim-odrive-{self.node}", daemon=True)
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Leave the bus; idempotent."""
+        if self._bus is None:
+            return
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self._bus.shutdown()
+        self._bus, self._thread = None, None
+
+    # ---- what tests look at ----------------------------------------------------------------
+    @property
+    def power_on(self) -> bool:
+        """Whether the axis is in closed-loop control (the power stage on)."""
+        return self.axis_state == proto.CLOSED_LOOP_CONTROL
+
+    def status(self) -> str:
+        """One line for a terminal."""
+        beat = proto.Heartbeat(self.axis_error, self.axis_state).describe()
+        return f"node {self.node}: {beat}, {self.inputs} inputs, position {self.axis.position:+.4f} rad"
+
+    # ---- fault injection -------------------------------------------------------------------
+    def inject_axis_error(self, code: int = 0x1000) -> None:
+        """At the next Set_Input_*: set axis error ``code`` (default CURRENT_LIMIT_VIOLATION) and disarm."""
+        self._pending_error = code
+
+    # ---- the server thread -----------------------------------------------------------------
+    def _serve(self) -> None:
+        next_beat = time.perf_counter()
+        while not self._stop.is_set():
+            now = time.perf_counter()
+            if now >= next_beat:
+                self._send_heartbeat()
+                next_beat = now + self.heartbeat_s
+            msg = self._bus.recv(min(next_beat - now, 0.05))
+            if msg is not None:
+                self._on_frame(msg)
+
+    def _on_frame(self, msg: Any) -> None:
+        if msg.is_error_frame:
+            return
+        node, command = proto.split_id(msg.arbitration_id)
+        if node != self.node:
+            return
+        if msg.is_remote_frame:
+            self._answer(command)
+            return
+        data = bytes(msg.data)
+        if command == proto.SET_INPUT_POS and len(data) >= proto.INPUT_POS_FORMAT.size:
+            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False)
+        elif command == proto.SET_INPUT_TORQUE and len(data) >= proto.INPUT_TORQUE_FORMAT.size:
+            self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True)
+        elif command == proto.SET_AXIS_STATE and len(data) >= proto.AXIS_STATE_FORMAT.size:
+            self._on_state_request(proto.AXIS_STATE_FORMAT.unpack_from(data)[0])
+        elif command == proto.SET_CONTROLLER_MODE and len(data) >= proto.CONTROLLER_MODE_FORMAT.size:
+            self.control_mode = proto.CONTROLLER_MODE_FORMAT.unpack_from(data)[0]
+        elif command == proto.CLEAR_ERRORS:
+            self.axis_error = 0
+            self._send_heartbeat()
+        elif command == proto.ESTOP:
+            self._disarm(0x2000000)  # ESTOP_REQUESTED
+
+    def _on_input(self, value: float, *, torque: bool) -> None:
+        self.inputs += 1
+        if self._pending_error:
+            code, self._pending_error = self._pending_error, 0
+            self._disarm(code)
+        matches = self.control_mode == proto.CONTROL_MODES["torque" if torque else "position"]
+        if self.axis_state == proto.CLOSED_LOOP_CONTROL and matches:
+            self.axis.step(value, torque=torque)
+        else:
+            self.axis.hold()
+
+    def _on_state_request(self, requested: int) -> None:
+        if requested == proto.CLOSED_LOOP_CONTROL and not self.axis_error:
+            self.axis_state = proto.CLOSED_LOOP_CONTROL
+        elif requested == proto.IDLE:
+            self.axis_state = proto.IDLE
+        self._send_heartbeat()
+
+    def _disarm(self, code: int) -> None:
+        self.axis_error |= code
+        self.axis_state = proto.IDLE
+        self._send_heartbeat()
+
+    def _answer(self, command: int) -> None:
+        if command == proto.GET_ENCODER_ESTIMATES:
+            self._stall()
+            self._send(command, proto.ESTIMATES_FORMAT.pack(self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI))
+        elif command == proto.HEARTBEAT:
+            self._send_heartbeat()
+        elif command == proto.GET_ERROR:
+            self._send(command, proto.ERROR_FORMAT.pack(self.axis_error, self.axis_error))
+        elif command == proto.GET_VERSION:
+            self._send(command, proto.VERSION_FORMAT.pack(*SIM_VERSION))
+
+    def _send_heartbeat(self) -> None:
+        self._send(proto.HEARTBEAT, proto.Heartbeat(self.axis_error, self.axis_state).encode())
+
+    def _send(self, command: int, data: bytes) -> None:
+        if self._muted:
+            return
+        msg = self._can.Message(arbitration_id=proto.arbitration_id(self.node, command), data=data, is_extended_id=False)
+        self._bus.send(msg)

@@ -1,0 +1,335 @@
+"""One emulated X-series servo: its control table, its rules, and the backlash plant behind it.
+
+:class:`EmulatedServo` knows nothing about bytes on a wire; the emulator
+(:mod:`servoid.drivers.dynamixel.emulator`) decodes packets and calls
+:meth:`~EmulatedServo.read`, :meth:`~EmulatedServo.write` and friends, which
+return the error number the servo puts in its status packet.
+
+What the emulated servo does
+----------------------------
+* The control table of :mod:`~servoid.drivers.dynamixel.control_table`, with
+  its initial values; read-only entries, partial writes of an entry, values out
+  of range and the EEPROM lock while the torque is on are refused with the
+  e-manual's error numbers (Access, Data Length, Data Range, Data Limit).
+* **Sample-synchronous plant**: the plant (:data:`servoid.drivers.bench.BENCH_PLANT`
+  unless another is given) advances exactly one step each time the goal of the
+  active operating mode is written while the torque is on, whatever the time
+  between writes. The driver writes one goal per sample, so the emulated servo
+  behaves like the simulated one at any sample rate, and a slow host cannot
+  make it drift. Present Position, Velocity, Current and PWM change only then.
+* Operating modes (the plant's input is in rad):
+
+  - position (3, and 4, 5): the goal position, ``(goal - 2048) * 2 pi / 4096`` rad;
+  - current (0): the goal current times :data:`CURRENT_GAIN` rad/A, as if the
+    joint were held by a spring whose deflection is proportional to the
+    current (so an identification in current mode finds a DC gain of 1 rad/A);
+  - PWM (16): the goal PWM in percent times :data:`PWM_GAIN` rad/%;
+  - velocity (1) is accepted but does not move the plant.
+
+  Present Current in position and PWM mode is the current that would hold the
+  same deflection, ``(u - y) / CURRENT_GAIN`` (an indication, not physics).
+* Realtime Tick: milliseconds since boot from the injected ``clock``, wrapping
+  at 32768. Present Velocity: the position change over the clock time between
+  the last two steps.
+* Hardware errors (:meth:`inject_hardware_error`): Hardware Error Status is
+  set, the alert bit goes into every status packet, the torque is switched off
+  when the error is one of Shutdown's bits, and the torque cannot be switched
+  on again until a reboot.
+* REBOOT restores the RAM area and clears hardware errors; the plant keeps its
+  physical state (the gear does not move because the electronics restarted).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+from servoid import validation
+from servoid.errors import ConfigError
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.dynamixel import control_table as ct
+from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
+from servoid.drivers.dynamixel.protocol import ErrorNumber
+from servoid.ident.model import BacklashModel
+from servoid.ident.plant import Plant
+
+__all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
+
+#: Plant input per ampere in current mode (rad/A).
+CURRENT_GAIN = 1.0
+#: Plant input per percent of PWM in PWM mode (rad/%).
+PWM_GAIN = 0.01
+
+_POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
+#: Operating mode -> the goal entry whose write advances the plant.
+_GOAL_OF_MODE: dict[int, Field] = {
+    **{mode: ct.GOAL_POSITION for mode in _POSITION_MODES},
+    OperatingMode.CURRENT: ct.GOAL_CURRENT,
+    OperatingMode.PWM: ct.GOAL_PWM,
+}
+#: Entries whose value must lie in a fixed set or range (else Data Range Error).
+_VALID_VALUES: dict[Field, range | frozenset[int]] = {
+    ct.ID: range(0, 253),
+    ct.BAUD_RATE: frozenset(ct.BAUD_RATES),
+    ct.RETURN_DELAY_TIME: range(0, 255),
+    ct.OPERATING_MODE: frozenset(int(m) for m in OperatingMode),
+    ct.STATUS_RETURN_LEVEL: range(0, 3),
+    ct.TORQUE_ENABLE: range(0, 2),
+    ct.LED: range(0, 2),
+}
+
+
+class EmulatedServo:
+    """An X-series servo in memory (see the module docstring for what it emulates).
+
+    Parameters
+    ----------
+    servo_id : int
+        Initial ID (0..252).
+    plant : BacklashModel
+        The mechanics behind the servo, in rad.
+    model_number, firmware : int
+        What Model Number (0) and Firmware Version (6) report.
+    return_delay_us : int
+        Initial Return Delay Time in microseconds (even, 0..508; the factory
+        setting is 500).
+    clock : callable
+        Seconds, monotonic; drives the Realtime Tick and Present Velocity.
+        Inject a virtual clock for deterministic tests.
+    """
+
+    def __init__(
+        self,
+        servo_id: int = 1,
+        *,
+        plant: BacklashModel = BENCH_PLANT,
+        model_number: int = ct.MODEL_NUMBER.initial,
+        firmware: int = ct.FIRMWARE_VERSION.initial,
+        return_delay_us: int = 500,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        validation.integer("servo_id", servo_id, minimum=0)
+        if servo_id > 252:
+            raise ConfigError(f"servo_id (={servo_id}) must be in 0..252")
+        delay = validation.integer("return_delay_us", return_delay_us, minimum=0)
+        if delay > 508 or delay % 2:
+            raise ConfigError(f"return_delay_us (={delay}) must be even and in 0..508 (unit 2 us)")
+        self._clock = clock
+        self._plant = Plant(plant)
+        self._memory = bytearray(ct.TABLE_SIZE)
+        self._registered: tuple[int, bytes] | None = None
+        for f in ct.FIELDS:
+            self._put(f, f.initial)
+        self._put(ct.MODEL_NUMBER, model_number)
+        self._put(ct.FIRMWARE_VERSION, firmware)
+        self._put(ct.ID, servo_id)
+        self._put(ct.RETURN_DELAY_TIME, delay // 2)
+        self._eeprom_defaults = bytes(self._memory[: ct.TORQUE_ENABLE.address])
+        self._boot = clock()
+        self._last_step_time: float | None = None
+        #: Number of plant steps taken (goal writes with the torque on).
+        self.steps = 0
+        #: Number of reboots.
+        self.reboots = 0
+
+    # ---- state -----------------------------------------------------------------------
+    def value(self, field: Field) -> int:
+        """The current value of an entry (signed where the entry is)."""
+        if field is ct.REALTIME_TICK:
+            self._update_tick()
+        return ct.decode_value(field, self._memory, field.address)
+
+    @property
+    def id(self) -> int:
+        return self.value(ct.ID)
+
+    @property
+    def torque(self) -> bool:
+        return bool(self.value(ct.TORQUE_ENABLE))
+
+    @property
+    def alert(self) -> bool:
+        """Whether a hardware error is pending (the alert bit of status packets)."""
+        return self.value(ct.HARDWARE_ERROR_STATUS) != 0
+
+    @property
+    def status_return_level(self) -> int:
+        return self.value(ct.STATUS_RETURN_LEVEL)
+
+    @property
+    def return_delay_s(self) -> float:
+        return self.value(ct.RETURN_DELAY_TIME) * ct.SECONDS_PER_RETURN_DELAY_UNIT
+
+    @property
+    def plant(self) -> Plant:
+        """The mechanics (its model can be swapped while running, to emulate wear)."""
+        return self._plant
+
+    def _put(self, field: Field, value: int) -> None:
+        self._memory[field.address : field.end] = ct.encode_value(field, value)
+
+    def _update_tick(self) -> None:
+        ms = int((self._clock() - self._boot) * 1000.0)
+        self._put(ct.REALTIME_TICK, ms % int(ct.TICK_WRAP_S * 1000))
+
+    # ---- instructions ------------------------------------------------------------------
+    def read(self, address: int, length: int) -> tuple[ErrorNumber, bytes]:
+        """READ: the bytes ``address .. address + length - 1`` (Access Error beyond the table)."""
+        if length < 1 or address < 0 or address + length > ct.TABLE_SIZE:
+            return ErrorNumber.ACCESS, b""
+        if address < ct.REALTIME_TICK.end and address + length > ct.REALTIME_TICK.address:
+            self._update_tick()
+        return ErrorNumber.NONE, bytes(self._memory[address : address + length])
+
+    def write(self, address: int, data: bytes) -> ErrorNumber:
+        """WRITE: check the whole write first, then apply it (nothing is written on error)."""
+        error = self.check_write(address, data)
+        if error:
+            return error
+        torque_before = self.torque
+        self._memory[address : address + len(data)] = data
+        goal = _GOAL_OF_MODE.get(self.value(ct.OPERATING_MODE))
+        if goal is not None and torque_before and self.torque and address <= goal.address < address + len(data):
+            self._step()
+        return ErrorNumber.NONE
+
+    def check_write(self, address: int, data: bytes) -> ErrorNumber:
+        """The error number a WRITE of ``data`` at ``address`` would get (0 if accepted)."""
+        end = address + len(data)
+        if not data or address < 0 or end > ct.TABLE_SIZE:
+            return ErrorNumber.ACCESS
+        fields = ct.fields_in(address, len(data))
+        if any(f.address < address or f.end > end for f in fields):
+            return ErrorNumber.DATA_LENGTH  # only part of an entry
+        if sum(f.size for f in fields) != len(data):
+            return ErrorNumber.ACCESS  # the write covers reserved addresses
+        torque = self.torque
+        for f in fields:
+            if not f.writable or (f.eeprom and torque):
+                return ErrorNumber.ACCESS
+        for f in fields:
+            error = self._check_value(f, ct.decode_value(f, data, f.address - address))
+            if error:
+                return error
+        return ErrorNumber.NONE
+
+    def _check_value(self, field: Field, value: int) -> ErrorNumber:
+        valid = _VALID_VALUES.get(field)
+        if valid is not None and value not in valid:
+            return ErrorNumber.DATA_RANGE
+        if field is ct.TORQUE_ENABLE and value == 1 and self.alert:
+            return ErrorNumber.RESULT_FAIL  # a servo with a hardware error refuses the torque until rebooted
+        mode = self.value(ct.OPERATING_MODE)
+        if field is ct.GOAL_POSITION and mode == OperatingMode.POSITION:
+            if not self.value(ct.MIN_POSITION_LIMIT) <= value <= self.value(ct.MAX_POSITION_LIMIT):
+                return ErrorNumber.DATA_LIMIT
+        if field is ct.GOAL_CURRENT and abs(value) > self.value(ct.CURRENT_LIMIT):
+            return ErrorNumber.DATA_LIMIT
+        if field is ct.GOAL_PWM and abs(value) > self.value(ct.PWM_LIMIT):
+            return ErrorNumber.DATA_LIMIT
+        return ErrorNumber.NONE
+
+    def reg_write(self, address: int, data: bytes) -> ErrorNumber:
+        """REG_WRITE: check now, apply on ACTION; sets Registered Instruction."""
+        error = self.check_write(address, data)
+        if error:
+            return error
+        self._registered = (address, bytes(data))
+        self._put(ct.REGISTERED_INSTRUCTION, 1)
+        return ErrorNumber.NONE
+
+    def action(self) -> ErrorNumber:
+        """ACTION: apply the registered write (Instruction Error when there is none)."""
+        if self._registered is None:
+            return ErrorNumber.INSTRUCTION
+        address, data = self._registered
+        self._registered = None
+        self._put(ct.REGISTERED_INSTRUCTION, 0)
+        return self.write(address, data)
+
+    def reboot(self) -> None:
+        """REBOOT: RAM area back to its initial values, hardware errors cleared, tick restarted."""
+        for f in ct.FIELDS:
+            if not f.eeprom:
+                self._put(f, f.initial)
+        self._registered = None
+        self._show_plant_output(self._plant.y, velocity=0.0)
+        self._put(ct.GOAL_POSITION, self.value(ct.PRESENT_POSITION))
+        self._boot = self._clock()
+        self._last_step_time = None
+        self.reboots += 1
+
+    def factory_reset(self, option: int) -> ErrorNumber:
+        """FACTORY_RESET: EEPROM to factory values (0xFF all, 0x01 all but ID, 0x02 all but ID and baud)."""
+        if option not in (0x01, 0x02, 0xFF):
+            return ErrorNumber.DATA_RANGE
+        if self.torque:
+            return ErrorNumber.ACCESS
+        keep = {0x01: (ct.ID,), 0x02: (ct.ID, ct.BAUD_RATE), 0xFF: ()}[option]
+        kept = [(f, self.value(f)) for f in keep]
+        self._memory[: len(self._eeprom_defaults)] = self._eeprom_defaults
+        self._put(ct.ID, 1)
+        self._put(ct.BAUD_RATE, ct.BAUD_RATE.initial)
+        self._put(ct.RETURN_DELAY_TIME, ct.RETURN_DELAY_TIME.initial)
+        for f, v in kept:
+            self._put(f, v)
+        return ErrorNumber.NONE
+
+    # ---- faults --------------------------------------------------------------------------
+    def inject_hardware_error(self, bits: HardwareError) -> None:
+        """Raise a hardware error as the servo's own protection would.
+
+        Sets Hardware Error Status; if any bit is one of Shutdown's, the torque
+        goes off (as on the real servo).
+        """
+        status = self.value(ct.HARDWARE_ERROR_STATUS) | int(bits)
+        self._put(ct.HARDWARE_ERROR_STATUS, status)
+        if status & self.value(ct.SHUTDOWN):
+            self._put(ct.TORQUE_ENABLE, 0)
+
+    # ---- the plant -------------------------------------------------------------------------
+    def plant_input(self) -> float | None:
+        """The plant input (rad) the goal of the active mode stands for; None in velocity mode."""
+        mode = self.value(ct.OPERATING_MODE)
+        if mode in _POSITION_MODES:
+            return (self.value(ct.GOAL_POSITION) - ct.POSITION_CENTRE) * ct.RAD_PER_COUNT
+        if mode == OperatingMode.CURRENT:
+            return self.value(ct.GOAL_CURRENT) * ct.AMPERE_PER_UNIT * CURRENT_GAIN
+        if mode == OperatingMode.PWM:
+            return self.value(ct.GOAL_PWM) * ct.PERCENT_PER_PWM_UNIT * PWM_GAIN
+        return None
+
+    def _step(self) -> None:
+        u = self.plant_input()
+        if u is None:
+            return
+        y_before = self._plant.y
+        y = self._plant.step(u)
+        now = self._clock()
+        dt = None if self._last_step_time is None else now - self._last_step_time
+        self._last_step_time = now
+        velocity = (y - y_before) / dt if dt else 0.0
+        self._show_plant_output(y, velocity=velocity, u=u)
+        self.steps += 1
+
+    def _show_plant_output(self, y: float, *, velocity: float, u: float | None = None) -> None:
+        self._put(ct.PRESENT_POSITION, _clip(ct.PRESENT_POSITION, round(y / ct.RAD_PER_COUNT) + ct.POSITION_CENTRE))
+        self._put(ct.PRESENT_VELOCITY, _clip(ct.PRESENT_VELOCITY, round(velocity / ct.RAD_PER_S_PER_VELOCITY_UNIT)))
+        moving = abs(self.value(ct.PRESENT_VELOCITY)) > self.value(ct.MOVING_THRESHOLD)
+        self._put(ct.MOVING, int(moving))
+        mode = self.value(ct.OPERATING_MODE)
+        deflection = 0.0 if u is None else u - y
+        if mode == OperatingMode.CURRENT:
+            current = self.value(ct.GOAL_CURRENT)
+        else:
+            current = round(deflection / CURRENT_GAIN / ct.AMPERE_PER_UNIT)
+        if mode == OperatingMode.PWM:
+            pwm = self.value(ct.GOAL_PWM)
+        else:
+            pwm = round(deflection / PWM_GAIN / ct.PERCENT_PER_PWM_UNIT)
+        current_limit, pwm_limit = self.value(ct.CURRENT_LIMIT), self.value(ct.PWM_LIMIT)
+        self._put(ct.PRESENT_CURRENT, max(-current_limit, min(current_limit, current)))
+        self._put(ct.PRESENT_PWM, max(-pwm_limit, min(pwm_limit, pwm)))
+
+def _clip(field: Field, value: int) -> int:
+    return max(field.minimum, min(field.maximum, value))

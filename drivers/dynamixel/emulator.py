@@ -1,0 +1,565 @@
+"""The Dynamixel emulator: X-series servos on a pseudo-terminal that the official SDK talks to unmodified.
+
+:class:`DynamixelEmulator` opens a pseudo-terminal, serves Protocol 2.0 on it
+for one or more :class:`~servoid.drivers.dynamixel.emulated_servo.EmulatedServo`
+(several IDs on one bus), and gives the slave's name (``/dev/pts/N``) to hand
+to the SDK's ``PortHandler`` or to ``dxl:///dev/pts/N?id=1``.
+
+Instructions: PING (also broadcast), READ, WRITE, REG_WRITE / ACTION,
+FACTORY_RESET, REBOOT, SYNC_READ, SYNC_WRITE, BULK_READ, BULK_WRITE. Status
+packets carry the error byte (error number, and the alert bit while a hardware
+error is pending), honour Status Return Level (PING always answered, reads
+from level 1, everything at level 2) and are sent after each servo's Return
+Delay Time; for SYNC_READ and BULK_READ the servos answer one after the other
+in the order of the request. Instructions addressed to the broadcast ID are
+executed by every servo and answered only for PING. A frame with a bad CRC
+addressed to a servo is answered with the CRC error number. FAST_SYNC_READ,
+FAST_BULK_READ and CLEAR are answered with an Instruction Error.
+
+Faults for tests (:class:`LinkFaults`, :meth:`DynamixelEmulator.unplug`,
+:meth:`EmulatedServo.inject_hardware_error`): a servo that stops answering, a
+servo gone from the bus, corrupted replies, corrupted requests, a hardware
+error.
+
+Two ways to run it: :meth:`DynamixelEmulator.start` serves from a thread of
+the calling process (deterministic logic tests, with an injected clock);
+:class:`EmulatorProcess` serves from a child process, which timing
+measurements need, because an emulator thread shares the interpreter lock
+with the code being measured.
+"""
+
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+import pickle
+import select
+import subprocess
+import sys
+import threading
+import time
+import tty
+from dataclasses import dataclass
+from typing import Any, Callable, Iterable
+
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.dynamixel import control_table as ct
+from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
+from servoid.drivers.dynamixel.protocol import (
+    ALERT,
+    BROADCAST_ID,
+    CorruptPacket,
+    ErrorNumber,
+    Frame,
+    Instruction,
+    Packet,
+    PacketReader,
+    status_packet,
+)
+from servoid.errors import ConfigError, DriverError
+from servoid.ident.model import BacklashModel
+from servoid.ident.plant import Plant
+
+__all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "sleep_until", "dxl_url"]
+
+#: A partial frame is dropped when the line stays quiet this long (s), as a servo's packet timeout does.
+IDLE_DISCARD_S = 0.05
+
+
+def sleep_until(deadline: float) -> None:
+    """Wait until ``time.perf_counter() >= deadline``: sleep to 0.3 ms before it, then spin.
+
+    ``time.sleep`` alone overshoots by about 50 us on these machines; the final
+    spin lands within a microsecond.
+    """
+    remaining = deadline - time.perf_counter()
+    if remaining > 3e-4:
+        time.sleep(remaining - 3e-4)
+    while time.perf_counter() < deadline:
+        pass
+
+
+def dxl_url(port: str, servo_id: int, *, baud: int = 1_000_000, **options: Any) -> str:
+    """The driver URL for a servo on ``port``: ``dxl:///dev/pts/7?id=1&baud=1000000``."""
+    extra = "".join(f"&{k}={v}" for k, v in options.items())
+    return f"dxl://{port}?id={servo_id}&baud={baud}{extra}"
+
+
+@dataclass
+class LinkFaults:
+    """Faults injected on one servo's link; change the fields while the emulator runs.
+
+    Attributes
+    ----------
+    mute : bool
+        The servo still executes instructions but never answers (a broken
+        return line): every read times out, yet a torque-off write still
+        reaches it.
+    corrupt_replies : int
+        Corrupt the CRC of this many of the servo's next status packets.
+    corrupt_requests : int
+        Treat this many of the next instruction packets addressed to the servo
+        as received with a bad CRC (it answers with the CRC error number).
+    stale_replies : int
+        Answer this many of the next READs with an empty status packet, as a
+        late answer to an earlier WRITE would look to the SDK (success, but no
+        data).
+    """
+
+    mute: bool = False
+    corrupt_replies: int = 0
+    corrupt_requests: int = 0
+    stale_replies: int = 0
+
+
+class DynamixelBus:
+    """Several servos on one half-duplex bus: which instruction reaches whom, and who answers.
+
+    Parameters
+    ----------
+    servos : iterable of EmulatedServo
+        The servos on the bus (looked up by their current ID, which a WRITE
+        of ID can change).
+    """
+
+    def __init__(self, servos: Iterable[EmulatedServo]) -> None:
+        self.servos = list(servos)
+        self._detached: set[int] = set()  # id() of unplugged servos
+
+    def find(self, servo_id: int) -> EmulatedServo | None:
+        """The connected servo that currently has ``servo_id``."""
+        for servo in self.servos:
+            if id(servo) not in self._detached and servo.id == servo_id:
+                return servo
+        return None
+
+    def connected(self) -> list[EmulatedServo]:
+        return sorted((s for s in self.servos if id(s) not in self._detached), key=lambda s: s.id)
+
+    def detach(self, servo: EmulatedServo) -> None:
+        self._detached.add(id(servo))
+
+    def attach(self, servo: EmulatedServo) -> None:
+        self._detached.discard(id(servo))
+
+    def handle(self, frame: Frame) -> list[tuple[EmulatedServo, bytes]]:
+        """Execute one received frame; return the status packets to send, in order."""
+        if isinstance(frame, CorruptPacket):
+            servo = self.find(frame.id)
+            if servo is None or servo.status_return_level < 1:
+                return []
+            return [(servo, self._status(servo, ErrorNumber.CRC))]
+        if frame.is_status:
+            return []  # another device's answer: not for us
+        handler = _HANDLERS.get(frame.instruction)
+        if handler is None:
+            servo = self.find(frame.id)
+            return [] if servo is None else [(servo, self._status(servo, ErrorNumber.INSTRUCTION))]
+        return handler(self, frame)
+
+    # ---- helpers -------------------------------------------------------------------------
+    @staticmethod
+    def _status(servo: EmulatedServo, error: int, params: bytes = b"", *, as_id: int | None = None) -> bytes:
+        # a servo whose ID was just rewritten still answers as the ID it was asked by
+        packet_id = servo.id if as_id is None else as_id
+        return status_packet(packet_id, error | (ALERT if servo.alert else 0), params)
+
+    def _targets(self, packet: Packet) -> list[EmulatedServo]:
+        if packet.id == BROADCAST_ID:
+            return self.connected()
+        servo = self.find(packet.id)
+        return [] if servo is None else [servo]
+
+    def _answer(self, packet: Packet, servo: EmulatedServo, error: int, params: bytes = b"", *, level: int = 2) -> list[tuple[EmulatedServo, bytes]]:
+        """The status packet, unless the packet was broadcast or Status Return Level is below ``level``."""
+        if packet.id == BROADCAST_ID or servo.status_return_level < level:
+            return []
+        return [(servo, self._status(servo, error, params, as_id=packet.id))]
+
+    # ---- instructions ------------------------------------------------------------------------
+    def _ping(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        out = []
+        for servo in self._targets(packet):  # PING is answered whatever the Status Return Level
+            info = ct.encode_value(ct.MODEL_NUMBER, servo.value(ct.MODEL_NUMBER)) + bytes((servo.value(ct.FIRMWARE_VERSION),))
+            out.append((servo, self._status(servo, ErrorNumber.NONE, info)))
+        return out
+
+    def _read(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        servo = self.find(packet.id)
+        if servo is None or packet.id == BROADCAST_ID:
+            return []
+        if len(packet.params) != 4:
+            return self._answer(packet, servo, ErrorNumber.DATA_LENGTH, level=1)
+        address, length = _u16(packet.params, 0), _u16(packet.params, 2)
+        error, data = servo.read(address, length)
+        return self._answer(packet, servo, error, data, level=1)
+
+    def _write(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        out = []
+        for servo in self._targets(packet):
+            if len(packet.params) < 3:
+                error = ErrorNumber.DATA_LENGTH
+            elif packet.instruction == Instruction.REG_WRITE:
+                error = servo.reg_write(_u16(packet.params, 0), packet.params[2:])
+            else:
+                error = servo.write(_u16(packet.params, 0), packet.params[2:])
+            out += self._answer(packet, servo, error)
+        return out
+
+    def _action(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        out = []
+        for servo in self._targets(packet):
+            out += self._answer(packet, servo, servo.action())
+        return out
+
+    def _reboot(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        out = []
+        for servo in self._targets(packet):
+            out += self._answer(packet, servo, ErrorNumber.NONE)  # answered before restarting
+            servo.reboot()
+        return out
+
+    def _factory_reset(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        option = packet.params[0] if len(packet.params) == 1 else -1
+        if packet.id == BROADCAST_ID and option == 0xFF:
+            return []  # refused by design: it would give every servo ID 1
+        out = []
+        for servo in self._targets(packet):
+            answer = self._answer(packet, servo, servo.factory_reset(option) if option >= 0 else ErrorNumber.DATA_LENGTH)
+            out += answer
+        return out
+
+    def _sync_read(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        if packet.id != BROADCAST_ID or len(packet.params) < 5:
+            return []
+        address, length = _u16(packet.params, 0), _u16(packet.params, 2)
+        out = []
+        for servo_id in packet.params[4:]:
+            servo = self.find(servo_id)
+            if servo is not None and servo.status_return_level >= 1:
+                error, data = servo.read(address, length)
+                out.append((servo, self._status(servo, error, data)))
+        return out
+
+    def _sync_write(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        if packet.id != BROADCAST_ID or len(packet.params) < 4:
+            return []
+        address, length = _u16(packet.params, 0), _u16(packet.params, 2)
+        body = packet.params[4:]
+        for i in range(0, len(body) - length, length + 1):
+            servo = self.find(body[i])
+            if servo is not None:
+                servo.write(address, body[i + 1 : i + 1 + length])  # never answered, errors included
+        return []
+
+    def _bulk_read(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        if packet.id != BROADCAST_ID:
+            return []
+        out = []
+        params = packet.params
+        for i in range(0, len(params) - 4, 5):
+            servo = self.find(params[i])
+            if servo is not None and servo.status_return_level >= 1:
+                error, data = servo.read(_u16(params, i + 1), _u16(params, i + 3))
+                out.append((servo, self._status(servo, error, data)))
+        return out
+
+    def _bulk_write(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
+        if packet.id != BROADCAST_ID:
+            return []
+        params, i = packet.params, 0
+        while i + 5 <= len(params):
+            length = _u16(params, i + 3)
+            servo = self.find(params[i])
+            if servo is not None:
+                servo.write(_u16(params, i + 1), params[i + 5 : i + 5 + length])
+            i += 5 + length
+        return []
+
+
+def _u16(data: bytes, offset: int) -> int:
+    return data[offset] | data[offset + 1] << 8
+
+
+_HANDLERS: dict[int, Callable[[DynamixelBus, Packet], list[tuple[EmulatedServo, bytes]]]] = {
+    Instruction.PING: DynamixelBus._ping,
+    Instruction.READ: DynamixelBus._read,
+    Instruction.WRITE: DynamixelBus._write,
+    Instruction.REG_WRITE: DynamixelBus._write,
+    Instruction.ACTION: DynamixelBus._action,
+    Instruction.REBOOT: DynamixelBus._reboot,
+    Instruction.FACTORY_RESET: DynamixelBus._factory_reset,
+    Instruction.SYNC_READ: DynamixelBus._sync_read,
+    Instruction.SYNC_WRITE: DynamixelBus._sync_write,
+    Instruction.BULK_READ: DynamixelBus._bulk_read,
+    Instruction.BULK_WRITE: DynamixelBus._bulk_write,
+}
+
+
+@dataclass
+class EmulatorStats:
+    """What the emulator saw: packets received, status packets sent, frames with a bad CRC."""
+
+    received: int = 0
+    replies: int = 0
+    corrupt_received: int = 0
+    dropped_replies: int = 0
+
+
+class DynamixelEmulator:
+    """X-series servos on a pseudo-terminal (see the module docstring).
+
+    Parameters
+    ----------
+    ids : iterable of int
+        IDs of the servos on the bus.
+    plant : BacklashModel
+        The mechanics behind each servo (rad); default the bench plant.
+    model_number, firmware : int
+        What the servos report (default XM430-W350, firmware 48).
+    return_delay_us : int
+        Initial Return Delay Time of each servo, microseconds (factory: 500).
+    clock : callable
+        Seconds, monotonic: the servos' Realtime Tick (inject a virtual clock
+        for deterministic tests).
+
+    Examples
+    --------
+    >>> with DynamixelEmulator(ids=[1]) as emu:        # doctest: +SKIP
+    ...     with driver_from_url(emu.url(1)) as servo:
+    ...         servo.enable(); servo.exchange(0.1)
+    """
+
+    def __init__(
+        self,
+        ids: Iterable[int] = (1,),
+        *,
+        plant: BacklashModel = BENCH_PLANT,
+        model_number: int = 1020,
+        firmware: int = 48,
+        return_delay_us: int = 500,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        id_list = [int(i) for i in ids]
+        if not id_list or len(set(id_list)) != len(id_list):
+            raise ConfigError(f"ids (={id_list}) must be one or more distinct servo IDs")
+        servos = [
+            EmulatedServo(i, plant=plant, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us, clock=clock)
+            for i in id_list
+        ]
+        self.bus = DynamixelBus(servos)
+        Plant(plant).step(0.0)  # compile (or load) the plant's kernel now, not while a reply is awaited
+        self._faults = {id(s): LinkFaults() for s in servos}
+        self.stats = EmulatorStats()
+        self._reader = PacketReader()
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        # the emulator must never block on a full pty when nobody reads the other side
+        fcntl.fcntl(self._master, fcntl.F_SETFL, fcntl.fcntl(self._master, fcntl.F_GETFL) | os.O_NONBLOCK)
+        self.port = os.ttyname(self._slave)
+        self._wake_r, self._wake_w = os.pipe()
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._closed = False
+
+    # ---- access for tests and users -----------------------------------------------------
+    def servo(self, servo_id: int) -> EmulatedServo:
+        """The servo that has ``servo_id`` now (also when unplugged)."""
+        for s in self.bus.servos:
+            if s.id == servo_id:
+                return s
+        raise ConfigError(f"servo_id (={servo_id}) is not on this bus; IDs: {[s.id for s in self.bus.servos]}")
+
+    def faults(self, servo_id: int) -> LinkFaults:
+        """The faults injected on a servo's link (mutable)."""
+        return self._faults[id(self.servo(servo_id))]
+
+    def unplug(self, servo_id: int) -> None:
+        """Take a servo off the bus: it neither executes nor answers anything."""
+        self.bus.detach(self.servo(servo_id))
+
+    def plug(self, servo_id: int) -> None:
+        """Put an unplugged servo back on the bus."""
+        self.bus.attach(self.servo(servo_id))
+
+    def url(self, servo_id: int | None = None, *, baud: int = 1_000_000, **options: Any) -> str:
+        """The ``dxl://`` URL that reaches a servo of this bus (default: the first)."""
+        return dxl_url(self.port, self.bus.servos[0].id if servo_id is None else servo_id, baud=baud, **options)
+
+    # ---- serving ------------------------------------------------------------------------------
+    def start(self) -> "DynamixelEmulator":
+        """Serve from a daemon thread (for logic tests; timing needs :class:`EmulatorProcess`)."""
+        if self._thread is None:
+            self._stop.clear()
+            self._thread = threading.Thread(target=self.serve_forever, name=f"dxl-emulator {self.port}", daemon=True)
+            self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Stop serving (the pty stays open until :meth:`close`)."""
+        self._stop.set()
+        try:
+            os.write(self._wake_w, b"x")
+        except OSError:
+            pass
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+        self._thread = None
+
+    def close(self) -> None:
+        """Stop and close the pseudo-terminal; safe to call twice."""
+        if self._closed:
+            return
+        self.stop()
+        self._closed = True
+        for fd in (self._master, self._slave, self._wake_r, self._wake_w):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def __enter__(self) -> "DynamixelEmulator":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def serve_forever(self) -> None:
+        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground)."""
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self._master, self._wake_r], [], [], IDLE_DISCARD_S)
+            if self._wake_r in ready:
+                os.read(self._wake_r, 64)
+                continue
+            if not ready:
+                self._reader.discard()
+                continue
+            try:
+                data = os.read(self._master, 4096)
+            except BlockingIOError:
+                continue
+            except OSError as exc:  # the pty went away
+                if exc.errno == errno.EIO:
+                    break
+                raise
+            received = time.perf_counter()
+            for frame in self._reader.feed(data):
+                self._serve_frame(frame, received)
+
+    def _serve_frame(self, frame: Frame, received: float) -> None:
+        self.stats.received += 1
+        if isinstance(frame, Packet):
+            target = self.bus.find(frame.id)
+            if target is not None and self._faults[id(target)].corrupt_requests > 0:
+                self._faults[id(target)].corrupt_requests -= 1
+                frame = CorruptPacket(frame.id, frame.encode())
+        if isinstance(frame, CorruptPacket):
+            self.stats.corrupt_received += 1
+        last = received
+        for servo, reply in self.bus.handle(frame):
+            faults = self._faults[id(servo)]
+            if faults.mute:
+                continue
+            if faults.stale_replies > 0 and isinstance(frame, Packet) and frame.instruction == Instruction.READ:
+                faults.stale_replies -= 1
+                reply = status_packet(servo.id, 0)
+            if faults.corrupt_replies > 0:
+                faults.corrupt_replies -= 1
+                reply = reply[:-1] + bytes((reply[-1] ^ 0xFF,))
+            # each servo waits its Return Delay Time after the bus went quiet
+            sleep_until(last + servo.return_delay_s)
+            try:
+                os.write(self._master, reply)
+                self.stats.replies += 1
+            except BlockingIOError:
+                self.stats.dropped_replies += 1
+            last = time.perf_counter()
+
+
+def _serve_child() -> None:
+    """Entry of the child process of :class:`EmulatorProcess` (``python -m servoid.drivers.dynamixel.emulator``).
+
+    Reads the pickled ``(ids, options)`` from stdin, prints the port on stdout,
+    and serves until stdin closes (the parent stopped it, or went away).
+    """
+    ids, options = pickle.load(sys.stdin.buffer)
+    with DynamixelEmulator(ids, **options) as emulator:
+        print(emulator.port, flush=True)
+        sys.stdin.buffer.read()
+
+
+class EmulatorProcess:
+    """A :class:`DynamixelEmulator` in a child process, for timing measurements.
+
+    The child is a fresh interpreter (``python -m servoid.drivers.dynamixel.emulator``),
+    so this works from any script, with or without an ``if __name__ == "__main__"`` guard.
+
+    Parameters
+    ----------
+    ids : iterable of int
+        Servo IDs on the bus.
+    **options
+        Passed to :class:`DynamixelEmulator` (picklable ones: ``plant``,
+        ``model_number``, ``firmware``, ``return_delay_us``).
+
+    Examples
+    --------
+    >>> with EmulatorProcess([1]) as emu:              # doctest: +SKIP
+    ...     print(emu.url(1))
+    dxl:///dev/pts/7?id=1&baud=1000000
+    """
+
+    def __init__(self, ids: Iterable[int] = (1,), **options: Any) -> None:
+        if "clock" in options:
+            raise ConfigError("clock cannot be given to an emulator in another process; use DynamixelEmulator")
+        self.ids = [int(i) for i in ids]
+        self._options = options
+        self._process: subprocess.Popen[bytes] | None = None
+        self.port = ""
+
+    def start(self, timeout: float = 60.0) -> "EmulatorProcess":
+        """Start the child and wait for its port; returns self."""
+        self._process = subprocess.Popen(
+            [sys.executable, "-m", __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+        )
+        assert self._process.stdin is not None and self._process.stdout is not None
+        pickle.dump((self.ids, self._options), self._process.stdin)
+        self._process.stdin.flush()
+        ready, _, _ = select.select([self._process.stdout], [], [], timeout)
+        line = self._process.stdout.readline().decode().strip() if ready else ""
+        if not line:
+            error = b"" if self._process.poll() is None else self._process.stderr.read()  # type: ignore[union-attr]
+            self.stop()
+            raise DriverError(f"the Dynamixel emulator process did not start within {timeout} s: {error.decode().strip()}")
+        self.port = line
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop the child process; safe to call twice."""
+        process, self._process = self._process, None
+        if process is None:
+            return
+        try:
+            process.stdin.close()  # type: ignore[union-attr]
+            process.wait(timeout)
+        except (OSError, subprocess.TimeoutExpired):
+            process.kill()
+            process.wait(timeout)
+        finally:
+            for stream in (process.stdout, process.stderr):
+                if stream is not None:
+                    stream.close()
+
+    def url(self, servo_id: int | None = None, *, baud: int = 1_000_000, **options: Any) -> str:
+        return dxl_url(self.port, self.ids[0] if servo_id is None else servo_id, baud=baud, **options)
+
+    def __enter__(self) -> "EmulatorProcess":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+
+if __name__ == "__main__":
+    _serve_child()

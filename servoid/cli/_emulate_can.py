@@ -1,0 +1,103 @@
+"""``servoid emulate can``: a simulated CAN drive (CiA 402 or ODrive) in a process of its own."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from types import FrameType
+
+from servoid.drivers.can._bus import UDP_GROUP, UDP_PORT, BusAddress
+from servoid.drivers.can.driver import DEFAULT_NODES, PROTOCOLS
+from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
+from servoid.errors import ConfigError
+
+HELP = "a simulated CAN servo drive (CANopen CiA 402 or ODrive CAN Simple)"
+
+DESCRIPTION = f"""\
+Start a simulated CAN servo drive with the bench backlash plant behind it, and
+print the can:// URL that reaches it. By default it listens on python-can's
+udp_multicast interface (group {UDP_GROUP}, port {UDP_PORT}), so that a driver
+in another process -- another terminal, servoid identify, a benchmark -- can
+talk to it as to a drive on a real bus.
+
+  cia402   a CANopen CiA 402 drive: SDO server, NMT, PDOs mapped by the
+           master, the 402 state machine, cyclic synchronous position (8) and
+           torque (10) modes, EMCY on faults; {SIM_COUNTS_PER_REV} increments per
+           revolution (0x608F), rated torque {SIM_RATED_TORQUE_MNM} mNm (0x6076)
+  odrive   an ODrive axis speaking CAN Simple: heartbeat, Set_Axis_State,
+           Set_Controller_Mode, Set_Input_Pos / Set_Input_Torque,
+           Get_Encoder_Estimates, Get_Error, Get_Version, Clear_Errors
+
+The plant advances one sample per cyclic exchange (per SYNC for CiA 402, per
+Set_Input_Pos / Set_Input_Torque for ODrive): what the driver reads back does
+not depend on the bus's timing. Position mode: target in rad. Torque mode: the
+same plant driven by torque x 1 rad/Nm (a joint held by a 1 Nm/rad spring).
+
+The first line on stdout is the URL; status lines go to stderr. The drive
+runs until Ctrl-C (or SIGTERM).
+"""
+
+EPILOG = """\
+examples:
+  servoid emulate can                                # CiA 402 drive, node 1
+  servoid emulate can --protocol odrive --node 3
+  servoid emulate can --port 47000                   # a second, separate bus
+then, in another terminal, with the printed URL:
+  servoid identify --driver 'can://udp_multicast/239.74.163.2?protocol=cia402&node=1&port=43113'
+"""
+
+#: Seconds between status lines on stderr.
+STATUS_EVERY_S = 5.0
+
+
+def register(p: argparse.ArgumentParser) -> None:
+    p.epilog = EPILOG
+    p.add_argument("--protocol", choices=tuple(PROTOCOLS), default="cia402", help="what the drive speaks (default cia402)")
+    p.add_argument("--node", type=int, metavar="N",
+                   help=f"node id (default {DEFAULT_NODES['cia402']} for cia402, {DEFAULT_NODES['odrive']} for odrive)")  # fmt: skip
+    p.add_argument("--interface", default="udp_multicast",
+                   help="python-can interface (default udp_multicast; socketcan where the kernel has CAN)")  # fmt: skip
+    p.add_argument("--channel", default=None, help=f"channel: multicast group for udp_multicast (default {UDP_GROUP}), "
+                                                   "can0 / vcan0 for socketcan")  # fmt: skip
+    p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
+    p.add_argument("--counts-per-rev", type=int, default=SIM_COUNTS_PER_REV, metavar="N",
+                   help=f"cia402: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
+    p.add_argument("--quiet", action="store_true", help="no status lines on stderr")
+
+
+def run(args: argparse.Namespace) -> int:
+    from servoid.drivers.can.simulated import simulated_drive
+
+    if args.interface == "virtual":
+        raise ConfigError(
+            "--interface virtual reaches only buses of the same process; use udp_multicast (the default) "
+            "to reach the drive from another process"
+        )
+    port = args.port if args.port is not None or args.interface != "udp_multicast" else UDP_PORT
+    bus = BusAddress(args.interface, args.channel or "", port=port)
+    options = {"counts_per_rev": args.counts_per_rev} if args.protocol == "cia402" else {}
+    drive = simulated_drive(args.protocol, bus=bus, node=args.node, **options)
+    stop = threading.Event()
+
+    def _terminate(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - signal handler signature
+        stop.set()
+
+    previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        with drive:
+            print(drive.url(), flush=True)
+            if not args.quiet:
+                print(f"simulated {args.protocol} drive on {bus.describe()}; Ctrl-C to stop", file=sys.stderr, flush=True)
+            last = ""
+            while not stop.wait(STATUS_EVERY_S):
+                line = drive.status()
+                if not args.quiet and line != last:
+                    print(line, file=sys.stderr, flush=True)
+                    last = line
+    except KeyboardInterrupt:
+        pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    return 0

@@ -1,0 +1,102 @@
+"""``servoid emulate dxl``: emulated ROBOTIS Dynamixel servos on a pseudo-terminal."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+from pathlib import Path
+
+from servoid.drivers.dynamixel import control_table as ct
+from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
+from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
+from servoid.errors import ConfigError
+
+HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"
+
+DESCRIPTION = f"""\
+Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
+table) on a pseudo-terminal that the official dynamixel-sdk, and so the dxl://
+driver, talks to as to a U2D2 adapter. Several IDs share one bus.
+
+Behind every servo is the bench backlash plant (servoid.drivers.bench), in rad.
+It advances one sample each time the goal of the active operating mode is
+written with the torque on (sample-synchronous, whatever the rate):
+  position mode   input = goal position, (count - 2048) x 2 pi / 4096 rad
+  current mode    input = goal current x {CURRENT_GAIN:g} rad/A
+  pwm mode        input = goal PWM x {PWM_GAIN:g} rad/%
+Present Position reports the plant's output in encoder counts (4096 a turn).
+
+Emulated: PING, READ, WRITE, REG_WRITE/ACTION, SYNC_READ, SYNC_WRITE,
+BULK_READ, BULK_WRITE, REBOOT, FACTORY_RESET; status packets with the error
+byte; Status Return Level; Return Delay Time (2 us a unit); the EEPROM locked
+while the torque is on; the Realtime Tick (ms). The baud rate is not modelled
+(a pty has none): any baud the driver asks for works.
+
+The emulator prints its port and a driver URL per servo, then serves until
+Ctrl-C.
+"""
+
+EPILOG = """\
+examples:
+  servoid emulate dxl                        # one servo, ID 1
+  servoid emulate dxl --ids 1,2,3 --link /tmp/ttyDXL
+  servoid identify --driver 'dxl:///dev/pts/5?id=1&baud=1000000'    # in another terminal
+"""
+
+
+def _ids(text: str) -> list[int]:
+    try:
+        ids = [int(part) for part in text.replace(" ", "").split(",") if part]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--ids (={text!r}) must be servo IDs separated by commas, e.g. 1,2") from None
+    if not ids or any(not 0 <= i <= 252 for i in ids) or len(set(ids)) != len(ids):
+        raise argparse.ArgumentTypeError(f"--ids (={text!r}) must be distinct servo IDs in 0..252")
+    return ids
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def register(parser: argparse.ArgumentParser) -> None:
+    parser.epilog = EPILOG
+    parser.add_argument("--ids", type=_ids, default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)")
+    parser.add_argument("--return-delay-us", type=int, default=500, metavar="US",
+                        help="initial Return Delay Time in us, even, 0..508 (default 500, the factory "
+                             "setting; the dxl:// driver sets 0 unless told return_delay_us=keep)")  # fmt: skip
+    parser.add_argument("--model-number", type=int, default=ct.MODEL_NUMBER.initial, metavar="N",
+                        help=f"Model Number the servos report (default {ct.MODEL_NUMBER.initial}, XM430-W350)")  # fmt: skip
+    parser.add_argument("--link", type=Path, metavar="PATH",
+                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts)")  # fmt: skip
+
+
+def run(args: argparse.Namespace) -> int:
+    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number)
+    link: Path | None = args.link
+    try:
+        if link is not None:
+            if link.exists() and not link.is_symlink():
+                raise ConfigError(f"--link (={link}) exists and is not a symbolic link; not replacing it")
+            if link.is_symlink():
+                link.unlink()
+            os.symlink(emulator.port, link)
+        port = str(link) if link is not None else emulator.port
+        model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
+        print(f"Dynamixel emulator on {emulator.port} (Protocol 2.0, {model}, any baud rate)", flush=True)
+        for servo_id in args.ids:
+            print(f"  servo {servo_id}: {dxl_url(port, servo_id)}", flush=True)
+        print(f"try: servoid identify --driver '{dxl_url(port, args.ids[0])}'", flush=True)
+        print("serving until Ctrl-C", flush=True)
+        # `kill` stops it as cleanly as Ctrl-C (a shell starts background jobs with Ctrl-C ignored)
+        signal.signal(signal.SIGTERM, _interrupt)
+        try:
+            emulator.serve_forever()
+        except KeyboardInterrupt:
+            pass
+        print(f"stopped: {emulator.stats.received} packets received, {emulator.stats.replies} answered", flush=True)
+        return 0
+    finally:
+        emulator.close()
+        if link is not None and link.is_symlink():
+            link.unlink()

@@ -1,0 +1,243 @@
+"""``servoid compensate``: prove on the simulated servo that the exported compensation compensates."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from servoid.cli import _term
+from servoid.errors import ConfigError
+from servoid.ident.compensation_study import (
+    ARMS,
+    CHANGES,
+    FAMILIES,
+    ArmSummary,
+    CompensationStudy,
+    compensation_study,
+    default_resolution,
+)
+from servoid.ident.model import BacklashModel
+from servoid.ident.paper import PAPER_PLANT
+from servoid.ident.references import amplitude_limit, reference_suite
+from servoid.ident.tracking import Sensor
+from servoid.modelfile import ModelFile, load_model
+
+ORDER = 30
+
+HELP = "track sines, steps and a triangle on the simulated servo with and without the backlash inverse"
+
+DESCRIPTION = """\
+Prove on the simulated servo that a model's compensation works, and how wrong
+the model may be before it stops working.
+
+The simulated servo (by default the model itself, or --plant) follows five
+reference paths scaled to its dead zone s = c1 + c2: slow sines of amplitude
+s/2 and 3s/2, a fast sine, steps from s down to s/5, and a triangle. Three
+arms of the same controller track them:
+
+  uncompensated  feedforward through the linear block (ZPETC, d samples of
+                 preview) + integral feedback on the measured output
+  naive          the same with the backlash inverse, band 0
+  compensated    the same with the smoothed backlash inverse (--band)
+
+The measurement is quantised to --resolution (and noisy with --noise-std), so
+ratios are stated against what the encoder can resolve: a ratio marked >= has
+its compensated error below the quantisation floor (q/sqrt(12) for RMS, q/2
+for the peak). Then the controller's model is perturbed by -20, -10, +10 and
++20 % (the dead zones only, then every parameter) on the unchanged servo.
+
+Reported per path: RMS and peak tracking error, the dead time after reversals
+(samples from the reference having moved 2 % of its span in the new direction
+to the output having done so), and motor travel (how far the backlash input
+moved per unit of reference travel: a stuttering command drives it up).
+Plots in --out: compensation.png and robustness.png.
+"""
+
+EPILOG = """\
+examples:
+  servoid compensate servoid-run/model.json
+  servoid compensate model.json --plant paper          identified model against the true plant
+  servoid compensate model.json --resolution 0.0015 --noise-std 0.002 --band 0.01
+  servoid compensate model.json --json --no-plots > study.json
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "compensate", help=HELP, description=DESCRIPTION, epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    p.add_argument("model", type=Path, metavar="MODEL", help="a model.json written by servoid identify")
+    sim = p.add_argument_group("simulated servo")
+    sim.add_argument("--plant", metavar="paper|FILE",
+                     help="the servo to simulate: 'paper' (the paper's plant) or another model.json "
+                          "(default: MODEL itself, a perfect identification)")  # fmt: skip
+    sim.add_argument("--resolution", type=float, metavar="Q",
+                     help="encoder step in the output unit (default: 1 for counts, else (c1 + c2)/200)")
+    sim.add_argument("--noise-std", type=float, metavar="S",
+                     help="Gaussian measurement noise, output unit (default: the noise the model file's band "
+                          "was set for, its compensation.noise_std, else 0)")
+    sim.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    sim.add_argument("--samples", type=int, default=600, metavar="N", help="samples per path (default 600)")
+    ctl = p.add_argument_group("controller")
+    ctl.add_argument("--band", type=float, metavar="B",
+                     help="smoothing band of the inverse, output unit (default: the model file's)")
+    ctl.add_argument("--integral-gain", type=float, metavar="KI",
+                     help="integral gain per sample, same for every arm (default 1/(2 (P + 1)), P the preview)")
+    out = p.add_argument_group("output")
+    out.add_argument("--out", type=Path, metavar="DIR", help="folder for the plots (default: MODEL's folder)")
+    out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
+    out.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.set_defaults(handler=run)
+
+
+def _plant(spec: str | None, content: ModelFile) -> tuple[BacklashModel, str]:
+    if spec is None:
+        return content.model, "the model itself"
+    if spec == "paper":
+        return PAPER_PLANT, "the paper's plant"
+    other = load_model(spec)
+    if other.output_unit != content.output_unit:
+        raise ConfigError(f"--plant {spec} is in {other.output_unit!r}, the model in {content.output_unit!r}")
+    return other.model, spec
+
+
+def _fmt(value: float) -> str:
+    return f"{value:.3g}"
+
+
+def _nominal_rows(study: CompensationStudy) -> list[list[str]]:
+    rows = []
+    for comp in study.comparisons:
+        before, after = comp.uncompensated, comp.compensated
+        rows.append([
+            comp.reference.name,
+            _fmt(before.metrics.rms_error), _fmt(after.metrics.rms_error), str(study.rms_improvement(before, after)),
+            _fmt(before.metrics.peak_error), _fmt(after.metrics.peak_error), str(study.peak_improvement(before, after)),
+            f"{before.metrics.dead_time:.1f}", f"{after.metrics.dead_time:.1f}",
+        ])  # fmt: skip
+    before, after = study.summary("uncompensated"), study.summary("compensated")
+    rows.append([
+        "all paths",
+        _fmt(before.rms_error), _fmt(after.rms_error), str(study.rms_improvement(before, after)),
+        _fmt(before.peak_error), _fmt(after.peak_error), str(study.peak_improvement(before, after)),
+        f"{before.dead_time:.1f}", f"{after.dead_time:.1f}",
+    ])  # fmt: skip
+    return rows
+
+
+def _robustness_rows(study: CompensationStudy) -> list[list[str]]:
+    rows = []
+    entries: list[tuple[str, dict[str, ArmSummary], str]] = [("nominal", {a: study.summary(a) for a in ARMS}, "")]
+    entries += [(p.label, p.summaries, p.note) for p in study.perturbations]  # type: ignore[misc]
+    for label, s, note in entries:
+        if not s:
+            rows.append([label, "diverged" if "diverged" in note else "invalid model", "", "", "", "", "", "", ""])
+            continue
+        rows.append([
+            label,
+            _fmt(s["uncompensated"].rms_error), _fmt(s["naive"].rms_error), _fmt(s["compensated"].rms_error),
+            str(study.rms_improvement(s["uncompensated"], s["naive"])),
+            str(study.rms_improvement(s["uncompensated"], s["compensated"])),
+            _fmt(s["compensated"].peak_error),
+            f"{s['naive'].motor_travel:.1f}", f"{s['compensated'].motor_travel:.1f}",
+        ])  # fmt: skip
+    return rows
+
+
+def _summary_json(s: ArmSummary) -> dict[str, float]:
+    return {"rms_error": s.rms_error, "peak_error": s.peak_error, "dead_time_samples": s.dead_time,
+            "motor_travel": s.motor_travel}  # fmt: skip
+
+
+def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, paths: dict[str, str]) -> dict[str, Any]:
+    """The ``--json`` object of ``servoid compensate``."""
+    nominal = []
+    for comp in study.comparisons:
+        entry: dict[str, Any] = {"reference": comp.reference.name}
+        for arm in ARMS:
+            m = comp.run(arm).metrics
+            entry[arm] = {"rms_error": m.rms_error, "peak_error": m.peak_error, "dead_time_samples": m.dead_time,
+                          "dead_time_max_samples": m.dead_time_max, "reversals": m.reversals,
+                          "motor_travel": comp.run(arm).motor_travel}  # fmt: skip
+        entry["rms_ratio"] = study.rms_improvement(comp.uncompensated, comp.compensated).ratio
+        nominal.append(entry)
+    all_paths = {arm: _summary_json(study.summary(arm)) for arm in ARMS}
+    return {
+        "model": content.model.to_dict(),
+        "plant": plant_name,
+        "units": {"output": content.output_unit, "time": "sample", "sample_period_s": content.sample_period_s},
+        "band": study.band,
+        "integral_gain": study.integral_gain,
+        "preview_samples": study.preview,
+        "resolution": study.sensor.resolution,
+        "noise_std": study.sensor.noise_std,
+        "rms_floor": study.rms_floor,
+        "nominal": nominal,
+        "all_paths": all_paths,
+        "rms_ratio": study.rms_improvement(study.summary("uncompensated"), study.summary("compensated")).ratio,
+        "perturbations": [
+            {"family": p.family, "change": p.change, "note": p.note,
+             **{arm: _summary_json(s) for arm, s in p.summaries.items()}}
+            for p in study.perturbations
+        ],  # fmt: skip
+        "outputs": paths,
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    content = load_model(args.model)
+    plant, plant_name = _plant(args.plant, content)
+    if content.effects:
+        _term.warn(f"the simulated servo leaves out the model extension(s) {', '.join(content.effect_names())}")
+    resolution = default_resolution(plant, content.output_unit) if args.resolution is None else args.resolution
+    noise = args.noise_std if args.noise_std is not None else (content.noise_std or 0.0)
+    sensor = Sensor(resolution=resolution, noise_std=noise, seed=args.seed)
+    band = content.compensation_band if args.band is None else args.band
+    limit = amplitude_limit(plant)
+    if limit is not None and limit < 0.5 * plant.dead_zone:
+        _term.warn(f"the backlash lines cross close to 0: the paths are capped at amplitude {limit:.3g}")
+    refs = reference_suite(plant, samples=args.samples)
+    total = 1 + len(FAMILIES) * len(CHANGES)
+    with _term.progress("compensation study", total, enabled=not args.json) as bar:
+        study = compensation_study(plant, content.model, band=band, integral_gain=args.integral_gain,
+                                   sensor=sensor, references=refs, progress=bar)  # fmt: skip
+    paths: dict[str, str] = {}
+    if not args.no_plots:
+        from servoid import plots
+
+        out_dir = args.out if args.out is not None else args.model.parent
+        paths["tracking_plot"] = str(plots.plot_tracking(study, out_dir / "compensation.png",
+                                                         output_unit=content.output_unit))  # fmt: skip
+        paths["robustness_plot"] = str(plots.plot_robustness(study, out_dir / "robustness.png",
+                                                             output_unit=content.output_unit))  # fmt: skip
+    if args.json:
+        _term.print_json(study_json(study, content, plant_name, paths))
+        return 0
+    unit = content.output_unit
+    out = _term.stdout
+    out.print(
+        f"servoid compensate: {args.model} on the simulated servo ({plant_name}); errors in {unit}, "
+        f"dead time in samples" + (f" (1 sample = {content.sample_period_s * 1e3:.3g} ms)" if content.sample_period_s else "")
+    )
+    out.print(
+        f"controller: ZPETC feedforward with {study.preview} sample(s) of preview + integral feedback "
+        f"k_i = {study.integral_gain:.3g}/sample; inverse band {study.band:.3g} {unit}"
+    )
+    out.print(f"encoder resolution q = {resolution:.3g} {unit} (RMS floor q/sqrt(12) = {study.rms_floor:.2g}), "
+              f"noise std {sensor.noise_std:.3g} {unit}; ratios marked >= are limited by the resolution")  # fmt: skip
+    _term.table(
+        "nominal model (unc.: uncompensated, inv.: smoothed inverse; dead time in samples)",
+        ["path", "RMS unc", "RMS inv", "ratio", "peak unc", "peak inv", "ratio", "dead unc", "dead inv"],
+        _nominal_rows(study),
+    )  # fmt: skip
+    _term.table(
+        "robustness: controller's model perturbed, servo unchanged, all paths (travel: motor / reference)",
+        ["model", "RMS unc", "RMS naive", "RMS inv", "ratio naive", "ratio inv", "peak inv", "travel naive",
+         "travel inv"],
+        _robustness_rows(study),
+    )  # fmt: skip
+    for name, path in paths.items():
+        out.print(f"  {name:16s} {path}")
+    return 0

@@ -1,0 +1,179 @@
+"""``servoid diagnose``: where the identified model and the measurement disagree, and which effect is missing."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from servoid.cli import _term
+from servoid.diagnose_report import candidate_rows, diagnosis_json, write_diagnosis_outputs
+from servoid.errors import ConfigError, DataError
+from servoid.ident.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
+from servoid.ident.effects import CANDIDATE_NAMES, EFFECTS, NONE
+from servoid.ident.mrgia import MRGIAConfig
+from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
+from servoid.recording import Recording, read_recording
+
+ORDER = 20
+
+HELP = "find where model and measurement disagree, name the missing effect, show the gap shrink"
+
+_LIBRARY = "\n".join(f"  {name:17s} {e.summary}" for name, e in EFFECTS.items())
+
+DESCRIPTION = f"""\
+Identify the backlash model on a training recording, simulate it on a
+validation recording (free run), and find where they disagree: the residual
+broken down by direction of motion, reversals, input amplitude, velocity and
+time, plus residual autocorrelation and cross-correlation with past inputs.
+
+Then name the missing effect: every effect of the library is fitted jointly
+with all model parameters on the training recording and scored on the
+validation recording. An effect is accepted only if it cuts the validation
+gap (free-run NRMSE = rms(y - y_hat)/std(y)) by more than --penalty per
+extra parameter; otherwise the answer is '{NONE}'. The search repeats from the
+extended model for a further effect (--max-effects).
+
+The effects (parameters in the unit of u unless said):
+{_LIBRARY}
+
+Recordings: CSV with a header row and columns u, y (and t in seconds,
+optional); lines starting with '#' are metadata ('# unit: rad'). Both must
+have the same sample period and units.
+
+Outputs in --out: model.json (base model plus "effects"), diagnose_fit.png
+(measured vs both models, residuals), diagnose_regimes.png (where the error
+lies), diagnose_resid.png (correlation checks), diagnose_candidates.png.
+"""
+
+EPILOG = """\
+examples:
+  servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1
+  servoid diagnose --train a.csv --validate b.csv --na 2 --nb 1 --delay 1 --json > diagnosis.json
+  servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1 --effects coulomb_friction,dead_zone
+  python examples/real_data.py emps --out emps/    (the EMPS benchmark, converted and diagnosed)
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "diagnose", help=HELP, description=DESCRIPTION, epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    rec = p.add_argument_group("recordings")
+    rec.add_argument("--train", required=True, type=Path, metavar="A.csv", help="training recording (all fitting)")
+    rec.add_argument("--validate", required=True, type=Path, metavar="B.csv",
+                     help="validation recording (scores only, never fitted)")  # fmt: skip
+    rec.add_argument("--unit", metavar="UNIT", help="unit of y (default: the recordings' '# unit:' line)")
+    mdl = p.add_argument_group("base model")
+    mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
+    mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
+    mdl.add_argument("--delay", type=int, default=1, help="input delay d >= 1 in samples (default 1)")
+    mdl.add_argument("--rho-exponent", type=float, default=RECOMMENDED_RHO_EXPONENT, metavar="R",
+                     help=f"MRGIA convergence exponent (default {RECOMMENDED_RHO_EXPONENT})")  # fmt: skip
+    mdl.add_argument("--epsilon", type=float, default=0.0, metavar="E",
+                     help="MRGIA noise threshold on |y(k) - y(k-1)|, unit of y (default 0)")  # fmt: skip
+    sel = p.add_argument_group("effects")
+    sel.add_argument("--effects", metavar="A,B", help=f"effects to try (default all: {','.join(CANDIDATE_NAMES)})")
+    sel.add_argument("--penalty", type=float, default=DEFAULT_PENALTY, metavar="P",
+                     help=f"relative cut of the validation gap each extra parameter must buy "
+                          f"(default {DEFAULT_PENALTY}: 10 %%)")  # fmt: skip
+    sel.add_argument("--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)")
+    sel.add_argument("--reversal-window", type=int, default=5, metavar="K",
+                     help="samples after a reversal that count as 'just after' (default 5)")  # fmt: skip
+    out = p.add_argument_group("output")
+    out.add_argument("--out", type=Path, default=Path("servoid-diagnose"), metavar="DIR",
+                     help="output folder (default ./servoid-diagnose/)")  # fmt: skip
+    out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
+    out.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.set_defaults(handler=run)
+
+
+def _candidates(text: str | None) -> tuple[str, ...]:
+    if text is None:
+        return CANDIDATE_NAMES
+    names = tuple(n.strip() for n in text.split(",") if n.strip())
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown or not names:
+        raise ConfigError(f"--effects (={text!r}) must list effects from: {', '.join(CANDIDATE_NAMES)}")
+    return names
+
+
+def _read(path: Path, what: str) -> Recording:
+    rec = read_recording(path)
+    for note in rec.notes:
+        _term.warn(f"{path}: {note}")
+    return rec
+
+
+def check_pair(train: Recording, validate: Recording) -> None:
+    """Refuse recordings that cannot be compared: different units or sample periods.
+
+    Raises
+    ------
+    DataError
+        Naming both values.
+    """
+    for key in ("unit", "input_unit"):
+        a, b = train.metadata.get(key), validate.metadata.get(key)
+        if a is not None and b is not None and a != b:
+            raise DataError(f"the recordings differ in '{key}': {train.path} has {a!r}, {validate.path} has {b!r}")
+    ta, tb = train.sample_period, validate.sample_period
+    if ta is not None and tb is not None and abs(ta - tb) > 0.02 * max(ta, tb):
+        raise DataError(
+            f"the recordings differ in sample period: {train.path} {ta:.6g} s, {validate.path} {tb:.6g} s "
+            f"(a model in samples cannot carry over; resample one of them)"
+        )
+
+
+def run(args: argparse.Namespace) -> int:
+    train = _read(args.train, "training")
+    validate = _read(args.validate, "validation")
+    check_pair(train, validate)
+    config = DiagnoseConfig(
+        identification=MRGIAConfig(na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent,
+                                   epsilon=args.epsilon),
+        candidates=_candidates(args.effects), penalty=args.penalty, max_effects=args.max_effects,
+        reversal_window=args.reversal_window,
+    )  # fmt: skip
+    output_unit = args.unit or train.metadata.get("unit", "unit")
+    input_unit = train.metadata.get("input_unit", "unit")
+    started = time.perf_counter()
+    with _term.progress("candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal) as bar:
+        done = [0]
+
+        def step(name: str) -> None:
+            done[0] += 1
+            bar(done[0], len(config.candidates) * config.max_effects)
+
+        result = diagnose(train.u, train.y, validate.u, validate.y, config, progress=step)
+    elapsed = time.perf_counter() - started
+    for w in result.identification.warnings:
+        _term.warn(f"base identification: {w}")
+    source = f"{args.train} (validated on {args.validate})"
+    paths = write_diagnosis_outputs(args.out, result, train, validate, source=source, input_unit=input_unit,
+                                    output_unit=output_unit, plots=not args.no_plots)  # fmt: skip
+    if args.json:
+        _term.print_json(diagnosis_json(result, paths, units={"input": input_unit, "output": output_unit}))
+        return 0
+    cols, rows = candidate_rows(result)
+    _term.table(f"servoid diagnose: {len(train)} training + {len(validate)} validation samples ({elapsed:.1f} s)",
+                cols, rows)  # fmt: skip
+    out = _term.stdout
+    out.print(f"where: {result.where}")
+    out.print(f"base model: {result.resid_before.summary()}")
+    named = ", ".join(
+        f"{e.name} (" + ", ".join(f"{k} = {v:.4g} {_unit(e.name, k, input_unit)}".rstrip() for k, v in e.parameters.items()) + ")"
+        for e in result.model.effects
+    ) or NONE  # fmt: skip
+    out.print(f"missing effect: {named}")
+    out.print(f"validation gap (free-run NRMSE): before {result.gap_before:.4g}, after {result.gap_after:.4g} "
+              f"({result.gap_after / result.gap_before:.2f} x)")  # fmt: skip
+    for name, path in paths.items():
+        out.print(f"  {name:17s} {path}")
+    return 0
+
+
+def _unit(effect: str, parameter: str, input_unit: str) -> str:
+    unit = dict(zip(EFFECTS[effect].parameters, EFFECTS[effect].units))[parameter]
+    return input_unit if unit == "u" else unit

@@ -1,0 +1,115 @@
+"""``--format c``: a C99 header with the parameters and the smoothed backlash inverse.
+
+Rendered from the package template ``templates/backlash_compensator.h``: a
+``static const servoid_backlash_params NAME`` (m2, c1, c2, band), the linear
+block as ``NAME_a`` / ``NAME_b`` / ``NAME_DELAY``, units and standard errors
+in comments, and ``static inline`` functions that mirror
+:class:`servoid.ident.compensate.BacklashInverse` operation for operation.
+It compiles cleanly with ``gcc -std=c99 -Wall -Wextra -Werror``. Several
+headers (one per axis, different ``--name``) can be included together: the
+types and functions are guarded once, the parameters per name.
+"""
+
+from __future__ import annotations
+
+import re
+from importlib import resources
+from string import Template
+from typing import Any, Iterable
+
+from servoid import __version__
+from servoid.errors import ConfigError
+from servoid.modelfile import ModelFile
+
+__all__ = ["SUMMARY", "OPTIONS", "DEFAULT_NAME", "render"]
+
+SUMMARY = "a C99 header for firmware: static const parameters and an inline backlash inverse"
+OPTIONS = ("name", "source_name")
+DEFAULT_NAME = "servoid_axis"
+
+_IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+
+
+def _template() -> Template:
+    text = resources.files("servoid.export.templates").joinpath("backlash_compensator.h").read_text(encoding="utf-8")
+    return Template(text)
+
+
+def _number(value: float) -> str:
+    """A C double literal that reads back as exactly ``value`` (Python's shortest round-trip repr)."""
+    text = repr(float(value))
+    return text if any(c in text for c in ".eE") else text + ".0"
+
+
+def _comment(text: Any) -> str:
+    """``text`` made safe inside a C block comment: one line, no ``*/``, no trigraph."""
+    flat = " ".join(str(text).split())
+    return flat.replace("*/", "* /").replace("/*", "/ *").replace("??", "? ?")
+
+
+def _stderrs(stderr: dict[str, float] | None, names: Iterable[str]) -> str:
+    if not stderr:
+        return "not known"
+    parts = [f"{n} {stderr[n]:.2g}" for n in names if n in stderr and stderr[n] is not None]
+    return ", ".join(parts) if parts else "not known"
+
+
+def render(content: ModelFile, *, name: str = DEFAULT_NAME, source_name: str = "model.json") -> str:
+    """The header text.
+
+    Parameters
+    ----------
+    content : ModelFile
+        The model (its smoothing band included).
+    name : str
+        C identifier of the parameter constant (``NAME``, ``NAME_a``, ...).
+    source_name : str
+        The model file's name, for the header's first lines.
+
+    Raises
+    ------
+    ConfigError
+        If ``name`` is not a C identifier.
+    """
+    if not _IDENTIFIER.match(name):
+        raise ConfigError(f"name (={name!r}) must be a C identifier: a letter or _, then letters, digits or _")
+    model = content.model
+    macro = name.upper()
+    period = content.sample_period_s
+    names = model.names
+    linear_names = [n for n in names if n not in ("m2", "c1", "c2")]
+    fields = {
+        "title": _comment(f"{name}: backlash compensation parameters for one servo axis"),
+        "servoid_version": _comment(__version__),
+        "model_file": _comment(source_name),
+        "identified_at": _comment(content.identified_at or "unknown"),
+        "identified_source": _comment(content.source or "unknown"),
+        "samples": _comment(content.samples if content.samples is not None else "unknown"),
+        "method": _comment(content.method or "unknown"),
+        "fit_nrmse": _comment(f"{content.fit_nrmse:.4g}" if content.fit_nrmse is not None else "unknown"),
+        "servo": _comment(", ".join(f"{k} {v}" for k, v in content.servo.items()) if content.servo else "not reported"),
+        "output_unit": _comment(content.output_unit),
+        "input_unit": _comment(content.input_unit),
+        "sample_period": _comment(f"{period:g} s" if period else "not known"),
+        "name": name,
+        "macro": macro,
+        "guard": f"{macro}_BACKLASH_PARAMS_H",
+        "m2": _number(model.m2),
+        "c1": _number(model.c1),
+        "c2": _number(model.c2),
+        "band": _number(content.compensation_band),
+        "backlash_stderr": _comment(_stderrs(content.stderr, ("m2", "c1", "c2"))),
+        "noise_std": _comment(f"{content.noise_std:.3g} {content.output_unit}" if content.noise_std is not None
+                              else "not known"),  # fmt: skip
+        "linear_stderr": _comment(_stderrs(content.stderr, linear_names)),
+        "na": str(model.na),
+        "nb": str(model.nb),
+        "delay": str(model.delay),
+        "a": ", ".join(_number(v) for v in model.a),
+        "b": ", ".join(_number(v) for v in model.b),
+        "sample_period_line": (
+            f"#define {macro}_SAMPLE_PERIOD_S {_number(period)} /* seconds */\n" if period
+            else "/* sample period not known: the identification record had no time column */\n"
+        ),
+    }  # fmt: skip
+    return _template().substitute(fields)

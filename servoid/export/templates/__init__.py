@@ -1,0 +1,1 @@
+"""Templates of the export formats (package data: ``backlash_compensator.h``)."""

@@ -1,0 +1,44 @@
+"""Shared pieces of the Dynamixel tests: a virtual clock and emulator fixtures."""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import pytest
+
+from servoid.drivers.dynamixel.emulator import DynamixelEmulator
+
+#: Latency timer (ms) for tests, so reply timeouts are 2 x this + 2 ms: generous, because on a
+#: loaded 2-core machine an emulator (thread or process) was seen to wait over 40 ms to be scheduled.
+TEST_LATENCY_MS = 100
+
+
+class VirtualClock:
+    """A clock that moves only when told (seconds)."""
+
+    def __init__(self, start: float = 0.0) -> None:
+        self.now = start
+
+    def __call__(self) -> float:
+        return self.now
+
+    def advance(self, seconds: float) -> None:
+        self.now += seconds
+
+
+@pytest.fixture
+def clock() -> VirtualClock:
+    return VirtualClock()
+
+
+@pytest.fixture
+def emulator(clock: VirtualClock) -> Iterator[DynamixelEmulator]:
+    """Servos 1 and 2 on one bus, served from a thread, with the virtual clock."""
+    with DynamixelEmulator(ids=[1, 2], clock=clock, return_delay_us=0) as emu:
+        yield emu
+
+
+def url(emu: DynamixelEmulator, servo_id: int = 1, **options: object) -> str:
+    """A driver URL for a thread-served emulator, with test-friendly timeouts."""
+    options.setdefault("latency_ms", TEST_LATENCY_MS)
+    return emu.url(servo_id, **options)

@@ -1,0 +1,83 @@
+"""The ODrive CAN Simple driver against the simulated axis, both on python-can's virtual bus.
+
+Known truth: the axis is sample-synchronous, so the positions read back must
+equal the bench plant simulated directly (to float32 precision of turns).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from servoid.drivers import driver_from_url
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.can import odrive_protocol as proto
+from servoid.drivers.can._sim_axis import TORQUE_GAIN
+from servoid.drivers.can.odrive import OdriveDriver
+from servoid.drivers.can.sim_odrive import SimOdriveAxis
+from servoid.errors import DeviceFault, DriverTimeout
+from servoid.ident.simulate import simulate
+from servoid.recording import read_recording
+
+from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
+from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+
+FLOAT32_TURN = 2 * math.pi * 2.0**-22  # resolution of a float32 position near one turn, rad
+
+
+@pytest.fixture
+def axis():
+    with SimOdriveAxis(node=3, bus=private_bus()) as sim:
+        yield sim
+
+
+@pytest.mark.parametrize("mode", ["position", "torque"])
+def test_positions_follow_the_bench_plant(axis, mode):
+    u = bench_input(400, seed=11)
+    with driver_from_url(axis.url(mode=mode, timeout=PATIENT_S)) as servo:
+        assert isinstance(servo, OdriveDriver) and not axis.power_on
+        servo.enable()
+        assert axis.power_on and axis.control_mode == proto.CONTROL_MODES[mode]
+        y = np.array([servo.exchange(v).position for v in u])
+        assert servo.identity["firmware_version"] == "0.6.10"
+    gain = TORQUE_GAIN if mode == "torque" else 1.0
+    assert np.max(np.abs(y - simulate(BENCH_PLANT, gain * u).y)) < FLOAT32_TURN
+    assert np.ptp(y) > 0.1
+    assert axis.axis_state == proto.IDLE
+
+
+def test_an_axis_error_is_a_device_fault_naming_it_and_the_recording_is_kept(axis, tmp_path):
+    path = tmp_path / "run.csv"
+    with driver_from_url(axis.url()) as servo:
+        servo.enable()
+        with pytest.raises(DeviceFault, match=r"ODrive node 3 .*axis error 0x00001000 \(CURRENT_LIMIT_VIOLATION\), "
+                                              r"axis state IDLE; active errors 0x00001000"):  # fmt: skip
+            recorded_run(servo, bench_input(80, seed=12), path, at=35, event=axis.inject_axis_error)
+        with pytest.raises(DeviceFault, match="CURRENT_LIMIT_VIOLATION"):  # and it stays an error
+            servo.exchange(0.0)
+    assert not axis.power_on and axis.axis_error == 0x1000
+    assert len(read_recording(path)) == 35
+
+
+def test_enable_refuses_an_axis_with_an_error(axis):
+    axis.inject_axis_error(0x200)  # DC_BUS_UNDER_VOLTAGE, taken with the next input (enable sends one)
+    with driver_from_url(axis.url()) as servo:
+        for _ in range(2):  # the second time from the heartbeat already seen, before sending anything
+            with pytest.raises(DeviceFault, match="DC_BUS_UNDER_VOLTAGE"):
+                servo.enable()
+            assert not axis.power_on
+
+
+def test_a_missing_node_is_a_timeout_naming_it(axis):
+    with pytest.raises(DriverTimeout, match=r"ODrive node 4 on virtual test-\w+ does not answer.*node=4"):
+        driver_from_url(axis.bus.url("odrive", 4)).open()
+
+
+def test_velocity_is_reported_in_rad_per_second(axis):
+    with driver_from_url(axis.url()) as servo:
+        servo.enable()
+        ms = [servo.exchange(0.1) for _ in range(3)]
+    # the simulated axis differentiates over wall-clock time: the sign and the unit are what can be checked
+    assert ms[-1].velocity == pytest.approx(axis.axis.velocity, rel=1e-6) and ms[-1].velocity > 0
