@@ -500,19 +500,20 @@ class Driver(abc.ABC):
     # ---- per sample ----------------------------------------------------------------------
     @property
     def exchange_slot(self) -> int | None:
-        """Slot number of the exchange in progress, as the sampler counts them (None when not told)."""
+        """Sample slot ``k`` of the next exchange, as the sampler counts them (None outside a session).
+
+        The sampling session sets it before each :meth:`exchange` (slots only
+        increase); a driver whose device wants to know how many periods lie
+        between two commands reads it in ``_exchange``.
+        """
         return self._exchange_slot
 
-    def exchange(self, u: float, *, slot: int | None = None) -> Measurement:
-        """Command ``u`` (user unit), clamped to the limits, and return the measurement.
+    @exchange_slot.setter
+    def exchange_slot(self, slot: int | None) -> None:
+        self._exchange_slot = None if slot is None else validation.integer("slot", slot, minimum=0)
 
-        Parameters
-        ----------
-        u : float
-            The command, user unit.
-        slot : int, optional
-            The sample slot ``k`` this exchange belongs to (the sampling
-            session passes it); slots only increase.
+    def exchange(self, u: float) -> Measurement:
+        """Command ``u`` (user unit), clamped to the limits, and return the measurement.
 
         Raises
         ------
@@ -531,7 +532,6 @@ class Driver(abc.ABC):
         clamped = command != requested
         if clamped:
             self.stats.clamped += 1
-        self._exchange_slot = slot
         reading = self._call(self._exchange, self.command_unit.to_native(command))
         self._last_command = command
         self.stats.exchanges += 1

@@ -459,7 +459,8 @@ class _Sampler:
             command = self.command_filter(reference) if self.command_filter is not None else reference
             start = clock.now_ns()  # after the filter: a slow filter makes the exchange late, and that shows
             try:
-                m = driver.exchange(command, slot=k)
+                driver.exchange_slot = k
+                m = driver.exchange(command)
             except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
                 end = clock.now_ns()
                 self._timeout(k, scheduled, start, end, reference, command)
@@ -560,6 +561,7 @@ class _Sampler:
         if self._shut:
             return
         self._shut = True
+        self.driver.exchange_slot = None  # outside the session, exchanges have no slot
         try:
             if self.driver.is_open:
                 self.driver.disable()

@@ -16,6 +16,7 @@ timed out in ``stats.stale``, a change of boot id raises
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import select
 import time
@@ -166,6 +167,18 @@ class SerialDriver(Driver):
 
     def _identity(self) -> dict[str, Any]:
         return {"driver": "serial", "port": self.port_name, **self._info}
+
+    def exchange(self, u: float) -> Measurement:
+        """Command ``u`` and return the measurement (see :meth:`Driver.exchange`).
+
+        ``command`` in the result is the set point as the firmware received
+        it, a whole number of encoder counts: identify from it, not from the
+        requested value (the rounding is otherwise an input error of up to
+        half a count).
+        """
+        m = super().exchange(u)
+        unit = self.command_unit
+        return dataclasses.replace(m, command=unit.to_user(round(unit.to_native(m.command))))
 
     # ---- serial-specific ----------------------------------------------------------------
     def status(self) -> dict[str, int]:

@@ -163,8 +163,11 @@ def test_the_sample_period_and_slot_reach_the_driver():
     d.slots = []
     with d:
         d.set_sample_period(0.002)
-        d.exchange(0.0, slot=7)
         d.exchange(0.0)
-    assert d.period == 0.002 and d.sample_period_s == 0.002 and d.slots == [7, None]
+        d.exchange_slot = 7
+        d.exchange(0.0)
+    assert d.period == 0.002 and d.sample_period_s == 0.002 and d.slots == [None, 7]
+    with pytest.raises(ConfigError, match="slot"):
+        d.exchange_slot = -1
     with Recorder() as r, pytest.raises(ConfigError, match="period_s"):
         r.set_sample_period(-1.0)
