@@ -154,8 +154,19 @@ class SerialDriver(Driver):
             raise ConfigError(f"period_s (={period_s!r}) must lie in [1e-6, 1] s for the firmware")
         self._config("C", period_us, "K")
 
+    def _counts(self, native: float) -> int:
+        """The whole count to send for a native command: the nearest one inside the limits.
+
+        Rounding must not carry a command past a limit, not even by half a count.
+        """
+        low, high = self.limits.low, self.limits.high
+        for candidate in (round(native), math.floor(native), math.ceil(native)):
+            if low <= self.command_unit.to_user(candidate) <= high:
+                return int(candidate)
+        return int(round(native))  # a range narrower than one count
+
     def _exchange(self, command: float) -> Reading:
-        counts = int(round(command))
+        counts = self._counts(command)
         slot = self.exchange_slot
         if slot is None:
             return self._position(self._transact("S", counts, "P"))
@@ -177,8 +188,7 @@ class SerialDriver(Driver):
         half a count).
         """
         m = super().exchange(u)
-        unit = self.command_unit
-        return dataclasses.replace(m, command=unit.to_user(round(unit.to_native(m.command))))
+        return dataclasses.replace(m, command=self.command_unit.to_user(self._counts(self.command_unit.to_native(m.command))))
 
     # ---- serial-specific ----------------------------------------------------------------
     def status(self) -> dict[str, int]:
