@@ -399,7 +399,11 @@ def run_session(
         sampler.shutdown()
         partial = sampler.result(recording)
         where = f"; the {len(partial)} samples so far are in {partial.recording}" if partial.recording else ""
-        err = type(exc)(f"{exc} (stopped at sample {len(partial)}{where})")
+        message = f"{exc} (stopped at sample {len(partial)}{where})"
+        try:
+            err = type(exc)(message)  # same type, so callers can still tell a restart from a timeout
+        except TypeError:  # a subclass with a richer constructor
+            err = DriverError(message)
         err.partial = partial  # type: ignore[attr-defined]
         raise err from exc
     finally:
