@@ -23,6 +23,7 @@ from typing import Any, ClassVar, Mapping
 
 import numpy as np
 
+from servoid import validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
 from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
@@ -211,13 +212,13 @@ class SimDriver(Driver):
         kwargs.setdefault("position_unit", UnitConversion(self.sim_plant.unit))
         super().__init__(**kwargs)
         self.plant_name = plant
-        self.noise_std = 0.0 if noise is None else float(noise)
+        self.noise_std = 0.0 if noise is None else validation.non_negative("noise", noise)
         if snr is not None:
-            self.noise_std = reference_output_std(self.sim_plant) / float(snr)
-        self.latency_ns = int(round(latency * NS_PER_S))
-        self.jitter_ns = int(round(jitter * NS_PER_S))
-        self.drop = drop
-        self.timeout_ns = int(round(timeout * NS_PER_S))
+            self.noise_std = reference_output_std(self.sim_plant) / validation.positive("snr", snr)
+        self.latency_ns = int(round(validation.non_negative("latency", latency) * NS_PER_S))
+        self.jitter_ns = int(round(validation.non_negative("jitter", jitter) * NS_PER_S))
+        self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)
+        self.timeout_ns = int(round(validation.positive("timeout", timeout) * NS_PER_S))
         self.mute_after, self.restart_after = mute_after, restart_after
         self.seed = seed
         if clock == "virtual":
