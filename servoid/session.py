@@ -425,7 +425,8 @@ class _Sampler:
         excitation: Iterable[float],
     ) -> None:
         self.driver, self.config, self.clock = driver, config, clock
-        self.estimator, self.estimator_error = estimator, None
+        self.estimator = estimator
+        self.estimator_error: str | None = None
         self.command_filter, self.on_progress = command_filter, on_progress
         self.total = len(excitation) if hasattr(excitation, "__len__") else None  # type: ignore[arg-type]
         self.samples: list[Sample] = []
