@@ -15,7 +15,9 @@ What a driver MUST implement
 ``_exchange(self, command: float) -> Reading``
     Send one command, in the driver's native unit, and return the measurement
     that answers it (position in native units, with the device's clock when it
-    has one). One call per sample.
+    has one). One call per sample. During a session, :attr:`Driver.exchange_slot`
+    holds the slot number ``k`` of the sample (scheduled at ``t0 + k T``), for
+    devices that want to know how many periods lie between two commands.
 
 What a driver MAY implement
 ---------------------------
@@ -24,6 +26,12 @@ What a driver MAY implement
 ``_identity(self) -> dict``
     What the servo says it is (model, firmware, serial number, id), stored in
     ``model.json``.
+``_set_period(self, period_s: float) -> None``
+    Told by :meth:`Driver.set_sample_period` (the sampling session calls it
+    before enabling) the period at which exchanges will come. Devices whose
+    control loop or simulated plant runs on its own time grid use it (the
+    serial firmware's control period, the simulated servo's sample instants,
+    a CAN SYNC period); the default ignores it.
 ``scheme`` / ``options`` (class attributes)
     The URL scheme the registry maps to this class, and the URL options it
     accepts (:class:`Option`); the base adds ``min``, ``max``, ``max_step``.
@@ -36,8 +44,10 @@ What a driver MAY implement
 What the base class owns
 ------------------------
 Unit conversion (native <-> the user's unit, stated in :class:`UnitConversion`),
-safety limits (a command outside the position range or changing faster than
-``max_step`` per sample is clamped and counted, never sent), the context
+safety limits (a command outside the position range, farther than
+``amplitude`` from ``centre`` or changing faster than ``max_step`` per sample
+is clamped and counted, never sent; a measured position farther than
+``guard`` outside the range stops the run with the torque off), the context
 manager, idempotent :meth:`Driver.close` that always tries to leave the torque
 off, unwrapping of the device clock, counters, and wrapping of library errors
 into :mod:`servoid.errors` (``raise ... from``): a ``TimeoutError`` becomes
@@ -56,7 +66,7 @@ from typing import Any, ClassVar
 from collections.abc import Callable, Mapping
 
 from servoid import validation
-from servoid.errors import ConfigError, DriverError, DriverTimeout, ServoidError
+from servoid.errors import ConfigError, DriverError, DriverTimeout, PositionOutOfRange, ServoidError
 
 __all__ = [
     "Driver",
@@ -119,30 +129,74 @@ class Limits:
     max_step : float
         Largest change of the command from one sample to the next (a rate
         limit: ``max_step / sample_period`` per second).
+    amplitude : float
+        Largest distance of the command from ``centre`` (an amplitude clamp,
+        for an excitation around an operating point); the command range is
+        the intersection of ``[minimum, maximum]`` and
+        ``[centre - amplitude, centre + amplitude]``.
+    centre : float
+        Operating point the amplitude is measured from.
+    guard : float
+        How far the *measured* position may lie outside the command range
+        before the run is stopped: a reading beyond it raises
+        :class:`~servoid.errors.PositionOutOfRange` after switching the torque
+        off (a slipping coupling, a wrong unit, a runaway). Infinite (off) by
+        default; only meaningful with a finite range.
     """
 
     minimum: float = -math.inf
     maximum: float = math.inf
     max_step: float = math.inf
+    amplitude: float = math.inf
+    centre: float = 0.0
+    guard: float = math.inf
 
     def __post_init__(self) -> None:
-        for name in ("minimum", "maximum", "max_step"):
+        for name in ("minimum", "maximum", "max_step", "amplitude", "centre", "guard"):
             value = getattr(self, name)
-            if not isinstance(value, (int, float)) or math.isnan(value):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value):
                 raise ConfigError(f"{name} (={value!r}) must be a number")
         if not self.minimum < self.maximum:
             raise ConfigError(f"minimum (={self.minimum!r}) must be < maximum (={self.maximum!r})")
         if not self.max_step > 0:
             raise ConfigError(f"max_step (={self.max_step!r}) must be > 0")
+        if not self.amplitude > 0:
+            raise ConfigError(f"amplitude (={self.amplitude!r}) must be > 0")
+        if not math.isfinite(self.centre):
+            raise ConfigError(f"centre (={self.centre!r}) must be finite")
+        if not self.guard >= 0:
+            raise ConfigError(f"guard (={self.guard!r}) must be >= 0")
+        if not self.low < self.high:
+            raise ConfigError(
+                f"centre +/- amplitude (={self.centre!r} +/- {self.amplitude!r}) lies outside "
+                f"[minimum, maximum] = [{self.minimum!r}, {self.maximum!r}]"
+            )
+
+    @property
+    def low(self) -> float:
+        """Lowest command sent: the range and the amplitude band together."""
+        return max(self.minimum, self.centre - self.amplitude)
+
+    @property
+    def high(self) -> float:
+        """Highest command sent."""
+        return min(self.maximum, self.centre + self.amplitude)
 
     def clamp(self, requested: float, previous: float | None) -> float:
         """The command to send for ``requested``, given the last command sent."""
-        value = min(max(requested, self.minimum), self.maximum)
+        low, high = self.low, self.high
+        value = min(max(requested, low), high)
         if previous is not None and math.isfinite(self.max_step):
             value = min(max(value, previous - self.max_step), previous + self.max_step)
             # the step limit never leaves the range: previous lies inside it
-            value = min(max(value, self.minimum), self.maximum)
+            value = min(max(value, low), high)
         return value
+
+    def position_ok(self, position: float) -> bool:
+        """Whether a measured position lies within ``guard`` of the range (always, when the guard is off)."""
+        if math.isinf(self.guard):
+            return True
+        return self.minimum - self.guard <= position <= self.maximum + self.guard
 
 
 @dataclass(frozen=True)
@@ -203,6 +257,10 @@ class DriverStats:
     clamped: int = 0
     errors: int = 0
     timeouts: int = 0
+    rejected: int = 0
+    """Replies thrown away as corrupted (bad CRC, length, framing): never used."""
+    stale: int = 0
+    """Replies that came after their request had timed out (matched by sequence number), discarded."""
 
 
 @dataclass(frozen=True)
@@ -244,6 +302,9 @@ COMMON_OPTIONS: dict[str, Option] = {
     "min": Option(_float, "lowest command allowed (user unit)", "minimum"),
     "max": Option(_float, "highest command allowed (user unit)", "maximum"),
     "max_step": Option(_float, "largest command change per sample (user unit)", "max_step"),
+    "amplitude": Option(_float, "largest command distance from centre (user unit)", "amplitude"),
+    "centre": Option(_float, "operating point the amplitude is measured from (user unit)", "centre"),
+    "guard": Option(_float, "stop if the measured position leaves [min, max] by more than this (user unit)", "guard"),
 }
 
 
@@ -283,6 +344,8 @@ class Driver(abc.ABC):
         self._clock_last: float | None = None
         self._clock_offset = 0.0
         self._identity_cache: dict[str, Any] | None = None
+        self.sample_period_s: float | None = None
+        self._exchange_slot: int | None = None
 
     # ---- primitives -----------------------------------------------------------------
     @abc.abstractmethod
@@ -308,6 +371,9 @@ class Driver(abc.ABC):
     def _identity(self) -> dict[str, Any]:
         """What the servo says it is; drivers that know, override this."""
         return {}
+
+    def _set_period(self, period_s: float) -> None:
+        """Learn the sample period; drivers whose device runs on its own time grid override this."""
 
     # ---- construction from a URL -------------------------------------------------------
     @classmethod
@@ -378,6 +444,18 @@ class Driver(abc.ABC):
         self._call(self._set_torque, True)
         self._torque = True
 
+    def set_sample_period(self, period_s: float) -> None:
+        """Tell the driver (and through it the device) the period of the exchanges to come, in seconds."""
+        self._require_open()
+        period = validation.positive("period_s", period_s)
+        self._call(self._set_period, period)
+        self.sample_period_s = period
+
+    @property
+    def last_command(self) -> float | None:
+        """The last command sent and answered (user unit), None before the first."""
+        return self._last_command
+
     def disable(self) -> None:
         """Switch the torque off."""
         self._require_open()
@@ -420,6 +498,20 @@ class Driver(abc.ABC):
             pass
 
     # ---- per sample ----------------------------------------------------------------------
+    @property
+    def exchange_slot(self) -> int | None:
+        """Sample slot ``k`` of the next exchange, as the sampler counts them (None outside a session).
+
+        The sampling session sets it before each :meth:`exchange` (slots only
+        increase); a driver whose device wants to know how many periods lie
+        between two commands reads it in ``_exchange``.
+        """
+        return self._exchange_slot
+
+    @exchange_slot.setter
+    def exchange_slot(self, slot: int | None) -> None:
+        self._exchange_slot = None if slot is None else validation.integer("slot", slot, minimum=0)
+
     def exchange(self, u: float) -> Measurement:
         """Command ``u`` (user unit), clamped to the limits, and return the measurement.
 
@@ -443,14 +535,18 @@ class Driver(abc.ABC):
         reading = self._call(self._exchange, self.command_unit.to_native(command))
         self._last_command = command
         self.stats.exchanges += 1
-        return self._measurement(reading, requested, command, clamped)
+        measurement = self._measurement(reading, requested, command, clamped)
+        self._guard(measurement.position)
+        return measurement
 
     def read(self) -> Measurement:
         """A measurement without commanding (only for drivers that support it)."""
         self._require_open()
         reading = self._call(self._read)
         last = self._last_command if self._last_command is not None else math.nan
-        return self._measurement(reading, last, last, False)
+        measurement = self._measurement(reading, last, last, False)
+        self._guard(measurement.position)
+        return measurement
 
     @property
     def identity(self) -> dict[str, Any]:
@@ -467,6 +563,19 @@ class Driver(abc.ABC):
     def _require_open(self) -> None:
         if not self._is_open:
             raise DriverError(f"{self.describe()} is not open")
+
+    def _guard(self, position: float) -> None:
+        if self.limits.position_ok(position):
+            return
+        lim = self.limits
+        try:
+            self.disable()
+        except ServoidError as exc:
+            log.warning("%s: could not switch the torque off after a position out of range: %s", self.describe(), exc)
+        raise PositionOutOfRange(
+            f"{self.describe()}: measured position {position!r} {self.position_unit.unit} lies outside "
+            f"[{lim.minimum!r}, {lim.maximum!r}] by more than guard={lim.guard!r}; torque switched off"
+        )
 
     def _call(self, func: Callable[..., Any], *args: Any) -> Any:
         try:

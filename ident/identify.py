@@ -114,6 +114,7 @@ def identify(
     refine_model: bool = True,
     record_every: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    valid: Sequence[bool] | np.ndarray | None = None,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -129,6 +130,11 @@ def identify(
         Sampling of the MRGIA's parameter history.
     progress : callable, optional
         Called as ``progress(done, total)`` while the MRGIA runs.
+    valid : array_like of bool, optional
+        ``False`` marks samples whose measurement was lost or is not to be
+        trusted (a live session's late, missed and timed-out samples): their
+        ``y`` may be NaN; the MRGIA skips them (:meth:`MRGIA.skip`) and the
+        refinement and the fit leave them out, simulating through them.
 
     Returns
     -------
@@ -141,10 +147,13 @@ def identify(
     EstimatorDiverged
         If the MRGIA diverged, with the sample index.
     """
-    u_arr, y_arr = check_record(u, y, config)
-    y0 = float(y_arr[0])
+    u_arr, y_arr, keep = _record(u, y, valid, config)
+    first = 0 if keep is None else int(np.argmax(keep))
+    y0 = float(y_arr[first])
     warnings: list[str] = []
-    online = run_mrgia(u_arr, y_arr, config, record_every=record_every, progress=progress)
+    if keep is not None and not keep.all():
+        warnings.append(f"{int(keep.size - keep.sum())} of {keep.size} samples were lost or late and left out")
+    online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
     if online.recoveries:
         at = ", ".join(str(r.sample) for r in online.recoveries[:5])
         warnings.append(
@@ -163,7 +172,7 @@ def identify(
     mrgia_nrmse: float | None
     try:
         mrgia_model = online.model
-        mrgia_nrmse = nrmse(y_arr, free_run(mrgia_model, u_arr, y0=y0))
+        mrgia_nrmse = _fit(y_arr, free_run(mrgia_model, u_arr, y0=y0), keep)
     except ModelError as exc:
         mrgia_model, mrgia_nrmse = None, None
         warnings.append(str(exc))
@@ -179,11 +188,11 @@ def identify(
             "mrgia": mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
         }
         try:
-            starts["arx"] = arx_start(u_arr, y_arr, na=config.na, nb=config.nb, delay=config.delay)
+            starts["arx"] = arx_start(u_arr, y_arr, na=config.na, nb=config.nb, delay=config.delay, valid=keep)
         except (ConfigError, ModelError):
             pass
         for name, start in starts.items():
-            candidate = refine(u_arr, y_arr, start, y0=y0)
+            candidate = refine(u_arr, y_arr, start, y0=y0, valid=keep)
             start_nrmse[name] = candidate.nrmse
             if refinement is None or candidate.nrmse < refinement.nrmse:
                 refinement, refined_from = candidate, name
@@ -230,6 +239,30 @@ def identify(
         mrgia_nrmse=mrgia_nrmse,
         warnings=tuple(warnings),
     )
+
+
+def _record(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray | None,
+    config: MRGIAConfig,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The record as arrays, checked; lost samples' ``y`` set to 0 (never used) and the mask."""
+    if valid is None:
+        u_arr, y_arr = check_record(u, y, config)
+        return u_arr, y_arr, None
+    keep = np.asarray(valid, dtype=np.bool_)
+    try:
+        u_arr = validation.signal("u", u)
+    except ConfigError as exc:
+        raise DataError(str(exc)) from None
+    y_raw = np.asarray(y, dtype=np.float64)
+    if keep.shape != u_arr.shape or y_raw.shape != u_arr.shape:
+        raise DataError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {keep.shape}")
+    check_record(u_arr[keep], y_raw[keep], config)  # enough valid samples, finite, not constant
+    return u_arr, np.where(keep, y_raw, 0.0), keep
+
+
+def _fit(y: np.ndarray, y_hat: np.ndarray, keep: np.ndarray | None) -> float:
+    return nrmse(y, y_hat) if keep is None else nrmse(y[keep], y_hat[keep])
 
 
 def _feasible_start(theta: np.ndarray, config: MRGIAConfig) -> BacklashModel:

@@ -75,14 +75,19 @@ class Refinement:
 class _OutputError:
     """Residual ``y_hat(p) - y`` of the free-run model, for the optimiser."""
 
-    def __init__(self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float) -> None:
+    def __init__(
+        self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float, valid: np.ndarray | None = None
+    ) -> None:
         self.u, self.y, self.y0 = u, y, y0
+        # lost samples (valid False) are simulated through but left out of the residual
+        self.keep = valid
         self.na, self.nb, self.delay = template.na, template.nb, template.delay
         self.x = np.empty_like(u)
         self.y_hat = np.empty_like(u)
         self.zone = np.empty(u.shape, dtype=np.int8)
         # Outside the stable region the simulation explodes.
-        self.penalty = failure_residual(y)
+        self.y_used = y if valid is None else y[valid]
+        self.penalty = failure_residual(self.y_used)
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
         na, nb = self.na, self.nb
@@ -95,6 +100,8 @@ class _OutputError:
         simulate_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), self.delay, m2, c1, c2,
                         self.u, self.y0, self.x, self.y_hat, self.zone)  # fmt: skip
         out = self.y_hat - self.y
+        if self.keep is not None:
+            out = out[self.keep]
         if not np.all(np.isfinite(out)):
             return self.penalty
         return out
@@ -120,6 +127,7 @@ def refine(
     *,
     y0: float | None = None,
     max_nfev: int | None = None,
+    valid: Sequence[bool] | np.ndarray | None = None,
 ) -> Refinement:
     """Fit all parameters of ``initial`` to ``(u, y)`` by simulation-error least squares.
 
@@ -133,6 +141,10 @@ def refine(
         Backlash output before the first sample; default ``y[0]``.
     max_nfev : int, optional
         Cap on the number of simulations (default: scipy's, 100 per parameter).
+    valid : array_like of bool, optional
+        ``False`` marks samples whose measurement was lost (a live session's
+        late, missed or timed-out samples): the model is simulated through
+        them with their ``u``, but their ``y`` (which may be NaN) is not fitted.
 
     Returns
     -------
@@ -146,25 +158,29 @@ def refine(
     step. Bounds keep ``m2``, ``c1`` and ``c2`` positive; stability of the
     linear block is kept by a penalty.
     """
-    u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
-    problem = _OutputError(u_arr, y_arr, initial, start_y)
+    valid_arr: np.ndarray | None = None
+    if valid is None:
+        u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
+    else:
+        u_arr, y_arr, start_y, valid_arr = _masked_record(u, y, valid, initial.n_params, y0)
+    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr)
 
     p0 = initial.values()
     lower = np.full(p0.size, -np.inf)
-    floor = _LOWER_BOUND_REL * max(float(np.std(y_arr)), 1e-12)
+    floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
     lower[-3:] = floor
     p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
 
     fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)
     model = problem.model(fit.x)
-    y_hat = fit.residual + y_arr
+    y_used = problem.y_used
     return Refinement(
         model=model,
         initial=initial,
         stderr=tuple(float(s) for s in fit.stderr),
         covariance=fit.covariance,
-        nrmse=nrmse(y_arr, y_hat),
-        initial_nrmse=nrmse(y_arr, problem(p0) + y_arr),
+        nrmse=nrmse(y_used, fit.residual + y_used),
+        initial_nrmse=nrmse(y_used, problem(p0) + y_used),
         residual_std=float(np.std(fit.residual)),
         nfev=fit.nfev,
         success=fit.success,
@@ -172,8 +188,32 @@ def refine(
     )
 
 
+def _masked_record(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray,
+    n_params: int, y0: float | None,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`fit_record` for a record with lost samples: their ``y`` (maybe NaN) becomes 0, never fitted."""
+    u_arr = validation.signal("u", u)
+    valid_arr = np.asarray(valid, dtype=np.bool_)
+    y_raw = np.asarray(y, dtype=np.float64)
+    if valid_arr.shape != u_arr.shape or y_raw.shape != u_arr.shape:
+        raise ConfigError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {valid_arr.shape}")
+    y_arr = validation.signal("y (valid samples)", np.where(valid_arr, y_raw, 0.0))
+    used = int(valid_arr.sum())
+    if used <= n_params:
+        raise ConfigError(f"{used} samples cannot determine {n_params} parameters")
+    start_y = float(y_arr[int(np.argmax(valid_arr))]) if y0 is None else validation.real("y0", y0)
+    return u_arr, y_arr, start_y, valid_arr
+
+
 def arx_start(
-    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, *, na: int, nb: int, delay: int
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    *,
+    na: int,
+    nb: int,
+    delay: int,
+    valid: Sequence[bool] | np.ndarray | None = None,
 ) -> BacklashModel:
     """A starting model that does not depend on the MRGIA: ARX for the linear block, a small backlash.
 
@@ -186,28 +226,38 @@ def arx_start(
     pulled inside the unit circle. The backlash starts with ``m2 = 1`` and
     dead zones of 5 % of ``std(y)``.
 
+    With ``valid`` (False: a lost sample, whose ``y`` may be NaN), only the
+    equations whose ``y`` terms were all measured are used.
+
     Raises
     ------
     ConfigError
         For records too short or arrays of different length.
     """
-    u_arr = validation.signal("u", u)
-    y_arr = validation.signal("y", y)
+    if valid is None:
+        u_arr, y_arr = validation.signal("u", u), validation.signal("y", y)
+        keep = np.ones(u_arr.size, dtype=np.bool_)
+    else:
+        u_arr, y_arr, _, keep = _masked_record(u, y, valid, na + nb + 2, None)
     if u_arr.size != y_arr.size:
         raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
     k0 = max(na, delay + nb)
     rows = y_arr.size - k0
-    if rows <= na + nb + 2:
+    usable = keep[k0:].copy()
+    for i in range(1, na + 1):
+        usable &= keep[k0 - i : keep.size - i]
+    if int(usable.sum()) <= na + nb + 2:
         raise ConfigError(f"{y_arr.size} samples are too few for an ARX start with na={na}, nb={nb}, delay={delay}")
     cols = [-y_arr[k0 - i : y_arr.size - i] for i in range(1, na + 1)]
     cols += [u_arr[k0 - delay - j : u_arr.size - delay - j] for j in range(nb + 1)]
     cols.append(np.ones(rows))
-    theta, *_ = np.linalg.lstsq(np.column_stack(cols), y_arr[k0:], rcond=None)
+    theta, *_ = np.linalg.lstsq(np.column_stack(cols)[usable], y_arr[k0:][usable], rcond=None)
     a = theta[:na]
     b = theta[na : na + nb + 1]
     while np.max(np.abs(np.roots(np.r_[1.0, a]))) >= 0.995:
         a = a * 0.95 ** np.arange(1, na + 1)  # scales every pole by 0.95
+    y_std = float(np.std(y_arr[keep]))
     if not np.any(b):
-        b = np.r_[max(float(np.std(y_arr)) / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
-    dead = max(0.05 * float(np.std(y_arr)), 1e-9)
+        b = np.r_[max(y_std / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
+    dead = max(0.05 * y_std, 1e-9)
     return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)

@@ -28,6 +28,7 @@ __all__ = [
     "ProtocolError",
     "DeviceFault",
     "DeviceRestarted",
+    "PositionOutOfRange",
     "MissingDependency",
 ]
 
@@ -86,6 +87,10 @@ class DeviceFault(DriverError):
 
 class DeviceRestarted(DriverError):
     """The servo restarted during a run (its clock or sequence went back to zero)."""
+
+
+class PositionOutOfRange(DeviceFault):
+    """The measured position left the allowed range by more than the guard: the run was stopped, torque off."""
 
 
 class MissingDependency(ServoidError, ImportError):

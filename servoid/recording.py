@@ -5,8 +5,11 @@ Format
 UTF-8 text. Optional metadata lines first, each ``# key: value``; then one
 header row of column names; then one row per sample. The columns servoid
 reads are ``u`` (input) and ``y`` (measured output), with ``t`` (time in
-seconds) when known; other columns are kept by the writer and ignored by
-:func:`read_recording`. Units are given in the metadata (``# unit: rad``).
+seconds) when known, and ``status`` when the recording comes from a live
+session (``ok``, ``late``, ``missed``, ``timeout``: see :mod:`servoid.session`);
+in such a recording ``y`` is ``nan`` where nothing was measured. Other
+columns are kept by the writer and ignored by :func:`read_recording`. Units
+are given in the metadata (``# unit: rad``).
 
 :class:`RecordingWriter` appends and flushes each row as it is written, so a
 crash, a kill or Ctrl-C leaves every sample measured so far in a readable file
@@ -48,6 +51,9 @@ class Recording:
         Where it was read from.
     notes : tuple of str
         Things the reader fixed up (a truncated last line).
+    status : ndarray of str or None
+        Per-sample status of a live recording (its ``y`` is NaN where nothing
+        was measured), None for other recordings.
     """
 
     u: np.ndarray
@@ -56,6 +62,7 @@ class Recording:
     metadata: dict[str, str] = field(default_factory=dict)
     path: str = ""
     notes: tuple[str, ...] = ()
+    status: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.u.size)
@@ -122,13 +129,16 @@ def read_recording(path: str | os.PathLike[str], *, u_column: str = "u", y_colum
     cols = {key: header.index(name) for key, name in wanted.items()}
     if "t" in header:
         cols["t"] = header.index("t")
+    status_col = header.index("status") if "status" in header else None
+    # a live recording marks unmeasured samples by their status and a nan y
+    may_be_nan = {"y"} if status_col is not None else set()
     rows = [r for r in reader if r and any(c.strip() for c in r)]
     notes: list[str] = []
     if rows and not text.endswith("\n"):
         # The writer ends every row with a newline: a last line without one was
         # cut off mid-write (crash, kill). Keep it only if it parses whole.
         try:
-            _parse_row(rows[-1], header, cols, p, first_row + len(rows))
+            _parse_row(rows[-1], header, cols, p, first_row + len(rows), may_be_nan)
         except DataError:
             rows.pop()
             notes.append("dropped a truncated last line (the recording was cut off while writing)")
@@ -136,14 +146,17 @@ def read_recording(path: str | os.PathLike[str], *, u_column: str = "u", y_colum
         raise DataError(f"{p}: the header is there but no data rows follow")
     data = {key: np.empty(len(rows)) for key in cols}
     for i, row in enumerate(rows):
-        for key, value in _parse_row(row, header, cols, p, first_row + 1 + i).items():
+        for key, value in _parse_row(row, header, cols, p, first_row + 1 + i, may_be_nan).items():
             data[key][i] = value
+    status = None if status_col is None else np.array([r[status_col].strip() for r in rows])
     return Recording(
-        u=data["u"], y=data["y"], t=data.get("t"), metadata=meta, path=str(p), notes=tuple(notes)
+        u=data["u"], y=data["y"], t=data.get("t"), metadata=meta, path=str(p), notes=tuple(notes), status=status
     )
 
 
-def _parse_row(row: list[str], header: list[str], cols: dict[str, int], p: Path, line_no: int) -> dict[str, float]:
+def _parse_row(
+    row: list[str], header: list[str], cols: dict[str, int], p: Path, line_no: int, may_be_nan: frozenset[str] | set[str] = frozenset()
+) -> dict[str, float]:
     if len(row) != len(header):
         raise DataError(f"{p}, line {line_no}: {len(row)} fields, the header has {len(header)}")
     out = {}
@@ -153,7 +166,7 @@ def _parse_row(row: list[str], header: list[str], cols: dict[str, int], p: Path,
             value = float(cell)
         except ValueError:
             raise DataError(f"{p}, line {line_no}, column {header[j]!r}: {cell!r} is not a number") from None
-        if not math.isfinite(value):
+        if not math.isfinite(value) and not (key in may_be_nan and math.isnan(value)):
             raise DataError(f"{p}, line {line_no}, column {header[j]!r}: {cell!r} is not finite")
         out[key] = value
     return out

@@ -53,6 +53,12 @@ class Record:
     written_to : Path or None
         Where the record is already on disk (a live session writes as it
         measures); ``recording.csv`` is then not written again.
+    valid : ndarray of bool or None
+        Samples to identify from (a live record's late, missed and timed-out
+        samples are False: their ``y`` may be NaN); None: all.
+    acquisition : dict or None
+        How a live record was sampled (rate, counts per status, driver
+        counters), for the ``--json`` output.
     """
 
     u: np.ndarray
@@ -65,6 +71,13 @@ class Record:
     servo: dict[str, Any] | None = None
     extra: dict[str, np.ndarray] = field(default_factory=dict)
     written_to: Path | None = None
+    valid: np.ndarray | None = None
+    acquisition: dict[str, Any] | None = None
+
+    @property
+    def y_used(self) -> np.ndarray:
+        """The measured outputs identification uses: all of ``y``, or its valid samples."""
+        return self.y if self.valid is None else self.y[self.valid]
 
     @property
     def sample_period_s(self) -> float | None:
@@ -100,7 +113,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         source=record.source,
         samples=result.samples,
         servo=record.servo,
-        noise_std=result.fit_nrmse * float(np.std(record.y)),  # the residual RMS; the band follows from it
+        noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
     )
     paths["model"] = str(save_model(out_dir / "model.json", content))
     if plots:
@@ -110,7 +123,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         paths["convergence_plot"] = str(
             _plots.plot_convergence(result.mrgia, out_dir / "convergence.png", truth=record.truth, refined=refined)
         )
-        y0 = float(record.y[0])
+        y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
         simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, record.u, y0=y0)}
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
@@ -178,6 +191,8 @@ def result_json(record: Record, result: Identification, paths: dict[str, str]) -
         "warnings": list(result.warnings),
         "outputs": paths,
     }
+    if record.acquisition is not None:
+        out["acquisition"] = record.acquisition
     if record.truth is not None:
         out["truth"] = record.truth.to_dict()
         out["max_relative_error"] = result.model.max_relative_error(record.truth)

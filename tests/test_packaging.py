@@ -38,6 +38,10 @@ def test_wheel_installs_every_package(tmp_path):
     # data files the exporters read at run time
     for data in ("servoid/export/templates/backlash_compensator.h", "servoid/model.schema.json"):
         assert data in names, data
+    # the serial servo's firmware sources, which `servoid emulate serial` compiles
+    for source in (ROOT / "drivers" / "serial" / "firmware").rglob("*.[ch]"):
+        rel = source.relative_to(ROOT / "drivers").as_posix()
+        assert f"servoid/drivers/{rel}" in names, rel
     for pillar in ("ident", "drivers", "excitation"):
         for init in (ROOT / pillar).rglob("__init__.py"):
             rel = init.relative_to(ROOT / pillar).as_posix()

@@ -17,7 +17,7 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-__all__ = ["stdout", "stderr", "progress", "table", "print_json", "warn"]
+__all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
 
 stdout = Console(highlight=False)
 stderr = Console(stderr=True, highlight=False)
@@ -35,6 +35,19 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
 
         def update(done: int, total: int) -> None:
             bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+@contextlib.contextmanager
+def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str], None]]:
+    """A progress bar with a status line on stderr; yields ``update(done, text)``."""
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[text]}"))
+    with Progress(*columns, console=stderr, transient=True) as bar:
+        task = bar.add_task(label, total=total, text="")
+
+        def update(done: int, text: str) -> None:
+            bar.update(task, completed=done, text=escape(text))
 
         yield update
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.cli import _term
+from servoid.cli import _live, _term
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
@@ -44,6 +44,8 @@ Where the record comes from:
                  or by --excitation SPEC (see `servoid excite --help`)
   --data FILE    a CSV recording with a header row and columns u, y (and t in
                  seconds, optional); lines starting with '#' are metadata
+  --driver URL   a live servo (sim://, serial://, can://, dxl://), excited at
+                 --rate Hz; the recording is written as it is measured
 
 Outputs in --out: recording.csv, model.json, convergence.png (each parameter
 against samples, true values dashed when known), fit.png (measured against
@@ -61,6 +63,8 @@ examples:
   servoid identify --snr 43 --excitation prbs:amplitude=1.5,hold=3
   servoid identify --data bench.csv --na 2 --nb 1 --delay 2 --epsilon 0.004 --unit rad
   servoid identify --json --no-plots > result.json
+  servoid identify --driver "sim://?snr=40" --rate 500 --samples 5000
+  servoid identify --driver serial:///dev/pts/5 --rate 200   (after: servoid emulate serial)
 """
 
 
@@ -71,16 +75,17 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )  # fmt: skip
     src = p.add_argument_group("record")
     src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
-    src.add_argument("--samples", type=int, default=5000, metavar="N", help="simulated samples (default 5000)")
-    src.add_argument("--seed", type=int, default=0, help="seed of the simulated input and noise (default 0)")
+    src.add_argument("--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)")
+    src.add_argument("--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)")
     src.add_argument("--snr", type=float, metavar="SNR",
                      help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
                           "(default: noise-free)")  # fmt: skip
     src.add_argument("--excitation", metavar="SPEC",
-                     help="input of the simulated servo, e.g. prbs:amplitude=1.5,hold=3 or "
+                     help="input of the simulated or live servo, e.g. prbs:amplitude=1.5,hold=3 or "
                           "multisine:amplitude=2,bands=0.01-0.2 (default: the paper's uniform noise)")  # fmt: skip
     src.add_argument("--unit", metavar="UNIT",
                      help="unit of y (rad, counts, mm, ...); default from the recording's '# unit:' line")  # fmt: skip
+    _live.add_options(p)
     mdl = p.add_argument_group("model")
     mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
     mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
@@ -142,13 +147,15 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
     unit = args.unit or rec.metadata.get("unit", "unit")
     record = Record(
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
-        input_unit=rec.metadata.get("input_unit", "unit"),
+        input_unit=rec.metadata.get("input_unit", "unit"), valid=_live.recording_valid(rec),
     )  # fmt: skip
     return record, args.epsilon if args.epsilon is not None else 0.0
 
 
 def get_record(args: argparse.Namespace) -> tuple[Record, float]:
     """The record to identify and the epsilon to use, from the command line."""
+    if args.driver is not None:
+        return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
         if args.excitation is not None:
             raise ConfigError("--excitation drives the simulated servo; a --data recording already holds its input")
@@ -162,7 +169,7 @@ def run(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM) as bar:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
-                          record_every=max(1, record.u.size // 20_000), progress=bar)  # fmt: skip
+                          record_every=max(1, record.u.size // 20_000), progress=bar, valid=record.valid)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)

@@ -124,3 +124,50 @@ def test_limits_validate():
         Limits(minimum=1.0, maximum=0.0)
     with pytest.raises(ConfigError, match="max_step"):
         Limits(max_step=0.0)
+
+
+def test_amplitude_band_and_range_clamp_together():
+    lim = Limits(minimum=-1.0, maximum=0.5, amplitude=0.3, centre=0.4)
+    assert (lim.low, lim.high) == (pytest.approx(0.1), 0.5)
+    with Recorder(limits=lim) as d:
+        d.enable()
+        assert [d.exchange(u).command for u in (0.0, 0.3, 2.0)] == [pytest.approx(0.1), 0.3, 0.5]
+    assert min(d.sent) >= 0.1 - 1e-12 and d.stats.clamped == 2
+    with pytest.raises(ConfigError, match="outside"):
+        Limits(minimum=0.0, maximum=1.0, centre=3.0, amplitude=0.5)
+    assert driver_from_url("recorder://?amplitude=0.2&centre=1").limits.high == pytest.approx(1.2)
+
+
+def test_a_measured_position_beyond_the_guard_stops_with_the_torque_off():
+    from servoid.errors import PositionOutOfRange
+
+    d = Recorder(limits=Limits(minimum=-1.0, maximum=1.0, guard=0.5))
+    with d:
+        d.enable()
+        d.exchange(0.7)  # measured 1.4: inside the guard
+        with pytest.raises(PositionOutOfRange, match="outside .* guard=0.5; torque switched off"):
+            d.exchange(0.8)  # measured 1.6
+        assert not d.torque_enabled and d.torque_calls == [True, False]
+
+
+def test_the_sample_period_and_slot_reach_the_driver():
+    class Periodic(Recorder):
+        def _set_period(self, period_s):
+            self.period = period_s
+
+        def _exchange(self, command):
+            self.slots.append(self.exchange_slot)
+            return super()._exchange(command)
+
+    d = Periodic()
+    d.slots = []
+    with d:
+        d.set_sample_period(0.002)
+        d.exchange(0.0)
+        d.exchange_slot = 7
+        d.exchange(0.0)
+    assert d.period == 0.002 and d.sample_period_s == 0.002 and d.slots == [None, 7]
+    with pytest.raises(ConfigError, match="slot"):
+        d.exchange_slot = -1
+    with Recorder() as r, pytest.raises(ConfigError, match="period_s"):
+        r.set_sample_period(-1.0)

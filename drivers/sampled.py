@@ -1,0 +1,188 @@
+"""The bench servo's physics on a time grid: what every simulated device puts behind its protocol.
+
+A real servo moves continuously; the model servoid identifies is its
+discrete-time behaviour at the session's sample period ``T``
+(:data:`servoid.drivers.bench.BENCH_PLANT` is "the servo at the session's
+rate"). :class:`SampledPlant` makes a :class:`~servoid.ident.Plant` behave
+like a bench controller whose position loop is triggered by the host's set
+points and keeps running on its own when the host falls silent:
+
+* each command is one sample of the plant: the sample is taken, then the
+  command applied (``y(j)`` depends on ``u(j - d)`` and earlier), and the reply
+  is the position of that sample;
+* when a command comes ``n`` periods after the previous one (``n >= 2``: the
+  host skipped ``n - 1`` slots or stalled), the plant first runs ``n - 1``
+  samples on the held command, as a position loop holds its set point;
+  between requests nothing needs to run;
+* ``n`` is what the host says (from its slot numbers, ``periods=``) when it does:
+  then the plant's samples follow the host's slots exactly, and the jitter of
+  the link shows in the timestamps only; otherwise ``n`` is the time since
+  the previous command in periods, rounded (commands closer than one and a
+  half periods are one sample each);
+* a read without a command runs the held samples due up to its time and
+  returns the latest (the first request after the torque went on, command or
+  read, starts the count of sample times);
+* with the torque off the plant does not move and commands are refused.
+
+Without a period (``period_ns=None``) every command is one sample, whatever
+the time between them.
+
+The serial firmware's simulated motor (``drivers/serial/firmware/host/sim_motor.c``)
+implements the same rules in C; the CAN and Dynamixel emulators can use this class.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from servoid import validation
+from servoid.errors import DriverError
+from servoid.ident.model import BacklashModel
+from servoid.ident.plant import Plant
+
+__all__ = ["SampledPlant", "PlantSample"]
+
+
+@dataclass(frozen=True)
+class PlantSample:
+    """One reading of the plant.
+
+    Attributes
+    ----------
+    position : float
+        Measured position (with noise, when configured), plant unit.
+    index : int
+        Sample ``j`` the reading belongs to (-1 before the first).
+    time_ns : int
+        Time of that sample (the command's arrival; for held samples, the
+        previous sample's time plus whole periods).
+    """
+
+    position: float
+    index: int
+    time_ns: int
+
+
+class SampledPlant:
+    """A backlash plant sampled by the host's commands, running on by itself when they stop.
+
+    Parameters
+    ----------
+    model : BacklashModel
+        The plant (unit of its input and output: the device's).
+    period_ns : int, optional
+        Sample period; None: one sample per command.
+    noise_std : float
+        Standard deviation of Gaussian measurement noise added to each
+        reading (not to the plant's state), plant unit.
+    rng : numpy.random.Generator, optional
+        Source of the noise; required when ``noise_std > 0``.
+    """
+
+    def __init__(
+        self,
+        model: BacklashModel,
+        *,
+        period_ns: int | None = None,
+        noise_std: float = 0.0,
+        rng: np.random.Generator | None = None,
+    ) -> None:
+        self.plant = Plant(model)
+        self.noise_std = validation.non_negative("noise_std", noise_std)
+        if self.noise_std > 0 and rng is None:
+            raise DriverError("noise_std > 0 needs rng=np.random.default_rng(seed)")
+        self._rng = rng
+        self.period_ns: int | None = None
+        self.enabled = False
+        self.held = 0.0
+        self.index = -1
+        self._last_ns: int | None = None  # time of the latest sample (None: the next command starts afresh)
+        self.set_period(period_ns)
+
+    @property
+    def model(self) -> BacklashModel:
+        return self.plant.model
+
+    def set_period(self, period_ns: int | None) -> None:
+        """Change the sample period; the next command starts the count afresh."""
+        if period_ns is not None:
+            period_ns = validation.integer("period_ns", period_ns, minimum=1)
+        self.period_ns = period_ns
+        self._last_ns = None
+
+    def enable(self) -> None:
+        """Torque on: the plant follows commands from the next one on."""
+        if not self.enabled:
+            self.enabled = True
+            self._last_ns = None
+
+    def disable(self) -> None:
+        """Torque off: the plant stays where it is."""
+        self.enabled = False
+
+    def reset(self) -> None:
+        """Back to rest, torque off (a power cycle)."""
+        self.plant.reset()
+        self.enabled = False
+        self.held = 0.0
+        self.index = -1
+        self._last_ns = None
+
+    def command(self, u: float, t_ns: int, *, periods: int | None = None) -> PlantSample:
+        """Apply the set point ``u`` arriving at ``t_ns``; return the reading of its sample.
+
+        Parameters
+        ----------
+        u : float
+            The set point.
+        t_ns : int
+            Its arrival time.
+        periods : int, optional
+            Periods since the previous set point as the host counts them
+            (>= 1); default: from the time since the previous one.
+
+        Raises
+        ------
+        DriverError
+            With the torque off.
+        """
+        if not self.enabled:
+            raise DriverError("the torque is off: commands are refused")
+        if self._last_ns is not None:
+            if periods is None and self.period_ns is not None:
+                periods = _nearest(t_ns - self._last_ns, self.period_ns)
+            for _ in range((periods or 1) - 1):
+                self._step(self.held)
+        self._step(float(u))
+        self.held = float(u)
+        self._last_ns = t_ns
+        return self._reading(t_ns)
+
+    def read(self, t_ns: int) -> PlantSample:
+        """The reading of the latest sample at or before ``t_ns`` (running the held samples due)."""
+        if self.enabled and self.period_ns is not None:
+            if self._last_ns is None:
+                self._last_ns = t_ns  # sample times count from the first request, command or read
+            due = (t_ns - self._last_ns) // self.period_ns
+            for _ in range(max(due, 0)):
+                self._step(self.held)
+            self._last_ns += max(due, 0) * self.period_ns
+            return self._reading(self._last_ns)
+        return self._reading(t_ns)
+
+    def _step(self, u: float) -> None:
+        self.plant.step(u)
+        self.index += 1
+
+    def _reading(self, time_ns: int) -> PlantSample:
+        y = self.plant.y
+        if self.noise_std > 0 and self._rng is not None:
+            y += float(self._rng.normal(0.0, self.noise_std))
+        return PlantSample(position=y, index=self.index, time_ns=int(time_ns))
+
+
+def _nearest(offset_ns: int, period_ns: int) -> int:
+    """Whole periods nearest to ``offset_ns`` (a half rounds up)."""
+    return (offset_ns + period_ns // 2) // period_ns

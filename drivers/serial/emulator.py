@@ -1,0 +1,211 @@
+"""Run the reference firmware, built for the host, as a serial servo on a pseudo-terminal.
+
+:class:`FirmwareEmulator` starts the compiled firmware (see
+:mod:`servoid.drivers.serial.build`) as its own process, which opens a
+pseudo-terminal, prints its name and serves it: the real pyserial driver
+talks to the real firmware code, with a simulated motor + gear with backlash
+behind the HAL. It runs in a separate process so that it does not share the
+interpreter lock with the sampler (HARDWARE.md).
+
+Example
+-------
+>>> with FirmwareEmulator() as emu:            # doctest: +SKIP
+...     with driver_from_url(emu.url) as servo:
+...         servo.enable()
+...         servo.exchange(0.1)
+"""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import time
+from dataclasses import dataclass
+
+from servoid import validation
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.serial.build import firmware_binary
+from servoid.errors import ConfigError, DriverError
+from servoid.ident.model import BacklashModel
+
+__all__ = ["FirmwareOptions", "FirmwareEmulator"]
+
+#: How long the firmware may take to print its port.
+START_TIMEOUT_S = 10.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class FirmwareOptions:
+    """How the emulated bench servo behaves.
+
+    Parameters
+    ----------
+    model : BacklashModel
+        The simulated motor + gear, in rad (default BENCH_PLANT).
+    counts_per_rev : int
+        Encoder resolution.
+    noise : float
+        Encoder noise standard deviation, rad (before quantisation).
+    seed : int
+        Seed of the noise and of the injected faults.
+    flip_tx, flip_rx : float
+        Probability per byte that one bit is flipped, in the replies the
+        firmware sends and in the requests it receives.
+    drop : float
+        Probability that a reply is not sent.
+    mute_after : int, optional
+        Send nothing after this many frames (a device that stops answering).
+    restart_after : int, optional
+        Restart after this many accepted requests (new boot id, clock from 0,
+        torque off).
+    clock_start_us : int
+        The firmware's microsecond clock at start (near 2**32 to test the wrap).
+    boot_id : int, optional
+        Boot id of the first power-up (default from the clock).
+    trace : path, optional
+        File receiving every frame the firmware sends, before any corruption.
+    link : path, optional
+        A symlink to the pseudo-terminal at a stable name.
+    """
+
+    model: BacklashModel = BENCH_PLANT
+    counts_per_rev: int = 65536
+    noise: float = 0.0
+    seed: int = 0
+    flip_tx: float = 0.0
+    flip_rx: float = 0.0
+    drop: float = 0.0
+    mute_after: int | None = None
+    restart_after: int | None = None
+    clock_start_us: int = 0
+    boot_id: int | None = None
+    trace: str | os.PathLike[str] | None = None
+    link: str | os.PathLike[str] | None = None
+
+    def __post_init__(self) -> None:
+        m = self.model
+        if m.na > 8 or m.nb > 8 or m.delay > 32:
+            raise ConfigError(f"the firmware's motor takes na <= 8, nb <= 8, delay <= 32; got {m.na}, {m.nb}, {m.delay}")
+        validation.integer("counts_per_rev", self.counts_per_rev, minimum=16)
+        validation.non_negative("noise", self.noise)
+        validation.integer("seed", self.seed, minimum=0)
+        for name in ("flip_tx", "flip_rx", "drop"):
+            validation.in_unit_interval(name, getattr(self, name), open_low=False, open_high=False)
+        for name in ("mute_after", "restart_after"):
+            if getattr(self, name) is not None:
+                validation.integer(name, getattr(self, name), minimum=0)
+        validation.integer("clock_start_us", self.clock_start_us, minimum=0)
+        if self.clock_start_us >= 2**32:
+            raise ConfigError(f"clock_start_us (={self.clock_start_us}) must be < 2**32")
+        if self.boot_id is not None and not 0 < self.boot_id < 65536:
+            raise ConfigError(f"boot_id (={self.boot_id}) must lie in 1..65535")
+
+    def arguments(self) -> list[str]:
+        """Command-line arguments of the firmware process."""
+        m = self.model
+        args = [
+            "--a", ",".join(repr(float(v)) for v in m.a), "--b", ",".join(repr(float(v)) for v in m.b),
+            "--delay", str(m.delay), "--m2", repr(m.m2), "--c1", repr(m.c1), "--c2", repr(m.c2),
+            "--cpr", str(self.counts_per_rev), "--noise", repr(self.noise), "--seed", str(self.seed),
+            "--flip-tx", repr(self.flip_tx), "--flip-rx", repr(self.flip_rx), "--drop", repr(self.drop),
+            "--clock-start", str(self.clock_start_us),
+        ]  # fmt: skip
+        for flag, value in (("--mute-after", self.mute_after), ("--restart-after", self.restart_after)):
+            if value is not None:
+                args += [flag, str(value)]
+        if self.boot_id is not None:
+            args += ["--boot-id", f"{self.boot_id:04x}"]
+        if self.trace is not None:
+            args += ["--trace", str(self.trace)]
+        if self.link is not None:
+            args += ["--link", str(self.link)]
+        return args
+
+
+class FirmwareEmulator:
+    """The compiled firmware running as a process on a pseudo-terminal.
+
+    Parameters
+    ----------
+    options : FirmwareOptions, optional
+        Plant and fault injection.
+
+    Attributes
+    ----------
+    port : str
+        The pseudo-terminal (or the link) to open.
+    boot_id : int
+        Boot id the firmware announced.
+    """
+
+    def __init__(self, options: FirmwareOptions | None = None) -> None:
+        self.options = options if options is not None else FirmwareOptions()
+        self.process: subprocess.Popen[bytes] | None = None
+        self.port = ""
+        self.boot_id = 0
+
+    @property
+    def url(self) -> str:
+        """The driver URL of the emulated servo."""
+        return f"serial://{self.port}"
+
+    def start(self) -> "FirmwareEmulator":
+        """Build (first time only) and start the firmware; returns once it serves its port."""
+        binary = firmware_binary()
+        self.process = subprocess.Popen(
+            [str(binary), *self.options.arguments()], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            start_new_session=True,  # Ctrl-C in the terminal reaches the Python side, which stops it cleanly
+        )  # fmt: skip
+        lines = self._first_lines(2)
+        if len(lines) < 2 or not lines[0].startswith("port ") or not lines[1].startswith("boot "):
+            err = self.stop()
+            raise DriverError(f"the firmware did not start ({' | '.join(lines)}): {err}")
+        self.port = lines[0].split(" ", 1)[1]
+        self.boot_id = int(lines[1].split(" ", 1)[1], 16)
+        return self
+
+    def _first_lines(self, count: int) -> list[str]:
+        # raw reads with a deadline: a buffered readline() would swallow the second line
+        assert self.process is not None and self.process.stdout is not None
+        fd = self.process.stdout.fileno()
+        data = b""
+        deadline = time.monotonic() + START_TIMEOUT_S
+        while data.count(b"\n") < count:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0 or not select.select([fd], [], [], remaining)[0]:
+                break
+            chunk = os.read(fd, 4096)
+            if not chunk:
+                break
+            data += chunk
+        return [line.strip() for line in data.decode(errors="replace").splitlines()[:count]]
+
+    def stop(self) -> str:
+        """Stop the firmware (SIGTERM, then SIGKILL); return what it printed on stderr."""
+        proc, self.process = self.process, None
+        if proc is None:
+            return ""
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        try:
+            _, err = proc.communicate(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+        return err.decode(errors="replace").strip()
+
+    @property
+    def running(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def __enter__(self) -> "FirmwareEmulator":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def __del__(self) -> None:
+        if getattr(self, "process", None) is not None:
+            self.stop()

@@ -1,0 +1,58 @@
+/*
+ * hal.h - the hardware abstraction of the servoid bench firmware.
+ *
+ * The firmware core (firmware.c, protocol.c) is portable C99 with no dynamic
+ * memory and no libc beyond <stdint.h>/<string.h>; everything it needs from
+ * the board is these few functions. A board port (Arduino, STM32 HAL, ...)
+ * implements them over its UART, timer, motor driver and encoder; the host
+ * build (host/hal_host.c) implements them over a pseudo-terminal and a
+ * simulated motor + gear with backlash.
+ *
+ * Units: positions in encoder counts (int32), time in microseconds (uint32,
+ * wraps after 71.6 minutes).
+ */
+#ifndef SERVOID_HAL_H
+#define SERVOID_HAL_H
+
+#include <stdint.h>
+
+/* One reading of the position loop: the sample the encoder took. */
+typedef struct {
+    int32_t counts;   /* measured position, encoder counts */
+    uint32_t tick;    /* index of the control-loop sample it belongs to */
+    uint32_t t_us;    /* device time of that sample, microseconds */
+} hal_sample_t;
+
+/* Free-running microsecond clock. */
+uint32_t hal_micros(void);
+
+/* Bytes received since the last call, at most max; 0 when none (never blocks). */
+int hal_uart_read(uint8_t *buf, int max);
+
+/* Send n bytes (one whole frame per call). */
+void hal_uart_write(const uint8_t *buf, int n);
+
+/* Switch the motor's output stage on (1) or off (0). */
+void hal_motor_enable(int on);
+
+/* Period of the position loop, microseconds; 0: one loop sample per set point. */
+void hal_motor_period(uint32_t period_us);
+
+/* Latch a position set point (counts) for the loop; return the reading of the
+ * sample the set point belongs to (taken before it acts). periods is how many
+ * control periods after the previous set point this one comes, as the host
+ * counts them (0: unknown). A motor running in real time has no use for it;
+ * the host build's simulated motor steps by it, so that its samples follow
+ * the host's slots exactly (see host/sim_motor.h). */
+hal_sample_t hal_motor_set(int32_t counts, uint32_t periods);
+
+/* The latest reading of the position loop. */
+hal_sample_t hal_encoder_read(void);
+
+/* Encoder counts per output revolution. */
+uint32_t hal_counts_per_rev(void);
+
+/* A number that differs from one power-up to the next (nonzero). */
+uint16_t hal_boot_id(void);
+
+#endif

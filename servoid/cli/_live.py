@@ -1,0 +1,182 @@
+"""``servoid identify --driver URL``: identify a live servo through any driver.
+
+The excitation (``--excitation SPEC``, else uniform white noise of
+``--amplitude``; around the driver's ``centre``, ``--samples`` long, seeded
+by ``--seed``) runs through the
+sampling session at ``--rate``; the recording is written to
+``OUT/recording.csv`` as samples arrive; the online MRGIA runs meanwhile and
+the progress line shows it. The record then goes through the same
+identification and outputs as an offline run, with the late, missed and
+timed-out samples left out (:func:`servoid.session.usable`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from servoid.cli import _term
+from servoid.drivers import driver_from_url
+from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.errors import ConfigError
+from servoid.excitation import UniformSpec, parse_spec, sample
+from servoid.ident.mrgia import MRGIA, MRGIAConfig, noise_epsilon
+from servoid.recording import Recording
+from servoid.report import Record
+from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
+
+__all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
+
+#: Default sample rate of a live run, Hz.
+DEFAULT_RATE_HZ = 200.0
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The options of a live run (a group of ``servoid identify``)."""
+    live = parser.add_argument_group("live servo")
+    live.add_argument("--driver", metavar="URL",
+                      help="identify this servo live: sim://?snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
+                           "(see docs/drivers.md); --samples, --seed set the excitation")  # fmt: skip
+    live.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
+                      help=f"sample rate of the live run in Hz (default {DEFAULT_RATE_HZ:g})")  # fmt: skip
+    live.add_argument("--amplitude", type=float, metavar="A",
+                      help="half-width of the uniform excitation, in the driver's unit "
+                           f"(default: the simulated servo's reference, else {BENCH_AMPLITUDE} for the bench servo)")  # fmt: skip
+    live.add_argument("--use-late", action="store_true",
+                      help="let the estimator use samples exchanged late (default: leave them out)")
+
+
+def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
+    """The input of a live run: ``--excitation SPEC`` around ``centre``, else uniform noise ``centre +/- amplitude``."""
+    if args.excitation is not None:
+        if args.amplitude is not None:
+            raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
+        spec = parse_spec(args.excitation)
+    else:
+        spec = UniformSpec(amplitude=amplitude)
+    return centre + sample(spec, args.samples, seed=args.seed)
+
+
+def recording_valid(rec: Recording) -> np.ndarray | None:
+    """The samples of a recording to identify from: all, or for a live recording those its session used."""
+    if rec.status is None:
+        return None
+    return usable(rec.status, use_late=rec.metadata.get("use_late") == "True") & np.isfinite(rec.y)
+
+
+def live_record(
+    args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]
+) -> tuple[Record, float]:
+    """Run the excitation through ``args.driver``; return the record and the epsilon to use.
+
+    ``make_config(epsilon)`` builds the estimator's settings from the command line.
+    """
+    if args.data is not None:
+        raise ConfigError("give --driver or --data, not both")
+    if args.snr is not None:
+        raise ConfigError("--snr sets the noise of the built-in simulation; for the simulated servo put it in the URL: "
+                          "--driver 'sim://?snr=40'")  # fmt: skip
+    if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
+        raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
+    if args.samples < 1:
+        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    driver = driver_from_url(args.driver)
+    quiet = args.json
+    with driver:
+        identity = driver.identity
+        noise = identity.get("noise_std")
+        if args.epsilon is not None:
+            epsilon = args.epsilon
+        else:
+            epsilon = noise_epsilon(noise) if isinstance(noise, (int, float)) else 0.0
+        amplitude = args.amplitude if args.amplitude is not None else getattr(driver, "reference_amplitude", BENCH_AMPLITUDE)
+        if not (math.isfinite(amplitude) and amplitude > 0):
+            raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
+        u = excitation(args, amplitude, driver.limits.centre)
+        config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late)
+        path = args.out / "recording.csv"
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
+        if not quiet:
+            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {args.samples} samples "
+                               f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
+                               f"recording to {path}")  # fmt: skip
+        with _term.live_progress("live", args.samples) as bar:
+            update: Callable[[SessionProgress], None] = lambda p: bar(p.done, _status_text(p, driver.position_unit.unit))
+            result = run_session(
+                driver, u, config, recording=path, metadata=meta, estimator=MRGIA(make_config(epsilon)),
+                on_progress=None if quiet else update,
+            )  # fmt: skip
+    if not quiet:
+        cols, rows = session_rows(result)
+        _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
+    if result.stopped == "interrupted":
+        _term.warn(f"interrupted after {len(result)} samples; they are in {path} "
+                   f"(identify them with: servoid identify --data {path})")  # fmt: skip
+        raise KeyboardInterrupt
+    if result.estimator_error:
+        _term.warn(f"online estimation stopped early: {result.estimator_error}")
+    record = _record(result, driver.describe(), identity, getattr(driver, "truth", None), path)
+    return record, epsilon
+
+
+def _record(result: SessionResult, source: str, identity: dict[str, Any], truth: Any, path: Any) -> Record:
+    valid = result.valid
+    if not valid.any():
+        raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
+    # the free-run simulation starts at the first measured sample
+    first = int(np.argmax(valid))
+    unit = result.unit
+    return Record(
+        u=result.u[first:], y=result.y[first:], t=result.t[first:], source=source, input_unit=unit,
+        output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
+        acquisition=acquisition(result),
+    )  # fmt: skip
+
+
+def acquisition(result: SessionResult) -> dict[str, Any]:
+    """How a live record was sampled, for ``--json``."""
+    exchange = result.exchange_s[np.isfinite(result.exchange_s)]
+    stats = result.driver_stats
+    return {
+        "rate_hz": 1.0 / result.config.period_s,
+        "samples": len(result),
+        "counts": result.counts,
+        "late_share": result.late_share,
+        "achieved_rate_hz": result.achieved_rate_hz,
+        "exchange_median_s": float(np.median(exchange)) if exchange.size else None,
+        "exchange_p99_s": float(np.percentile(exchange, 99)) if exchange.size else None,
+        "frames_rejected": stats.rejected,
+        "replies_stale": stats.stale,
+        "commands_clamped": stats.clamped,
+    }
+
+
+def session_rows(result: SessionResult) -> tuple[list[str], list[list[str]]]:
+    """The session summary table: one row per quantity."""
+    acq = acquisition(result)
+    counts = result.counts
+    n = max(len(result), 1)
+    rows = [["rate", f"{acq['rate_hz']:g} Hz asked, {acq['achieved_rate_hz']:.4g} Hz answered"]]
+    for status in ("ok", "late", "missed", "timeout"):
+        rows.append([status, f"{counts[status]} ({100.0 * counts[status] / n:.2f} %)"])
+    if acq["exchange_median_s"] is not None:
+        rows.append(["exchange", f"median {acq['exchange_median_s'] * 1e6:.0f} us, "
+                                 f"99 % {acq['exchange_p99_s'] * 1e6:.0f} us"])  # fmt: skip
+    rows.append(["frames rejected / stale", f"{acq['frames_rejected']} / {acq['replies_stale']}"])
+    rows.append(["commands clamped", str(acq["commands_clamped"])])
+    return ["", "value"], rows
+
+
+def _status_text(p: SessionProgress, unit: str) -> str:
+    text = f"late {100 * p.late_share:.1f} %"
+    if p.estimate:
+        shown = ", ".join(f"{k} {v:.4g}" for k, v in p.estimate.items())
+        text += f" | {shown} ({unit})"
+    return text
+
+
+def _flat(identity: dict[str, Any]) -> str:
+    return ", ".join(f"{k}={v}" for k, v in identity.items() if not isinstance(v, dict))

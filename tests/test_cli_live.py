@@ -1,0 +1,91 @@
+"""``servoid identify --driver`` and ``servoid emulate serial``: the live path from the command line."""
+
+from __future__ import annotations
+
+import json
+import select
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from servoid.cli import main
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.ident import BacklashModel
+from servoid.modelfile import load_model
+from servoid.recording import read_recording
+
+
+def run_json(capsys, *argv):
+    code = main(["identify", "--json", *argv])
+    captured = capsys.readouterr()
+    return code, (json.loads(captured.out) if code == 0 else None), captured.err
+
+
+def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp_path, capsys):
+    code, obj, _ = run_json(capsys, "--driver", "sim://?clock=virtual&seed=1&jitter=0.0002", "--rate", "1000",
+                            "--samples", "3000", "--out", str(tmp_path))  # fmt: skip
+    assert code == 0
+    acq = obj["acquisition"]
+    assert acq["samples"] == 3000 and acq["counts"]["late"] > 0 and acq["counts"]["timeout"] == 0
+    assert obj["max_relative_error"] < 1e-6  # noise-free: the used samples identify the plant exactly
+    for key in ("recording", "model", "convergence_plot", "fit_plot", "backlash_plot"):
+        assert (tmp_path / obj["outputs"][key].split("/")[-1]).stat().st_size > 0
+    saved = load_model(tmp_path / "model.json")
+    assert saved.servo["driver"] == "sim" and saved.sample_period_s == pytest.approx(0.001)
+    rec = read_recording(tmp_path / "recording.csv")
+    assert rec.status is not None and len(rec) == 3000
+    # the recording identifies again offline, leaving out the same samples
+    code, again, _ = run_json(capsys, "--data", str(tmp_path / "recording.csv"), "--out", str(tmp_path / "b"),
+                              "--no-plots")  # fmt: skip
+    assert code == 0 and again["warnings"] == obj["warnings"]
+    np.testing.assert_allclose(again["model"]["c2"], obj["model"]["c2"], rtol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["--driver", "sim://?bogus=1"], "unknown option(s) bogus"),
+        (["--driver", "sim://", "--data", "x.csv"], "not both"),
+        (["--driver", "sim://", "--snr", "40"], "put it in the URL"),
+        (["--driver", "sim://", "--rate", "0"], "--rate (=0) must lie in"),
+        (["--driver", "tcp://host"], "unknown driver scheme 'tcp'"),
+    ],
+)
+def test_bad_live_options_are_one_line_errors(tmp_path, capsys, argv, fragment):
+    code, _, err = run_json(capsys, *argv, "--out", str(tmp_path))
+    assert code == 2 and fragment in err and "Traceback" not in err
+
+
+def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):
+    code, _, err = run_json(capsys, "--driver", "serial:///dev/no-such-tty", "--out", str(tmp_path))
+    assert code == 1 and "cannot open /dev/no-such-tty" in err
+
+
+@pytest.mark.slow
+def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
+    """The issue's "done when": the emulated bench servo, identified over its pseudo-terminal."""
+    emulator = subprocess.Popen([sys.executable, "-m", "servoid", "emulate", "serial"], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        url = None
+        deadline = time.monotonic() + 60
+        while url is None and time.monotonic() < deadline:
+            if select.select([emulator.stdout], [], [], 1.0)[0]:
+                line = emulator.stdout.readline()
+                if line.strip().startswith("url"):
+                    url = line.split()[-1]
+        assert url is not None and url.startswith("serial:///dev/")
+        done = subprocess.run([sys.executable, "-m", "servoid", "identify", "--driver", url, "--rate", "500",
+                               "--samples", "2500", "--json", "--no-plots", "--out", str(tmp_path)],
+                              capture_output=True, text=True, timeout=120)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        obj = json.loads(done.stdout)
+        model = BacklashModel.from_dict(obj["model"])
+        assert model.max_relative_error(BENCH_PLANT) < 0.01, obj["acquisition"]
+        assert obj["acquisition"]["frames_rejected"] == 0 and obj["acquisition"]["counts"]["ok"] > 500
+    finally:
+        emulator.terminate()
+        emulator.wait(timeout=10)

@@ -1,0 +1,137 @@
+"""The sampling session, on the simulated servo in virtual time (exact and repeatable)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from servoid.drivers.clock import VirtualClock
+from servoid.drivers.sim import SimDriver
+from servoid.errors import ConfigError, DriverError
+from servoid.ident import MRGIA, MRGIAConfig, run_mrgia
+from servoid.recording import read_recording
+from servoid.session import COLUMNS, SessionConfig, run_session, usable
+
+T = 0.001  # s
+
+
+def servo(**options) -> SimDriver:
+    return SimDriver(clock=VirtualClock(), seed=3, **options)
+
+
+def excitation(n: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(-0.2, 0.2, n)
+
+
+def test_a_slow_servo_makes_late_and_missed_slots_never_a_burst():
+    # every reply takes 1.2 periods: the session falls behind, flags, and skips
+    with servo(latency=1.2 * T) as s:
+        result = run_session(s, excitation(300), SessionConfig(period_s=T))
+    status, t_actual = result.status, result.t_actual
+    sent = np.isfinite(t_actual)
+    assert result.counts["missed"] > 50 and result.counts["late"] > 50
+    assert np.all(np.diff(t_actual[sent]) >= 1.2 * T - 1e-12)  # one exchange at a time, never bunched up
+    assert np.all(t_actual[sent] - result.t[sent] < T / 2)  # a slot half a period gone is skipped, not sent
+    assert set(status[~sent]) == {"missed"} and np.all(np.isnan(result.y[~sent]))
+    # a missed slot held the previous command: that is what the servo had
+    k = int(np.flatnonzero(status == "missed")[0])
+    assert result.u[k] == result.u[k - 1]
+
+
+def test_on_time_samples_are_ok_and_late_ones_are_flagged():
+    with servo(latency=0.3 * T) as s:
+        result = run_session(s, excitation(200), SessionConfig(period_s=T))
+    assert result.counts == {"ok": 200, "late": 0, "missed": 0, "timeout": 0}
+    with servo(latency=0.3 * T, jitter=0.4 * T) as s:
+        result = run_session(s, excitation(500), SessionConfig(period_s=T))
+    lateness = result.t_actual - result.t
+    late = result.status == "late"
+    assert late.any() and np.all(lateness[late] > T / 10)
+    assert np.all(lateness[result.status == "ok"] <= T / 10)
+
+
+@pytest.mark.parametrize("use_late", [False, True])
+def test_the_online_estimate_is_the_batch_estimate_over_the_used_samples(use_late):
+    est = MRGIA(MRGIAConfig(na=2, nb=0, delay=1))
+    with servo(jitter=0.25 * T, drop=0.01, timeout=3 * T) as s:
+        result = run_session(s, excitation(3000), SessionConfig(period_s=T, use_late=use_late), estimator=est)
+    counts = result.counts
+    assert counts["late"] > 0 and counts["timeout"] > 0 and counts["missed"] > 0
+    valid = result.valid
+    assert np.array_equal(valid, usable(result.status, use_late=use_late))
+    assert valid[result.status == "late"].all() == use_late
+    batch = run_mrgia(result.u, np.where(valid, result.y, np.nan), MRGIAConfig(na=2, nb=0, delay=1), valid=valid)
+    np.testing.assert_array_equal(est.theta, batch.theta)
+    assert est.model.max_relative_error(s.truth) < 0.05
+
+
+def test_the_recording_is_written_as_samples_arrive_and_reads_back(tmp_path):
+    path = tmp_path / "live.csv"
+    seen_rows = []
+
+    def watch(progress):
+        seen_rows.append((progress.done, len(path.read_text().splitlines())))
+
+    with servo(drop=0.02, timeout=2 * T) as s:
+        result = run_session(s, excitation(400), SessionConfig(period_s=T, progress_every_s=0.05),
+                             recording=path, on_progress=watch, estimator=MRGIA(MRGIAConfig()))  # fmt: skip
+    header = [line for line in path.read_text().splitlines() if not line.startswith("#")][0]
+    assert tuple(header.split(",")) == COLUMNS
+    # at each progress call the file already held every sample so far
+    assert all(lines >= done for done, lines in seen_rows[:-1]) and len(seen_rows) > 3
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.u, result.u)
+    np.testing.assert_array_equal(rec.status, result.status)
+    np.testing.assert_array_equal(np.isnan(rec.y), np.isnan(result.y))
+    assert rec.metadata["unit"] == "rad" and rec.metadata["period_s"] == "0.001"
+
+
+def test_ctrl_c_stops_keeps_the_file_and_switches_the_torque_off(tmp_path):
+    path = tmp_path / "live.csv"
+    calls = iter(range(10**6))
+
+    def interrupt_at_100(reference: float) -> float:
+        if next(calls) == 100:
+            raise KeyboardInterrupt
+        return reference
+
+    with servo() as s:
+        result = run_session(s, excitation(1000), SessionConfig(period_s=T), recording=path,
+                             command_filter=interrupt_at_100)  # fmt: skip
+        assert not s.torque_enabled and not s.device.plant.enabled
+    assert result.stopped == "interrupted" and len(result) == 100
+    assert len(read_recording(path)) == 100
+
+
+def test_the_command_filter_sets_what_is_sent():
+    with servo() as s:
+        result = run_session(s, excitation(50), SessionConfig(period_s=T), command_filter=lambda r: 0.5 * r)
+    rows = result.samples
+    assert all(row.u == pytest.approx(0.5 * row.reference) for row in rows)
+
+
+def test_progress_reports_counts_and_the_current_estimate():
+    reports = []
+    gen = (v for v in excitation(2000))  # an iterator without a length
+    with servo() as s:
+        run_session(s, gen, SessionConfig(period_s=T, progress_every_s=0.1), estimator=MRGIA(MRGIAConfig()),
+                    on_progress=reports.append)  # fmt: skip
+    last = reports[-1]
+    assert last.done == 2000 and last.total is None and last.late_share == 0.0
+    assert set(last.estimate) == {"a1", "a2", "b0", "m2", "c1", "c2"}
+    assert last.estimate["c1"] == pytest.approx(0.02, rel=1e-3)
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ConfigError, match="late_tolerance_s .* half the period"):
+        SessionConfig(period_s=T, late_tolerance_s=T)
+    with pytest.raises(ConfigError, match="period_s"):
+        SessionConfig(period_s=0.0)
+    with pytest.raises(DriverError, match="not open"):
+        run_session(servo(), [0.0], SessionConfig(period_s=T))
+    with servo() as s:
+        with pytest.raises(ConfigError, match=r"excitation\[3\] \(=nan\) is not finite"):
+            run_session(s, [0.0, 0.1, 0.2, math.nan], SessionConfig(period_s=T))
+        assert not s.torque_enabled
