@@ -489,11 +489,12 @@ class _Sampler:
     def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
         # whether the servo applied the command is unknown (a lost reply or a lost
         # request); a lost reply is taken as the likelier, so the servo holds it from now
-        u = self.driver.limits.clamp(command, self.driver.last_command)
+        limited = self.driver.limits.clamp(command, self.driver.last_command)
+        u = self.driver.quantise(limited)  # what the servo got, as the driver would have reported it
         self.held = u
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, Status.TIMEOUT,
-                         exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
+                         exchange_s=(end - start) / NS_PER_S, clamped=limited != command))  # fmt: skip
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
         late = start - scheduled > self.tolerance_ns
@@ -502,8 +503,10 @@ class _Sampler:
             if self._last_device is not None:
                 prev_k, prev_t = self._last_device
                 expected = (k - prev_k) * self.config.period_s
-                # the request reached the device in another sample than its slot
-                late = late or abs((device_time - prev_t) - expected) >= self.config.period_s / 2
+                # the request reached the device in another sample than its slot (a device clock
+                # that counts whole milliseconds may be off by one count without that)
+                slack = self.config.period_s / 2 + self.driver.clock_resolution_s
+                late = late or abs((device_time - prev_t) - expected) >= slack
             self._last_device = (k, device_time)
         status = Status.LATE if late else Status.OK
         self.held = m.command

@@ -62,7 +62,6 @@ Pitfalls of the SDK handled here
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import logging
 import os
 import select
@@ -72,7 +71,7 @@ from typing import Any, Callable, Iterator
 
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
 
-from servoid.drivers.base import Driver, DriverURL, Limits, Measurement, Option, Reading, UnitConversion
+from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, UnitConversion
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ALERT, MAX_ID, ErrorNumber, Instruction, describe_error
@@ -262,6 +261,7 @@ class DynamixelDriver(Driver):
 
     scheme = "dxl"
     clock_wrap_s = ct.TICK_WRAP_S
+    clock_resolution_s = 1e-3  # the Realtime Tick counts whole milliseconds
     options = {
         "id": Option(_servo_id, "servo ID 0..252 (default 1)", "servo_id"),
         "baud": Option(_baud, f"baud rate of port and servo, bit/s (default {DEFAULT_BAUD}, the factory setting)"),
@@ -295,6 +295,9 @@ class DynamixelDriver(Driver):
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
+        # goals are whole units (counts, 2.69 mA, 0.113 %): the base rounds every command to one,
+        # inside the limits, and reports the goal as the servo received it
+        self.command_step = 1.0
         self._requested_limits: Limits = self.limits
         self._port: _Port | None = None
         self._ph: Any = None
@@ -312,19 +315,6 @@ class DynamixelDriver(Driver):
         driver = cls(port, **cls.parse_options(url))
         driver.url = url.raw
         return driver
-
-    def exchange(self, u: float) -> Measurement:
-        """Command ``u`` (rad, A or %, by mode) and return the measurement (see :meth:`Driver.exchange`).
-
-        ``command`` in the result is the goal as the servo received it: the
-        limited command rounded to the servo's resolution (a whole encoder
-        count, 2.69 mA or 0.113 %). Identify from it rather than from the
-        requested value: the rounding is otherwise an input error of up to
-        0.77 mrad (4 % of the bench servo's smaller dead zone).
-        """
-        m = super().exchange(u)
-        unit = self.command_unit
-        return dataclasses.replace(m, command=unit.to_user(round(unit.to_native(m.command))))
 
     # ---- primitives ---------------------------------------------------------------------
     def _open(self) -> None:
@@ -380,7 +370,10 @@ class DynamixelDriver(Driver):
 
     def _exchange(self, command: float) -> Reading:
         self._require_owner()
-        value = round(command)
+        if not self.torque_enabled:
+            # a Dynamixel stores a goal written with the torque off and does nothing: refuse it here
+            raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
+        value = int(round(command))  # whole already (command_step)
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
@@ -468,6 +461,7 @@ class DynamixelDriver(Driver):
 
         number = value(ct.MODEL_NUMBER) or model
         return {
+            "driver": "dxl",
             "vendor": "ROBOTIS",
             "protocol": "2.0",
             "model_number": number,
@@ -564,6 +558,7 @@ class DynamixelDriver(Driver):
                 timeout = self._port.timeout_ms(reply_length + 11) if self._port is not None else float("nan")
                 raise DriverTimeout(f"{self.describe()}: servo {sid} did not answer the {what} within {timeout:.1f} ms")
             if result == COMM_RX_CORRUPT:
+                self.stats.rejected += 1
                 raise ProtocolError(f"{self.describe()}: the answer of servo {sid} to the {what} was corrupted (bad CRC or cut short)")
             raise DriverError(f"{self.describe()}: {what} failed: {self._ph.getTxRxResult(result)}")
         number = error & 0x7F
