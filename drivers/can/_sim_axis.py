@@ -15,6 +15,12 @@ skipped, counted as the protocol allows:
   Set_Input_Pos / Set_Input_Torque is one sample. In-process tests may tell it
   the host's slot numbers out of band (``SimOdriveAxis.slot_source``).
 
+Times are the frames' timestamps as the bus stamped them (python-can's
+``Message.timestamp``: when the virtual bus took the frame, or the kernel's
+receive time for ``udp_multicast``), as a CAN controller stamps frames in
+hardware: how late the drive's own thread gets to a frame does not move it
+to another sample.
+
 Position mode: the command is the target position (rad) fed to
 :data:`~servoid.drivers.bench.BENCH_PLANT`. Torque mode: the same plant, with
 the command read as a torque (Nm) times :data:`TORQUE_GAIN` (rad per Nm) --
@@ -29,7 +35,7 @@ import math
 
 from servoid import validation
 from servoid.drivers.bench import BENCH_PLANT
-from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
+from servoid.drivers.clock import NS_PER_S
 from servoid.drivers.sampled import SampledPlant
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
@@ -53,8 +59,6 @@ class SimAxis:
         The drive's own sample period: commands further apart than one and a
         half periods run held samples in between (see
         :class:`~servoid.drivers.sampled.SampledPlant`); None: one sample per command.
-    clock : Clock, optional
-        Time of the commands (default the real clock).
 
     Attributes
     ----------
@@ -68,13 +72,11 @@ class SimAxis:
         *,
         torque_gain: float = TORQUE_GAIN,
         period_s: float | None = None,
-        clock: Clock | None = None,
     ) -> None:
         # the backlash step is compiled on first use (numba, ~0.1-1 s): do it now, not in a drive's first reply
         Plant(model).step(0.0)
         self.sampled = SampledPlant(model)
         self.set_period(period_s)
-        self.clock: Clock = clock if clock is not None else MonotonicClock()
         self.torque_gain = validation.positive("torque_gain", torque_gain)
         self._last_input = 0.0
 
@@ -114,20 +116,24 @@ class SimAxis:
             return
         self.sampled.disable()
 
-    def step(self, command: float, *, torque: bool, slot: int | None = None) -> float:
+    def step(self, command: float, *, torque: bool, at: float, slot: int | None = None) -> float:
         """Apply ``command`` (rad, or Nm when ``torque``) as the next sample; return the position (rad).
 
-        ``slot`` is the host's number of the command's sample (or a counter of
-        them), when the protocol carries one. A non-finite command (a
-        corrupted frame) holds the last input rather than poisoning the
-        plant's state.
+        ``at`` is the command frame's timestamp, s; ``slot`` the host's number
+        of the command's sample (or a counter of them), when the protocol
+        carries one. A non-finite command (a corrupted frame) holds the last
+        input rather than poisoning the plant's state.
         """
         u = command * self.torque_gain if torque else command
         if not math.isfinite(u):
             u = self._last_input
         self._last_input = u
-        return self.sampled.command(u, self.clock.now_ns(), slot=slot).position
+        return self.sampled.command(u, _ns(at), slot=slot).position
 
-    def catch_up(self) -> float:
-        """Run the samples due by now on the held command (a drive on its own clock); return the position."""
-        return self.sampled.read(self.clock.now_ns()).position
+    def catch_up(self, at: float) -> float:
+        """Run the samples due by ``at`` (a frame's timestamp, s) on the held command; return the position."""
+        return self.sampled.read(_ns(at)).position
+
+
+def _ns(seconds: float) -> int:
+    return int(round(seconds * NS_PER_S))

@@ -45,6 +45,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from typing import Any
 
 from servoid import validation
@@ -304,7 +305,7 @@ class SimCia402Drive(SimDrive):
                 log.info("node %d: NMT left OPERATIONAL while enabled, disabling", self.node)
                 self.state = _SOD
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002 - timestamp: the bus's
         with self._lock:
             self.syncs += 1
             if self.nmt_state == "OPERATIONAL" and 0x6040 in self._rx:
@@ -317,7 +318,8 @@ class SimCia402Drive(SimDrive):
                     self._restart()
                     return
                 counter = data[0] if data and self.counter_overflow else None
-                self.axis.step(self._target(), torque=self.mode == profile.MODES["torque"], slot=counter)
+                torque = self.mode == profile.MODES["torque"]
+                self.axis.step(self._target(), torque=torque, at=timestamp or time.time(), slot=counter)
                 if self._reply_lost():
                     return
             for pdo in self._tx_maps:

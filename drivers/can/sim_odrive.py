@@ -27,7 +27,8 @@ business, as on a real ODrive, whose loop runs on its own clock:
 
 Faults for tests: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms
 to IDLE and says why in the heartbeat, as the firmware does), applied at
-the next Set_Input_* so that tests are deterministic;
+the next Set_Input_* so that tests are deterministic, as is
+:meth:`SimOdriveAxis.inject_reboot` (back in IDLE without an error);
 :meth:`SimOdriveAxis.mute` and ``mute_after`` (receives and obeys, sends
 nothing), ``drop`` (estimates lost now and then in closed-loop control).
 """
@@ -111,6 +112,7 @@ class SimOdriveAxis(SimDrive):
         self.inputs = 0
         self._input = 0.0
         self._pending_error = 0
+        self._pending_reboot = False
         self._can: Any = None
         self._bus: Any = None
         self._thread: threading.Thread | None = None
@@ -164,6 +166,10 @@ class SimOdriveAxis(SimDrive):
         """At the next Set_Input_*: set axis error ``code`` (default CURRENT_LIMIT_VIOLATION) and disarm."""
         self._pending_error = code
 
+    def inject_reboot(self) -> None:
+        """At the next Set_Input_*: the board reboots (a brown-out): IDLE, no error, default controller mode."""
+        self._pending_reboot = True
+
     # ---- the server thread -----------------------------------------------------------------
     def _serve(self) -> None:
         next_beat = time.perf_counter()
@@ -182,14 +188,15 @@ class SimOdriveAxis(SimDrive):
         node, command = proto.split_id(msg.arbitration_id)
         if node != self.node:
             return
+        at = msg.timestamp or time.time()  # when the bus took the frame (the kernel's stamp over UDP)
         if msg.is_remote_frame:
-            self._answer(command)
+            self._answer(command, at)
             return
         data = bytes(msg.data)
         if command == proto.SET_INPUT_POS and len(data) >= proto.INPUT_POS_FORMAT.size:
-            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False)
+            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False, at=at)
         elif command == proto.SET_INPUT_TORQUE and len(data) >= proto.INPUT_TORQUE_FORMAT.size:
-            self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True)
+            self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True, at=at)
         elif command == proto.SET_AXIS_STATE and len(data) >= proto.AXIS_STATE_FORMAT.size:
             self._on_state_request(proto.AXIS_STATE_FORMAT.unpack_from(data)[0])
         elif command == proto.SET_CONTROLLER_MODE and len(data) >= proto.CONTROLLER_MODE_FORMAT.size:
@@ -200,15 +207,20 @@ class SimOdriveAxis(SimDrive):
         elif command == proto.ESTOP:
             self._disarm(0x2000000)  # ESTOP_REQUESTED
 
-    def _on_input(self, value: float, *, torque: bool) -> None:
+    def _on_input(self, value: float, *, torque: bool, at: float) -> None:
         self.inputs += 1
         if self._pending_error:
             code, self._pending_error = self._pending_error, 0
             self._disarm(code)
+        if self._pending_reboot:
+            self._pending_reboot = False
+            self.axis_state, self.axis_error = proto.IDLE, 0
+            self.control_mode = proto.CONTROL_MODES["position"]
+            self._send_heartbeat()  # the first heartbeat after boot
         matches = self.control_mode == proto.CONTROL_MODES["torque" if torque else "position"]
         if self.axis_state == proto.CLOSED_LOOP_CONTROL and matches:
             slot = self.slot_source() if self.slot_source is not None else None
-            self.axis.step(value, torque=torque, slot=slot)
+            self.axis.step(value, torque=torque, at=at, slot=slot)
 
     def _on_state_request(self, requested: int) -> None:
         if requested == proto.CLOSED_LOOP_CONTROL and not self.axis_error:
@@ -222,9 +234,9 @@ class SimOdriveAxis(SimDrive):
         self.axis_state = proto.IDLE
         self._send_heartbeat()
 
-    def _answer(self, command: int) -> None:
+    def _answer(self, command: int, at: float) -> None:
         if command == proto.GET_ENCODER_ESTIMATES:
-            self.axis.catch_up()
+            self.axis.catch_up(at)
             if self.power_on and self._reply_lost():
                 return
             self._send(command, proto.ESTIMATES_FORMAT.pack(self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI))

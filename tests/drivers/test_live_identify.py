@@ -1,0 +1,101 @@
+"""``servoid identify --driver dxl://... / can://...``: the emulated servos identify as well as the simulated one.
+
+End to end through the command line (:func:`servoid.cli.main` in this
+process, ``--json``): the Dynamixel emulator on a pseudo-terminal in a
+process of its own, the CiA 402 drive and the ODrive axis on python-can's
+``virtual`` bus in this process (a virtual bus reaches only its own process).
+Each runs the same excitation (seed, rate, length) through the sampling
+session and the identification, as ``servoid identify --driver sim://`` does
+on the same plant, :data:`~servoid.drivers.bench.BENCH_PLANT`.
+
+Known truth. The simulated driver identifies the plant to rounding error;
+what each emulator adds is its device's resolution, which sets the
+tolerances (largest relative error of the refined a1, a2, b0, m2, c1, c2):
+
+========  ==============================================  =========
+dxl       12-bit encoder and goal (1.5 mrad = 8 % of c1)   1e-2
+cia402    17-bit encoder and target (48 urad)              1e-3
+odrive    float32 turns (about 2e-8 rad near 0.2 rad)      1e-4
+========  ==============================================  =========
+
+The emulated Dynamixel and ODrive run on their own clock at the session's
+rate (their protocols carry no sample number); the CiA 402 drive follows
+the session's slots through the SYNC counter.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+
+from servoid.cli import main
+from servoid.drivers.bench import BENCH_PLANT
+from servoid.ident import BacklashModel
+from servoid.modelfile import load_model
+
+from .can_helpers import private_bus
+from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+
+RATE_HZ = 500
+SAMPLES = 2000
+
+
+def identify(capsys: pytest.CaptureFixture[str], url: str, out) -> dict:  # type: ignore[no-untyped-def]
+    argv = ["identify", "--json", "--driver", url, "--rate", str(RATE_HZ), "--samples", str(SAMPLES), "--seed", "4",
+            "--out", str(out), "--no-plots"]  # fmt: skip
+    code = main(argv)
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    return json.loads(captured.out)
+
+
+def max_relative_error(result: dict) -> float:
+    return BacklashModel.from_dict(result["model"]).max_relative_error(BENCH_PLANT)
+
+
+@contextlib.contextmanager
+def dxl() -> Iterator[str]:
+    from servoid.drivers.dynamixel.emulator import EmulatorProcess
+
+    with EmulatorProcess([1], return_delay_us=0, period_s=1 / RATE_HZ) as emu:
+        yield emu.url(1)  # dxl:///dev/pts/N?id=1&baud=1000000, the driver's defaults otherwise
+
+
+@contextlib.contextmanager
+def cia402() -> Iterator[str]:
+    from servoid.drivers.can.sim_cia402 import SimCia402Drive
+
+    with SimCia402Drive(node=1, bus=private_bus()) as drive:
+        yield drive.url()
+
+
+@contextlib.contextmanager
+def odrive() -> Iterator[str]:
+    from servoid.drivers.can.sim_odrive import SimOdriveAxis
+
+    with SimOdriveAxis(node=0, bus=private_bus(), period_s=1 / RATE_HZ) as axis:
+        yield axis.url()
+
+
+@pytest.mark.parametrize(("servo", "tolerance"), [(dxl, 1e-2), (cia402, 1e-3), (odrive, 1e-4)],
+                         ids=["dxl", "cia402", "odrive"])  # fmt: skip
+def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, tolerance, capsys, tmp_path):
+    simulated = identify(capsys, "sim://?clock=virtual", tmp_path / "sim")
+    with servo() as url:
+        live = identify(capsys, url, tmp_path / "live")
+    acquisition = live["acquisition"]
+    assert live["source"] == url and acquisition["samples"] == SAMPLES and acquisition["rate_hz"] == RATE_HZ
+    assert acquisition["counts"]["ok"] > 0.9 * SAMPLES, acquisition["counts"]
+    assert load_model(tmp_path / "live" / "model.json").servo["driver"] == url.split(":")[0]
+    # the simulated driver gives the plant to rounding error; the emulator, to its resolution
+    assert max_relative_error(simulated) < 1e-9
+    live_error = max_relative_error(live)
+    assert live_error < tolerance, (live_error, live["model"])
+    for name in ("a", "b"):
+        np.testing.assert_allclose(live["model"][name], simulated["model"][name], rtol=tolerance)
+    for name in ("m2", "c1", "c2"):
+        assert live["model"][name] == pytest.approx(simulated["model"][name], rel=tolerance)
