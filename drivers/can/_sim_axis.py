@@ -130,10 +130,6 @@ class SimAxis:
         self._last_input = u
         return self.sampled.command(u, _ns(at), slot=slot).position
 
-    def catch_up(self, at: float) -> float:
-        """Run the samples due by ``at`` (a frame's timestamp, s) on the held command; return the position."""
-        return self.sampled.read(_ns(at)).position
-
 
 def _ns(seconds: float) -> int:
     return int(round(seconds * NS_PER_S))

@@ -15,8 +15,10 @@ business, as on a real ODrive, whose loop runs on its own clock:
 
 * ``period_s`` given: the axis runs on its own clock at that period -- an
   input that comes ``n`` periods after the previous one (rounded) first runs
-  ``n - 1`` samples on the held input, and a request for the estimates runs
-  the samples due. Sample at the axis's period, or the plant seen is another.
+  ``n - 1`` samples on the held input. Sample at the axis's period, or the
+  plant seen is another. (The estimates report the latest sample: held
+  samples are counted when the next input comes, so that a request the host
+  sends late does not commit a sample the next input belongs to.)
 * no period: each input is one sample, whatever the time between them (the
   inputs are the clock; a slot the host skips is not seen).
 * ``slot_source`` (in-process tests only): a callable that returns the host's
@@ -190,7 +192,7 @@ class SimOdriveAxis(SimDrive):
             return
         at = msg.timestamp or time.time()  # when the bus took the frame (the kernel's stamp over UDP)
         if msg.is_remote_frame:
-            self._answer(command, at)
+            self._answer(command)
             return
         data = bytes(msg.data)
         if command == proto.SET_INPUT_POS and len(data) >= proto.INPUT_POS_FORMAT.size:
@@ -234,9 +236,8 @@ class SimOdriveAxis(SimDrive):
         self.axis_state = proto.IDLE
         self._send_heartbeat()
 
-    def _answer(self, command: int, at: float) -> None:
+    def _answer(self, command: int) -> None:
         if command == proto.GET_ENCODER_ESTIMATES:
-            self.axis.catch_up(at)
             if self.power_on and self._reply_lost():
                 return
             self._send(command, proto.ESTIMATES_FORMAT.pack(self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI))

@@ -20,9 +20,11 @@ What the emulated servo does
 
   - ``period_s`` given: the servo runs on its own clock at that period -- a
     goal that comes ``n`` periods after the previous one (rounded) first runs
-    ``n - 1`` samples on the held goal, and a READ runs the samples due, as a
-    position loop holds its set point while the host is silent. Sample at the
-    servo's period, or the plant seen is another;
+    ``n - 1`` samples on the held goal, as a position loop holds its set point
+    while the host is silent. Sample at the servo's period, or the plant seen
+    is another. (A READ reports the latest sample: the held samples are
+    counted when the next goal comes, so that a READ the host sends late
+    does not commit a sample the next goal belongs to);
   - no period: each goal is one sample, whatever the time between goals (the
     goals are the clock: any rate sees the same plant, but a slot the host
     skips is not seen);
@@ -208,8 +210,6 @@ class EmulatedServo:
             return ErrorNumber.ACCESS, b""
         if address < ct.REALTIME_TICK.end and address + length > ct.REALTIME_TICK.address:
             self._update_tick()
-        if self._sampled.period_ns is not None and self._sampled.enabled:
-            self._catch_up()
         return ErrorNumber.NONE, bytes(self._memory[address : address + length])
 
     def write(self, address: int, data: bytes) -> ErrorNumber:
@@ -345,13 +345,6 @@ class EmulatedServo:
             return
         slot = self.slot_source() if self.slot_source is not None else None
         self._show(self._sampled.command(u, self._clock.now_ns(), slot=slot), u)
-
-    def _catch_up(self) -> None:
-        """Run the samples due by now on the held goal (a servo on its own clock)."""
-        index = self._sampled.index
-        sample = self._sampled.read(self._clock.now_ns())
-        if sample.index != index:
-            self._show(sample, self._sampled.held)
 
     def _show(self, sample: PlantSample, u: float) -> None:
         self._show_plant_output(sample.position, velocity=self._sampled.velocity, u=u)

@@ -142,22 +142,25 @@ def test_on_its_own_clock_the_servo_holds_the_goal_between_samples(clock):  # no
         writer = sdk.GroupSyncWrite(port, ph, ct.GOAL_POSITION.address, 4)
         writer.addParam(1, list(ct.encode_value(ct.GOAL_POSITION, 2048)))
         ph.write1ByteTxRx(port, 1, ct.TORQUE_ENABLE.address, 1)
-        reference, held = Plant(BENCH_PLANT), 0.0
-        # goals 1.3 and 3.2 periods apart (nearest: 1 and 3 samples), then a READ 2.6 periods on (2 due)
-        for gap, goal in ((0.0, 2048 + 150), (1.3, 2048 - 90), (3.2, 2048 + 60)):
-            clock.advance(gap * period)
+        reference, held, latest = Plant(BENCH_PLANT), 0.0, 2048
+        # goals 1.3, 3.2 and 3.6 periods apart (nearest: 1, 3 and 4 samples); a READ 2.6 periods after the
+        # third goal reports the latest sample (held samples are counted when the next goal comes)
+        for gap, goal in ((0.0, 2048 + 150), (1.3, 2048 - 90), (3.2, 2048 + 60), (3.6, 2048 - 20)):
+            if gap == 3.6:
+                clock.advance(2.6 * period)
+                assert ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0] == latest
+                clock.advance(1.0 * period)
+            else:
+                clock.advance(gap * period)
             for _ in range(max(round(gap), 1) - 1):
                 reference.step(held)
             held = (goal - 2048) * ct.RAD_PER_COUNT
             expected = round(reference.step(held) / ct.RAD_PER_COUNT) + 2048
             writer.changeParam(1, list(ct.encode_value(ct.GOAL_POSITION, goal)))
             assert writer.txPacket() == sdk.COMM_SUCCESS
-            assert ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0] == expected
-        clock.advance(2.6 * period)
-        reference.step(held)
-        expected = round(reference.step(held) / ct.RAD_PER_COUNT) + 2048
-        assert ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0] == expected
-        assert emu.servo(1).steps == 1 + 1 + 3 + 2
+            latest = ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0]
+            assert latest == expected
+        assert emu.servo(1).steps == 1 + 1 + 3 + 4
         port.closePort()
 
 

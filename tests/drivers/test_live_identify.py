@@ -9,14 +9,22 @@ session and the identification, as ``servoid identify --driver sim://`` does
 on the same plant, :data:`~servoid.drivers.bench.BENCH_PLANT`.
 
 Known truth. The simulated driver identifies the plant to rounding error;
-what each emulator adds is its device's resolution, which sets the
-tolerances (largest relative error of the refined a1, a2, b0, m2, c1, c2):
+what each emulator adds is its device's resolution and, for a device that
+runs on its own clock, the link's timing. Tolerances on the largest relative
+error of the refined a1, a2, b0, m2, c1, c2 (measured on a 2-core machine,
+also with a process spinning on one core):
 
-========  ==============================================  =========
-dxl       12-bit encoder and goal (1.5 mrad = 8 % of c1)   1e-2
-cia402    17-bit encoder and target (48 urad)              1e-3
-odrive    float32 turns (about 2e-8 rad near 0.2 rad)      1e-4
-========  ==============================================  =========
+======  ==========================================================  =========  ========
+path    what limits it                                              measured   asserted
+======  ==========================================================  =========  ========
+dxl     12-bit encoder and goal (1.5 mrad = 8 % of c1); the pty's   2e-3 ..    5e-2
+        timing: a goal that reaches the servo more than half a      5e-2
+        period off its slot lands in another sample
+cia402  17-bit encoder and target (48 urad); the SYNC counter       1e-4       1e-3
+        carries the session's slots, so timing does not matter
+odrive  float32 turns; the axis samples by the frames' bus          1e-8       1e-4
+        timestamps
+======  ==========================================================  =========  ========
 
 The emulated Dynamixel and ODrive run on their own clock at the session's
 rate (their protocols carry no sample number); the CiA 402 drive follows
@@ -81,7 +89,7 @@ def odrive() -> Iterator[str]:
         yield axis.url()
 
 
-@pytest.mark.parametrize(("servo", "tolerance"), [(dxl, 1e-2), (cia402, 1e-3), (odrive, 1e-4)],
+@pytest.mark.parametrize(("servo", "tolerance"), [(dxl, 5e-2), (cia402, 1e-3), (odrive, 1e-4)],
                          ids=["dxl", "cia402", "odrive"])  # fmt: skip
 def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, tolerance, capsys, tmp_path):
     simulated = identify(capsys, "sim://?clock=virtual", tmp_path / "sim")
