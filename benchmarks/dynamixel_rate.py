@@ -32,6 +32,8 @@ from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.emulator import EmulatorProcess
 from servoid.session import SessionConfig, run_session
 
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
+
 RATES_HZ = (100.0, 500.0, 1000.0)
 LOOP_LATENCY_MS = 1.0
 
@@ -57,12 +59,9 @@ def main() -> None:
     args = parser.parse_args()
     print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.2f} at the start")
     rows = [run(poll, rate, args.seconds) for poll in ("spin", "select") for rate in RATES_HZ]
-    cols = ["wait", "asked Hz", "answered Hz", "ok", "late", "missed", "timeout", "exchange p50 us", "p99 us", "CPU"]
-    widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
-    print("\ndxl:// over a pty, through the sampling session (SyncWrite goal + READ 120..135 per sample)")
-    print("  ".join(c.rjust(w) for c, w in zip(cols, widths)))
-    for r in rows:
-        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+    table("dxl:// over a pty, through the sampling session (SyncWrite goal + READ 120..135 per sample)",
+          ["wait", "asked Hz", "answered Hz", "ok", "late", "missed", "timeout", "exchange p50 us", "p99 us", "CPU"],
+          rows)  # fmt: skip
     print(f"\nload average at the end: {os.getloadavg()[0]:.2f}")
 
 

@@ -53,6 +53,8 @@ from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
 from servoid.ident import BacklashModel
 from servoid.session import SessionConfig, run_session
 
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
+
 IDENTIFY_RATE_HZ = 500.0
 
 
@@ -135,15 +137,6 @@ def identification_row(name: str, url: str, samples: int, out: Path) -> list[str
             f"{result['fit_nrmse']:.2e}"]  # fmt: skip
 
 
-def print_table(title: str, cols: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
-    print(f"\n{title}")
-    print("  ".join(c.rjust(w) for c, w in zip(cols, widths)))
-    print("  ".join("-" * w for w in widths))
-    for r in rows:
-        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0, help="length of each session of table 1, s (default 3)")
@@ -155,7 +148,7 @@ def main() -> int:
     load_before = os.getloadavg()
     started = time.perf_counter()
     timing = [session_row(name, rate, args.seconds, args.seed) for name in TRANSPORTS for rate in args.rates]
-    print_table(
+    table(
         f"1. sampling session per transport ({args.seconds:g} s per run; exchange in us)",
         ["transport", "asked Hz", "answered Hz", "ok", "late", "missed", "timeout", "exchange p50", "p99"],
         timing,
@@ -165,7 +158,7 @@ def main() -> int:
         for name, transport in TRANSPORTS.items():
             with transport(IDENTIFY_RATE_HZ) as url:
                 ident.append(identification_row(name, url, args.samples, Path(tmp) / name.replace(" / ", "-")))
-    print_table(
+    table(
         f"2. servoid identify --driver URL --rate {IDENTIFY_RATE_HZ:g}: BENCH_PLANT from {args.samples} samples "
         "(max relative parameter error)",
         ["transport", "Hz", "ok samples", "MRGIA", "refined", "fit NRMSE"],
