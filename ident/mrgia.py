@@ -14,8 +14,8 @@ projection
     linear block, ``m2 <= 0``, negative dead zone) is refused. Without it an
     early, large update can make ``x-hat`` explode and freeze the gain.
 recovery
-    About one run in 30 of the paper's example gets stuck early in a wrong zone
-    classification: one backlash line never receives an update although the
+    A few runs in a hundred of the paper's example (3 of 50 seeds in
+    benchmarks/paper_example.py) get stuck early in a wrong zone classification: one backlash line never receives an update although the
     output keeps moving that way. The estimator watches the share of measured
     moves that the model puts on each line (its *line coverage*); when one
     stays below ``stuck_below`` after a warm-up, the backlash parameters and
