@@ -41,6 +41,7 @@ from servoid import validation
 from servoid.errors import DriverError
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
+from servoid.ident.wear import Wear, WearingPlant
 
 __all__ = ["SampledPlant", "PlantSample"]
 
@@ -79,6 +80,10 @@ class SampledPlant:
         reading (not to the plant's state), plant unit.
     rng : numpy.random.Generator, optional
         Source of the noise; required when ``noise_std > 0``.
+    wear : Wear, optional
+        Dead zones that change with the plant's age in samples
+        (:class:`~servoid.ident.wear.WearingPlant`); :attr:`model` is then
+        the plant as it is now.
     """
 
     def __init__(
@@ -88,8 +93,9 @@ class SampledPlant:
         period_ns: int | None = None,
         noise_std: float = 0.0,
         rng: np.random.Generator | None = None,
+        wear: Wear | None = None,
     ) -> None:
-        self.plant = Plant(model)
+        self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
         self.noise_std = validation.non_negative("noise_std", noise_std)
         if self.noise_std > 0 and rng is None:
             raise DriverError("noise_std > 0 needs rng=np.random.default_rng(seed)")

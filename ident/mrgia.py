@@ -196,13 +196,16 @@ class MRGIAConfig:
         Chosen by measurement (benchmarks/tracking.py): on a drift of
         ``c1 + c2`` from 1.0 to 1.5 over 200 000 samples at SNR 40, a floor on
         ``rho`` (exponential forgetting) and a random walk track equally well
-        (RMS 0.006, lag ~1700 samples for a floor of 3e-3 or ``q = 1e-7``),
-        but under one-sided excitation (the output moving only up for a long
-        stretch) forgetting let ``P`` wind up to 4e2 while the random walk
-        kept it below 0.07: forgetting grows an unexcited direction by
-        ``1/lambda`` per update, the random walk by ``q``. ``q`` sets the
-        trade-off: larger follows faster and is noisier. It is in squared
-        parameter units per update, so scale it with the units of the record.
+        (RMS error 0.006, lag ~500 samples, steady scatter 0.005 for a
+        floor of 3e-3 or ``q = 1e-7``), but under one-sided excitation (a
+        rising sawtooth: the down line visited once per period) forgetting
+        let ``P``'s diagonal grow to 0.018 (1.1 for a floor of 1e-2) while
+        the random walk kept it below 4e-4: forgetting grows an unexcited
+        direction by ``1/lambda`` per update, the random walk by ``q``. ``q``
+        sets the trade-off: larger follows faster and is noisier. It is in
+        squared parameter units per update, so scale it with the units of the
+        record (:class:`servoid.ident.monitor.Tracker` normalises the signals
+        by ``c1 + c2`` so that one ``q`` fits every unit).
         """
         return cls(
             na=na, nb=nb, delay=delay, epsilon=epsilon, rho_exponent=1.0,
