@@ -246,7 +246,13 @@ class MRGIAConfig:
 
 
 def noise_epsilon(noise_std: float) -> float:
-    """``E|v| = sqrt(2/pi) s`` for Gaussian noise of standard deviation ``s``: a default for ``epsilon``."""
+    """``E|v| = sqrt(2/pi) s`` for Gaussian noise of standard deviation ``s``: a default for ``epsilon``.
+
+    Parameters
+    ----------
+    noise_std : float
+        Standard deviation ``s`` of the output noise, unit of ``y``.
+    """
     return float(np.sqrt(2.0 / np.pi) * validation.non_negative("noise_std", noise_std))
 
 
@@ -269,6 +275,13 @@ def convergence_margin(a: Sequence[float] | np.ndarray, *, points: int = 4096) -
     sits exactly on the boundary (margin 0). Where the margin is negative,
     trust the refined model (:func:`servoid.ident.identify` also refines
     from a start that does not depend on the MRGIA) or sample more slowly.
+
+    Parameters
+    ----------
+    a : array_like
+        Denominator coefficients ``a_1 .. a_na`` of eq. (1).
+    points : int
+        Frequencies on ``[0, pi]`` at which the maximum is taken.
     """
     arr = validation.signal("a", a)
     w = np.linspace(0.0, np.pi, points)
