@@ -46,6 +46,7 @@ from servoid.drivers.clock import NS_PER_S
 from servoid.errors import DriverError
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
+from servoid.ident.wear import Wear, WearingPlant
 
 __all__ = ["SampledPlant", "PlantSample"]
 
@@ -84,6 +85,10 @@ class SampledPlant:
         reading (not to the plant's state), plant unit.
     rng : numpy.random.Generator, optional
         Source of the noise; required when ``noise_std > 0``.
+    wear : Wear, optional
+        Dead zones that change with the plant's age in samples
+        (:class:`~servoid.ident.wear.WearingPlant`); :attr:`model` is then
+        the plant as it is now.
     slot_modulus : int, optional
         The slot numbers given to :meth:`command` count modulo this (a
         CiA 301 SYNC counter: 2..240); None: they are plain sample numbers.
@@ -96,9 +101,10 @@ class SampledPlant:
         period_ns: int | None = None,
         noise_std: float = 0.0,
         rng: np.random.Generator | None = None,
+        wear: Wear | None = None,
         slot_modulus: int | None = None,
     ) -> None:
-        self.plant = Plant(model)
+        self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
         self.slot_modulus = None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
         self._last_slot: int | None = None
         self.noise_std = validation.non_negative("noise_std", noise_std)

@@ -3,6 +3,7 @@
 URL::
 
     sim://?plant=bench&snr=40&latency=0.0002&drop=0.01&seed=1
+    sim://?plant=gear&snr=40&clock=virtual&drift=1.5&drift_samples=200000   (a wearing gear)
 
 It is a driver like any other (same registry, same contract tests, same
 failure behaviour) with its time taken from an injected
@@ -33,6 +34,7 @@ from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTime
 from servoid.ident.model import BacklashModel
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 from servoid.ident.simulate import simulate
+from servoid.ident.wear import GEAR_PLANT, Wear
 
 __all__ = ["SimDriver", "SimDevice", "SimPlant", "SIM_PLANTS"]
 
@@ -61,6 +63,7 @@ class SimPlant:
 SIM_PLANTS: dict[str, SimPlant] = {
     "bench": SimPlant(BENCH_PLANT, BENCH_UNIT, BENCH_AMPLITUDE),
     "paper": SimPlant(PAPER_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
+    "gear": SimPlant(GEAR_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
 }
 
 
@@ -148,9 +151,10 @@ class SimDriver(Driver):
 
     Parameters
     ----------
-    plant : {"bench", "paper"}
+    plant : {"bench", "paper", "gear"}
         ``bench``: :data:`~servoid.drivers.bench.BENCH_PLANT` in rad;
-        ``paper``: the paper's Section 4 plant, unitless.
+        ``paper``: the paper's Section 4 plant, unitless; ``gear``: the paper's
+        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.wear.GEAR_PLANT`).
     snr : float, optional
         Measurement noise as a signal-to-noise ratio: noise standard deviation
         = std of the output under the plant's reference input / ``snr``.
@@ -169,6 +173,12 @@ class SimDriver(Driver):
     clock : Clock or {"real", "virtual"}, optional
         Time source; default the real clock. ``virtual`` (also a URL option)
         runs in simulated time: a session takes no wall time and repeats exactly.
+    drift, drift_samples, drift_start, swap_at, swap_factor : optional
+        Simulated wear (:class:`~servoid.ident.wear.Wear`): the dead zones
+        ``c1`` and ``c2`` ramp by the factor ``drift`` over ``drift_samples``
+        samples from sample ``drift_start``, and are multiplied by
+        ``swap_factor`` from sample ``swap_at`` on (a gear swap). Samples are
+        the plant's own, so the wear follows time, not the host's requests.
     **kwargs
         Limits and units for :class:`~servoid.drivers.base.Driver`.
     """
@@ -186,6 +196,11 @@ class SimDriver(Driver):
         "restart_after": Option(opt.integer(), "restart after this many exchanges (fault injection)"),
         "seed": Option(opt.integer(), "seed of noise, drops and jitter (default 0)"),
         "clock": Option(opt.choice("real", "virtual"), "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
+        "drift": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"),
+        "drift_samples": Option(opt.integer(minimum=1), "wear: length of the ramp (samples)"),
+        "drift_start": Option(opt.integer(), "wear: sample at which the ramp begins (default 0)"),
+        "swap_at": Option(opt.integer(), "wear: sample of a gear swap that multiplies c1 and c2 by swap_factor"),
+        "swap_factor": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 from swap_at on"),
     }
 
     def __init__(
@@ -202,6 +217,11 @@ class SimDriver(Driver):
         restart_after: int | None = None,
         seed: int = 0,
         clock: Clock | str | None = None,
+        drift: float = 1.0,
+        drift_samples: int | None = None,
+        drift_start: int = 0,
+        swap_at: int | None = None,
+        swap_factor: float = 1.0,
         **kwargs: Any,
     ) -> None:
         if plant not in SIM_PLANTS:
@@ -221,6 +241,8 @@ class SimDriver(Driver):
         self.timeout_ns = int(round(validation.positive("timeout", timeout) * NS_PER_S))
         self.mute_after, self.restart_after = mute_after, restart_after
         self.seed = seed
+        self.wear = Wear(drift=drift, drift_samples=drift_samples, drift_start=drift_start,
+                         swap_at=swap_at, swap_factor=swap_factor)  # fmt: skip
         if clock == "virtual":
             clock = VirtualClock()
         elif clock is None or clock == "real":
@@ -234,8 +256,12 @@ class SimDriver(Driver):
 
     @property
     def truth(self) -> BacklashModel:
-        """The simulated plant's true parameters."""
+        """The simulated plant's true parameters (when new: see :meth:`truth_at` for a wearing one)."""
         return self.sim_plant.model
+
+    def truth_at(self, sample: int) -> BacklashModel:
+        """The true parameters at the plant's sample ``sample``, wear included."""
+        return self.wear.model(self.sim_plant.model, sample)
 
     @property
     def reference_amplitude(self) -> float:
@@ -245,7 +271,7 @@ class SimDriver(Driver):
     # ---- primitives -------------------------------------------------------------------
     def _open(self) -> None:
         rng = np.random.default_rng(self.seed)
-        plant = SampledPlant(self.sim_plant.model, noise_std=self.noise_std, rng=rng)
+        plant = SampledPlant(self.sim_plant.model, noise_std=self.noise_std, rng=rng, wear=self.wear)
         self.device = SimDevice(
             plant, clock=self.clock, latency_ns=self.latency_ns, jitter_ns=self.jitter_ns, drop=self.drop,
             mute_after=self.mute_after, restart_after=self.restart_after, rng=rng,
@@ -278,6 +304,7 @@ class SimDriver(Driver):
             "unit": self.sim_plant.unit,
             "noise_std": self.noise_std,
             "boot_id": self._boot_id,
+            **({"wear": self.wear.describe()} if self.wear.active else {}),
         }
 
     # ---- helpers ----------------------------------------------------------------------

@@ -120,7 +120,17 @@ def generate(
 
 
 def sample(spec: SignalSpec | str, n: int, *, seed: int = 0) -> np.ndarray:
-    """``n`` samples of ``spec`` from the start, as one array (see :func:`generate`)."""
+    """``n`` samples of ``spec`` from the start, as one array (see :func:`generate`).
+
+    Parameters
+    ----------
+    spec : SignalSpec or str
+        What to generate.
+    n : int
+        Number of samples.
+    seed : int
+        Seed of the random stream (same seed, same samples).
+    """
     return generate(spec, n, seed=seed)[0]
 
 

@@ -79,6 +79,13 @@ class Identification:
 def check_record(u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig) -> tuple[np.ndarray, np.ndarray]:
     """Validate a record for identification; return it as float arrays.
 
+    Parameters
+    ----------
+    u, y : array_like
+        Input and measured output.
+    config : MRGIAConfig
+        The orders and delay, which set how many samples are needed at least.
+
     Raises
     ------
     DataError

@@ -14,8 +14,8 @@ projection
     linear block, ``m2 <= 0``, negative dead zone) is refused. Without it an
     early, large update can make ``x-hat`` explode and freeze the gain.
 recovery
-    About one run in 30 of the paper's example gets stuck early in a wrong zone
-    classification: one backlash line never receives an update although the
+    A few runs in a hundred of the paper's example (3 of 50 seeds in
+    benchmarks/paper_example.py) get stuck early in a wrong zone classification: one backlash line never receives an update although the
     output keeps moving that way. The estimator watches the share of measured
     moves that the model puts on each line (its *line coverage*); when one
     stays below ``stuck_below`` after a warm-up, the backlash parameters and
@@ -196,13 +196,16 @@ class MRGIAConfig:
         Chosen by measurement (benchmarks/tracking.py): on a drift of
         ``c1 + c2`` from 1.0 to 1.5 over 200 000 samples at SNR 40, a floor on
         ``rho`` (exponential forgetting) and a random walk track equally well
-        (RMS 0.006, lag ~1700 samples for a floor of 3e-3 or ``q = 1e-7``),
-        but under one-sided excitation (the output moving only up for a long
-        stretch) forgetting let ``P`` wind up to 4e2 while the random walk
-        kept it below 0.07: forgetting grows an unexcited direction by
-        ``1/lambda`` per update, the random walk by ``q``. ``q`` sets the
-        trade-off: larger follows faster and is noisier. It is in squared
-        parameter units per update, so scale it with the units of the record.
+        (RMS error 0.006, lag ~500 samples, steady scatter 0.005 for a
+        floor of 3e-3 or ``q = 1e-7``), but under one-sided excitation (a
+        rising sawtooth: the down line visited once per period) forgetting
+        let ``P``'s diagonal grow to 0.018 (1.1 for a floor of 1e-2) while
+        the random walk kept it below 4e-4: forgetting grows an unexcited
+        direction by ``1/lambda`` per update, the random walk by ``q``. ``q``
+        sets the trade-off: larger follows faster and is noisier. It is in
+        squared parameter units per update, so scale it with the units of the
+        record (:class:`servoid.ident.monitor.Tracker` normalises the signals
+        by ``c1 + c2`` so that one ``q`` fits every unit).
         """
         return cls(
             na=na, nb=nb, delay=delay, epsilon=epsilon, rho_exponent=1.0,
@@ -243,7 +246,13 @@ class MRGIAConfig:
 
 
 def noise_epsilon(noise_std: float) -> float:
-    """``E|v| = sqrt(2/pi) s`` for Gaussian noise of standard deviation ``s``: a default for ``epsilon``."""
+    """``E|v| = sqrt(2/pi) s`` for Gaussian noise of standard deviation ``s``: a default for ``epsilon``.
+
+    Parameters
+    ----------
+    noise_std : float
+        Standard deviation ``s`` of the output noise, unit of ``y``.
+    """
     return float(np.sqrt(2.0 / np.pi) * validation.non_negative("noise_std", noise_std))
 
 
@@ -266,6 +275,13 @@ def convergence_margin(a: Sequence[float] | np.ndarray, *, points: int = 4096) -
     sits exactly on the boundary (margin 0). Where the margin is negative,
     trust the refined model (:func:`servoid.ident.identify` also refines
     from a start that does not depend on the MRGIA) or sample more slowly.
+
+    Parameters
+    ----------
+    a : array_like
+        Denominator coefficients ``a_1 .. a_na`` of eq. (1).
+    points : int
+        Frequencies on ``[0, pi]`` at which the maximum is taken.
     """
     arr = validation.signal("a", a)
     w = np.linspace(0.0, np.pi, points)

@@ -229,6 +229,19 @@ def arx_start(
     With ``valid`` (False: a lost sample, whose ``y`` may be NaN), only the
     equations whose ``y`` terms were all measured are used.
 
+    Parameters
+    ----------
+    u, y : array_like
+        The record: input and measured output, same length.
+    na, nb, delay : int
+        Orders and delay of the model to start.
+    valid : array_like of bool, optional
+        Which samples were measured.
+
+    Returns
+    -------
+    BacklashModel
+
     Raises
     ------
     ConfigError

@@ -73,7 +73,15 @@ class Simulation:
 
 
 def noise_std_for_snr(y_clean: np.ndarray, snr: float) -> float:
-    """Noise standard deviation giving ``snr``, the paper's ``sqrt(var(y) / var(v))``."""
+    """Noise standard deviation giving ``snr``, the paper's ``sqrt(var(y) / var(v))``.
+
+    Parameters
+    ----------
+    y_clean : ndarray
+        The noise-free output.
+    snr : float
+        Signal-to-noise ratio, ``> 0``.
+    """
     snr = validation.positive("snr", snr)
     std = float(np.std(y_clean))
     if std == 0.0:
@@ -146,5 +154,15 @@ def simulate(
 
 
 def free_run(model: BacklashModel, u: Sequence[float] | np.ndarray, *, y0: float = 0.0) -> np.ndarray:
-    """Noise-free output of ``model`` driven by ``u`` from rest (the free-run simulation ``y-hat``)."""
+    """Noise-free output of ``model`` driven by ``u`` from rest (the free-run simulation ``y-hat``).
+
+    Parameters
+    ----------
+    model : BacklashModel
+        The model.
+    u : array_like
+        Input.
+    y0 : float
+        Backlash output before the first sample (``x`` starts at 0).
+    """
     return _run(model, validation.signal("u", u), validation.real("y0", y0))[1]

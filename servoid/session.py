@@ -34,6 +34,9 @@ sample re-primes. The offline stage uses the same samples (:meth:`SessionResult.
 
 The recording is written as samples arrive, one flushed row each (see
 :data:`COLUMNS`), so a crash, a kill or Ctrl-C keeps every sample measured.
+For a run of indefinite length (``servoid monitor``) the session can hand
+each sample to a callback (``on_sample``) and keep none (``keep_samples=False``):
+its memory then stays constant however long it runs.
 On Ctrl-C the session stops, switches the torque off and returns what it has
 (``result.stopped == "interrupted"``); on a driver error (a servo that stopped
 answering, restarted, or left its range) it switches the torque off and
@@ -71,6 +74,7 @@ __all__ = [
     "SessionResult",
     "run_session",
     "usable",
+    "is_usable",
     "COLUMNS",
 ]
 
@@ -144,8 +148,12 @@ class Sample:
 
 def usable(status: Iterable[str], *, use_late: bool = False) -> np.ndarray:
     """Mask of the samples an estimator may use: ``ok``, and ``late`` when ``use_late``."""
-    good = {Status.OK.value, Status.LATE.value} if use_late else {Status.OK.value}
-    return np.array([str(s) in good for s in status], dtype=np.bool_)
+    return np.array([is_usable(s, use_late=use_late) for s in status], dtype=np.bool_)
+
+
+def is_usable(status: str, *, use_late: bool = False) -> bool:
+    """Whether an estimator may use one sample of this status: ``ok``, and ``late`` when ``use_late``."""
+    return status == Status.OK or (use_late and status == Status.LATE)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -245,6 +253,9 @@ class SessionResult:
         The driver's counters at the end.
     stopped : str or None
         ``"interrupted"`` after Ctrl-C, else None.
+    slot_counts : mapping or None
+        Slots per status, counted as they came; set by :func:`run_session`,
+        so that a session that kept no samples still reports them.
     """
 
     samples: tuple[Sample, ...]
@@ -255,10 +266,12 @@ class SessionResult:
     estimator_error: str | None
     driver_stats: DriverStats
     stopped: str | None = None
+    slot_counts: Mapping[str, int] | None = None
     _arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     def __len__(self) -> int:
-        return len(self.samples)
+        """Slots run (also when the samples were not kept)."""
+        return len(self.samples) if self.slot_counts is None else sum(self.slot_counts.values())
 
     def _column(self, name: str) -> np.ndarray:
         if name not in self._arrays:
@@ -302,6 +315,8 @@ class SessionResult:
     @property
     def counts(self) -> dict[str, int]:
         """Slots per status."""
+        if self.slot_counts is not None:
+            return dict(self.slot_counts)
         out = {s.value: 0 for s in Status}
         for s in self.samples:
             out[s.status.value] += 1
@@ -310,7 +325,7 @@ class SessionResult:
     @property
     def late_share(self) -> float:
         """Share of slots not exchanged on time (late, missed or timed out)."""
-        return 0.0 if not self.samples else 1.0 - self.counts["ok"] / len(self.samples)
+        return 0.0 if not len(self) else 1.0 - self.counts["ok"] / len(self)
 
     @property
     def achieved_rate_hz(self) -> float:
@@ -332,6 +347,8 @@ def run_session(
     command_filter: Callable[[float], float] | None = None,
     on_progress: Callable[[SessionProgress], None] | None = None,
     clock: Clock | None = None,
+    on_sample: Callable[[Sample], None] | None = None,
+    keep_samples: bool = True,
 ) -> SessionResult:
     """Run ``excitation`` through an open driver, one value per slot.
 
@@ -358,6 +375,14 @@ def run_session(
     clock : Clock, optional
         Time source; default the driver's own (a simulated servo's virtual
         clock), else the real clock.
+    on_sample : callable, optional
+        Called with each :class:`Sample` as soon as it is complete (after the
+        estimator has seen it). It runs inside the sampling loop: keep it
+        short, or the next slots come late.
+    keep_samples : bool
+        Keep every sample in the result (default). ``False`` keeps none, for
+        runs of indefinite length: the result then has the counts but empty
+        :attr:`SessionResult.samples` (and no per-sample arrays).
 
     Returns
     -------
@@ -378,6 +403,7 @@ def run_session(
     if not isinstance(use_clock, Clock):
         use_clock = MonotonicClock()
     sampler = _Sampler(driver, config, use_clock, estimator, command_filter, on_progress, excitation)
+    sampler.on_sample, sampler.keep_samples = on_sample, keep_samples
     writer = None
     if recording is not None:
         meta = {
@@ -442,6 +468,9 @@ class _Sampler:
         self._next_progress = 0
         self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
         self.held: float | None = None  # the command the servo holds (the last one sent)
+        self.on_sample: Callable[[Sample], None] | None = None
+        self.keep_samples = True
+        self.slots = 0
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
@@ -519,7 +548,7 @@ class _Sampler:
             self._last_device = (k, device_time)
         status = Status.LATE if late else Status.OK
         self.held = m.command
-        if status is Status.OK or self.config.use_late:
+        if is_usable(status, use_late=self.config.use_late):
             self._estimate_update(m.command, m.position)
         else:
             self._estimate_skip(m.command)
@@ -550,10 +579,14 @@ class _Sampler:
         return (t_ns - self.t0) / NS_PER_S
 
     def _add(self, sample: Sample) -> None:
-        self.samples.append(sample)
+        if self.keep_samples:
+            self.samples.append(sample)
+        self.slots += 1
         self.counts[sample.status.value] += 1
         if self.writer is not None:
             self.writer.append(*sample.row())
+        if self.on_sample is not None:
+            self.on_sample(sample)
 
     def _maybe_progress(self, now: int) -> None:
         if self.on_progress is not None and now >= self._next_progress:
@@ -570,7 +603,7 @@ class _Sampler:
             values = est.theta.copy()
             values[est.config.na + est.config.nb + 1] += 1.0  # theta holds m2 - 1
             estimate = dict(zip(names, (float(v) for v in values)))
-        self.on_progress(SessionProgress(len(self.samples), self.total, dict(self.counts),
+        self.on_progress(SessionProgress(self.slots, self.total, dict(self.counts),
                                          (now - self.t0) / NS_PER_S, estimate))  # fmt: skip
 
     def shutdown(self) -> None:
@@ -598,6 +631,7 @@ class _Sampler:
             estimator_error=self.estimator_error,
             driver_stats=DriverStats(**vars(self.driver.stats)),
             stopped=self.stopped,
+            slot_counts=dict(self.counts),
         )
 
 

@@ -12,7 +12,7 @@ from servoid.drivers.sim import SimDriver
 from servoid.errors import ConfigError, DriverError
 from servoid.ident import MRGIA, MRGIAConfig, run_mrgia
 from servoid.recording import read_recording
-from servoid.session import COLUMNS, SessionConfig, run_session, usable
+from servoid.session import COLUMNS, SessionConfig, is_usable, run_session, usable
 
 T = 0.001  # s
 
@@ -138,3 +138,18 @@ def test_bad_input_is_named():
         with pytest.raises(ConfigError, match=r"excitation\[3\] \(=nan\) is not finite"):
             run_session(s, [0.0, 0.1, 0.2, math.nan], SessionConfig(period_s=T))
         assert not s.torque_enabled
+
+
+def test_a_streaming_session_hands_out_every_sample_and_keeps_none():
+    seen = []
+    est = MRGIA(MRGIAConfig(na=2, nb=0, delay=1))
+    with servo(jitter=0.25 * T, drop=0.01, timeout=3 * T) as s:
+        result = run_session(s, excitation(2000), SessionConfig(period_s=T), estimator=est,
+                             on_sample=seen.append, keep_samples=False)  # fmt: skip
+    with servo(jitter=0.25 * T, drop=0.01, timeout=3 * T) as s:
+        kept = run_session(s, excitation(2000), SessionConfig(period_s=T))
+    assert result.samples == () and len(result) == 2000 and result.counts == kept.counts
+    assert result.counts["timeout"] > 0 and result.late_share == pytest.approx(kept.late_share)
+    assert [x.k for x in seen] == list(range(2000)) and tuple(seen) == kept.samples
+    assert est.samples == 2000  # the estimator saw each sample before the callback did
+    assert list(usable([x.status for x in seen])) == [is_usable(x.status) for x in seen]

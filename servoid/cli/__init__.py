@@ -9,7 +9,8 @@ config objects the API takes and call the libraries.
 
 Exit status: 0 success; 2 bad input (a one-line message naming the problem,
 never a traceback); 1 any other servoid error (a servo that stopped answering,
-an estimator that diverged); 130 interrupted.
+an estimator that diverged); 3 an alarm raised by ``servoid monitor
+--fail-on-alarm``; 130 interrupted.
 """
 
 from __future__ import annotations

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
-from typing import Any
+from typing import Any, TextIO
 from collections.abc import Callable, Iterator, Sequence
 
 from rich.console import Console
@@ -19,8 +20,20 @@ from rich.table import Table
 
 __all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
 
-stdout = Console(highlight=False)
-stderr = Console(stderr=True, highlight=False)
+#: Width when writing to a file or a pipe (a log, CI): rich would assume 80
+#: columns and squeeze the tables; ``COLUMNS`` still wins when set.
+PIPE_WIDTH = 160
+
+
+def _console(stream: TextIO, *, to_stderr: bool) -> Console:
+    # no file=: rich looks sys.stdout/stderr up at each write, so a stream
+    # swapped later (pytest's capture, a redirect) is still the one written to
+    width = None if stream.isatty() or os.environ.get("COLUMNS") else PIPE_WIDTH
+    return Console(stderr=to_stderr, highlight=False, width=width)
+
+
+stdout = _console(sys.stdout, to_stderr=False)
+stderr = _console(sys.stderr, to_stderr=True)
 
 
 @contextlib.contextmanager

@@ -1,0 +1,365 @@
+"""``servoid monitor``: watch a servo's backlash while it works, and raise an alarm when it wears out of bounds."""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import time
+from pathlib import Path
+from typing import Any, Callable, Iterator
+
+from servoid.cli import _live, _term
+from servoid.drivers import driver_from_url
+from servoid.drivers.base import Driver
+from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.errors import ConfigError
+from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
+from servoid.ident.alarms import AlarmRule, Bound
+from servoid.ident.monitor import DEFAULT_PROCESS_NOISE, TrackerConfig
+from servoid.modelfile import ModelFile, load_model
+from servoid.monitor import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
+from servoid.session import SessionConfig
+
+ORDER = 15
+
+HELP = "watch a servo's backlash while it works; alarm when the dead zone, m2 or the fit leave their bounds"
+
+DESCRIPTION = f"""\
+Watch a servo's backlash while it runs, for as long as it runs: gears wear, the
+dead zone grows, and a compensator tuned once drifts out of tune.
+
+The servo follows an input (below) at --rate Hz. The MRGIA in tracking mode
+estimates the model online, starting from --model (the servo's model.json from
+`servoid identify`), with a gain that never vanishes: the parameters are taken
+as a random walk of variance --process-noise x (c1 + c2)^2 per update, and the
+estimate updates only on samples where the output moved along a backlash line
+(eq. 42). Every --check-every samples an alarm rule compares the dead zone
+c1 + c2, the down-line slope m2 and the fit (free-run NRMSE over the last 5000
+samples) with their bounds:
+
+  raise  the estimate lies beyond a bound by more than --z standard deviations
+         at --persist consecutive checks
+  clear  it is back inside by 10 % of the band's width at --persist checks
+
+An alarm prints a line starting with ALARM on stderr; with --fail-on-alarm the
+run stops there and servoid exits with status {EXIT_ALARM}.
+
+The input: the servo's normal operating input (--operating SPEC, a trajectory
+around the driver's centre), a small excitation superimposed on it
+(--excitation SPEC), or both; the spec grammar is that of `servoid excite`.
+Without either, uniform white noise of the simulated servo's reference
+amplitude (else {BENCH_AMPLITUDE}). The MRGIA sees the backlash only where the
+output moves by more than the noise from one sample to the next: a slow
+trajectory alone says little about the dead zone (docs/monitor.md).
+
+Outputs in --out: estimates.csv (a row every --every s: estimates, standard
+deviations, fit, share of samples that updated, alarms), compensation.jsonl
+(c1, c2, m2 and the smoothing band each time they moved by --compensation-step),
+model.json (the latest estimate, for `servoid export`), events.jsonl (alarms,
+recoveries, start and stop); --plot FILE.png is redrawn every --plot-every s.
+Memory stays constant however long it runs. Ctrl-C ends the run (exit 0; the
+outputs are complete).
+
+Bounds: MIN,MAX in the servo's unit (m2 is unitless), or P% for +/- P % of the
+model's value, or 'none'. Defaults: the dead zone and m2 within +/- 10 %.
+"""
+
+EPILOG = """\
+examples:
+  servoid identify --driver "sim://?plant=gear&snr=40&clock=virtual" --rate 1000 --samples 20000 --out gear
+  servoid monitor --driver "sim://?plant=gear&snr=40&clock=virtual&drift=1.5&drift_samples=200000" \\
+      --model gear/model.json --duration 300 --plot monitor.png
+  servoid monitor --driver "sim://?plant=gear&snr=40&clock=virtual&swap_at=30000&swap_factor=1.2" \\
+      --model gear/model.json --duration 60 --fail-on-alarm       (exit status 3)
+  servoid monitor --driver serial:///dev/ttyUSB0 --model model.json --dead-zone 0.045,0.06 --m2 none \\
+      --operating "levels:amplitude=0.5,count=4,dwell=2000" --excitation "uniform:amplitude=0.1"
+"""
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "monitor", help=HELP, description=DESCRIPTION, epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )  # fmt: skip
+    servo = p.add_argument_group("servo")
+    servo.add_argument("--driver", metavar="URL", required=True,
+                       help="the servo: sim://?plant=gear&snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
+                            "(docs/drivers.md; sim:// wears with drift=, drift_samples=, swap_at=, swap_factor=)")  # fmt: skip
+    servo.add_argument("--model", metavar="MODEL.json", type=Path, required=True,
+                       help="the servo's model file (servoid identify): where the estimate starts, its unit and noise")
+    servo.add_argument("--rate", type=float, metavar="HZ",
+                       help=f"sample rate in Hz (default: the model's, else {_live.DEFAULT_RATE_HZ:g}); "
+                            "the model's linear block holds at the rate it was identified at")  # fmt: skip
+    servo.add_argument("--duration", type=float, metavar="S", help="run this many seconds (default: until Ctrl-C)")
+    servo.add_argument("--use-late", action="store_true", help="let the estimator use samples exchanged late")
+    inp = p.add_argument_group("input")
+    inp.add_argument("--operating", metavar="SPEC",
+                     help="the servo's normal operating input around the driver's centre, e.g. "
+                          "levels:amplitude=0.5,count=4,dwell=2000 (default: none)")  # fmt: skip
+    inp.add_argument("--excitation", metavar="SPEC",
+                     help="excitation added to it, e.g. uniform:amplitude=0.05 (default: without --operating, "
+                          "uniform noise of the driver's reference amplitude; with it, none)")  # fmt: skip
+    inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
+    al = p.add_argument_group("alarms")
+    al.add_argument("--dead-zone", default="10%", metavar="MIN,MAX|P%",
+                    help="bounds on c1 + c2, servo's unit, or +/- P %% of the model's (default 10%%)")
+    al.add_argument("--m2", default="10%", metavar="MIN,MAX|P%",
+                    help="bounds on the down-line slope m2, or +/- P %% of the model's (default 10%%)")
+    al.add_argument("--fit", type=float, metavar="MAX",
+                    help="largest free-run NRMSE of the recent window, e.g. 0.1 (default: not checked)")
+    al.add_argument("--persist", type=int, default=AlarmRule.persist, metavar="N",
+                    help=f"consecutive checks a bound must be left (or regained) (default {AlarmRule.persist})")
+    al.add_argument("--z", type=float, default=AlarmRule.z, metavar="Z",
+                    help=f"standard deviations beyond a bound before it counts as left (default {AlarmRule.z:g})")
+    al.add_argument("--check-every", type=int, default=MonitorConfig.check_every, metavar="N",
+                    help=f"samples between checks (default {MonitorConfig.check_every})")
+    al.add_argument("--fail-on-alarm", action="store_true",
+                    help=f"stop at the first alarm and exit with status {EXIT_ALARM}")
+    est = p.add_argument_group("estimator")
+    est.add_argument("--process-noise", type=float, default=DEFAULT_PROCESS_NOISE, metavar="Q",
+                     help="random-walk variance of the parameters per update, relative to (c1 + c2)^2: larger "
+                          f"follows wear faster and scatters more (default {DEFAULT_PROCESS_NOISE:g})")  # fmt: skip
+    est.add_argument("--epsilon", type=float, metavar="E",
+                     help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), servo's unit "
+                          "(default: from the model's noise_std, else the simulated servo's noise)")  # fmt: skip
+    out = p.add_argument_group("output")
+    out.add_argument("--out", type=Path, default=Path("servoid-monitor"), metavar="DIR",
+                     help="output folder (default ./servoid-monitor/)")  # fmt: skip
+    out.add_argument("--every", type=float, default=1.0, metavar="S",
+                     help="seconds between rows of estimates.csv (default 1; at least one check)")
+    out.add_argument("--compensation-step", type=float, default=MonitorConfig.compensation_step, metavar="SHARE",
+                     help="relative change of c1 + c2 or m2 that writes new compensation parameters "
+                          f"(default {MonitorConfig.compensation_step:g})")  # fmt: skip
+    out.add_argument("--plot", type=Path, metavar="FILE.png", help="a live plot, redrawn every --plot-every s")
+    out.add_argument("--plot-every", type=float, default=MonitorConfig.plot_every_s, metavar="S",
+                     help=f"seconds between redraws of --plot (default {MonitorConfig.plot_every_s:g})")
+    out.add_argument("--json", action="store_true", help="print one JSON summary on stdout at the end")
+    p.set_defaults(handler=run)
+
+
+def parse_bounds(text: str, *, quantity: str, label: str, reference: float, unit: str = "") -> Bound | None:
+    """``MIN,MAX``, ``P%`` (+/- P % of ``reference``) or ``none``; the option's name in every error."""
+    option = "--" + quantity.replace("_", "-")
+    value = text.strip()
+    if value.lower() == "none":
+        return None
+    if value.endswith("%"):
+        try:
+            share = float(value[:-1]) / 100.0
+        except ValueError:
+            raise ConfigError(f"{option} (={text!r}) must be MIN,MAX, P% or none") from None
+        if not (math.isfinite(share) and 0.0 < share < 1.0):
+            raise ConfigError(f"{option} (={text!r}): P must lie in (0, 100) %")
+        low, high = reference * (1.0 - share), reference * (1.0 + share)
+    else:
+        parts = value.split(",")
+        try:
+            low, high = (float(v) for v in parts)
+        except ValueError:
+            raise ConfigError(f"{option} (={text!r}) must be MIN,MAX (two numbers), P% or none") from None
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise ConfigError(f"{option} (={text!r}) must have finite MIN < MAX")
+    return Bound(quantity=quantity, low=low, high=high, label=label, unit=unit)
+
+
+def _bounds(args: argparse.Namespace, model_file: ModelFile, unit: str) -> tuple[Bound, ...]:
+    model = model_file.model
+    found = [
+        parse_bounds(args.dead_zone, quantity="dead_zone", label="dead zone c1 + c2", reference=model.dead_zone, unit=unit),
+        parse_bounds(args.m2, quantity="m2", label="m2", reference=model.m2),
+    ]
+    if args.fit is not None:
+        if not (math.isfinite(args.fit) and args.fit > 0):
+            raise ConfigError(f"--fit (={args.fit:g}) must be a positive NRMSE, e.g. 0.1")
+        found.append(Bound(quantity="fit", high=args.fit, label="fit"))
+    return tuple(b for b in found if b is not None)
+
+
+def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
+    """The sample period in seconds: the model's, or ``1 / --rate`` when it agrees with the model's."""
+    period = model_file.sample_period_s
+    if args.rate is None:
+        return period if period else 1.0 / _live.DEFAULT_RATE_HZ
+    rate = args.rate
+    if not (math.isfinite(rate) and 0 < rate <= 20_000):
+        raise ConfigError(f"--rate (={rate:g}) must lie in (0, 20000] Hz")
+    if period and abs(rate * period - 1.0) > 0.01:
+        raise ConfigError(
+            f"--rate (={rate:g} Hz) differs from the rate the model was identified at ({1.0 / period:g} Hz): "
+            "its linear block holds only at that rate; leave --rate out or identify again at this rate"
+        )
+    return 1.0 / rate
+
+
+def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:
+    operating = None if args.operating is None else parse_spec(args.operating)
+    if args.excitation is not None:
+        excitation: SignalSpec | None = parse_spec(args.excitation)
+    elif operating is None:
+        excitation = UniformSpec(amplitude=getattr(driver, "reference_amplitude", BENCH_AMPLITUDE))
+    else:
+        excitation = None
+    return operating, excitation
+
+
+def commands(centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int) -> Iterator[float]:
+    """The endless command: ``centre + operating(k) + excitation(k)`` (each seeded, the second with ``seed + 1``)."""
+    parts: list[Iterator[float]] = [itertools.repeat(centre)]
+    if operating is not None:
+        parts.append(stream(operating, seed=seed))
+    if excitation is not None:
+        parts.append(stream(excitation, seed=seed + 1))
+    return (math.fsum(values) for values in zip(*parts))
+
+
+def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, Any]) -> tuple[float, float | None]:
+    """``(noise_std, epsilon)`` for the tracker."""
+    if args.epsilon is not None:
+        if not (math.isfinite(args.epsilon) and args.epsilon >= 0):
+            raise ConfigError(f"--epsilon (={args.epsilon:g}) must be >= 0 (servo's unit)")
+        return 0.0, args.epsilon
+    if model_file.noise_std is not None:
+        return model_file.noise_std, None
+    noise = identity.get("noise_std")
+    return (float(noise) if isinstance(noise, (int, float)) else 0.0), None
+
+
+def run(args: argparse.Namespace) -> int:
+    model_file = load_model(args.model)
+    if model_file.effects:
+        _term.warn(f"{args.model} has model extensions ({', '.join(model_file.effect_names())}); "
+                   "the monitor tracks the plain backlash model")  # fmt: skip
+    period = _period(args, model_file)
+    rate = 1.0 / period
+    total = None
+    if args.duration is not None:
+        if not (math.isfinite(args.duration) and args.duration > 0):
+            raise ConfigError(f"--duration (={args.duration:g}) must be > 0 seconds")
+        total = max(1, round(args.duration * rate))
+    if args.check_every < 1:
+        raise ConfigError(f"--check-every (={args.check_every}) must be >= 1 sample")
+    if not (math.isfinite(args.every) and args.every > 0):
+        raise ConfigError(f"--every (={args.every:g}) must be > 0 seconds")
+    rule = AlarmRule(persist=args.persist, z=args.z)
+    row_every = max(1, round(args.every * rate / args.check_every)) * args.check_every
+    driver = driver_from_url(args.driver)
+    with driver:
+        unit = driver.position_unit.unit
+        noise_std, epsilon = _noise(args, model_file, driver.identity)
+        config = MonitorConfig(
+            tracker=TrackerConfig(reference=model_file.model, noise_std=noise_std, epsilon=epsilon,
+                                  process_noise=args.process_noise),
+            bounds=_bounds(args, model_file, unit), rule=rule, check_every=args.check_every, row_every=row_every,
+            compensation_step=args.compensation_step, stop_on_alarm=args.fail_on_alarm, plot_every_s=args.plot_every,
+        )  # fmt: skip
+        operating, excitation = _input_specs(args, driver)
+        inputs = commands(driver.limits.centre, operating, excitation, seed=args.seed)
+        if total is not None:
+            inputs = itertools.islice(inputs, total)
+        meta = {"operating": format_spec(operating) if operating else "none",
+                "excitation": format_spec(excitation) if excitation else "none", "seed": str(args.seed)}  # fmt: skip
+        _announce_start(args, driver, config, rate, total, meta)
+        started = time.perf_counter()
+        with _term.live_progress("monitor", total) as bar:
+            result = run_monitor(
+                driver, inputs, SessionConfig(period_s=period, use_late=args.use_late), config,
+                model_file=model_file, out=args.out, total=total, truth_at=getattr(driver, "truth_at", None),
+                on_event=_print_event, on_progress=_progress(bar, unit), plot=args.plot, metadata=meta,
+            )  # fmt: skip
+    elapsed = time.perf_counter() - started
+    if args.json:
+        _term.print_json(_summary_json(result, model_file, unit))
+    else:
+        _print_summary(result, model_file, unit, elapsed)
+    if result.stopped == "alarm":
+        first = result.first_alarm
+        assert first is not None
+        _term.stderr.print(f"servoid monitor: stopped on alarm (exit {EXIT_ALARM}): {first.message()}", markup=False, soft_wrap=True)
+        return EXIT_ALARM
+    return 0
+
+
+def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorConfig, rate: float,
+                    total: int | None, meta: dict[str, str]) -> None:  # fmt: skip
+    if args.json:
+        return
+    length = "until Ctrl-C" if total is None else f"{total} samples ({total / rate:g} s)"
+    bounds = "; ".join(f"{b.label} {b.describe()}" for b in config.bounds) or "none"
+    err = _term.stderr
+    err.print(f"servoid monitor: {driver.describe()} at {rate:g} Hz, {length}; writing to {args.out}/", markup=False, soft_wrap=True)
+    err.print(f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True)
+    err.print(f"  bounds    {bounds}", markup=False, soft_wrap=True)
+    err.print(f"  rule      beyond a bound by > {config.rule.z:g} std at {config.rule.persist} checks in a row, "
+              f"one check every {config.check_every} samples", markup=False, soft_wrap=True)  # fmt: skip
+
+
+def _print_event(kind: str, line: str) -> None:
+    if kind == "alarm":
+        _term.stderr.print(line, style="bold red", markup=False, soft_wrap=True)
+    elif kind in ("clear", "recovery", "restart"):
+        _term.stderr.print(line, style="yellow", markup=False, soft_wrap=True)
+    else:
+        _term.stderr.print(line, style="dim", markup=False, soft_wrap=True)
+
+
+def _progress(bar: Callable[[int, str], None], unit: str) -> Callable[[MonitorProgress], None]:
+    def update(p: MonitorProgress) -> None:
+        text = f"late {100 * p.late_share:.1f} %"
+        e = p.estimate
+        if e is not None:
+            fit = "-" if math.isnan(e.fit) else f"{e.fit:.3g}"
+            text += (f" | c1 + c2 {e.dead_zone:.4g} +/- {e.dead_zone_std:.2g} {unit}, m2 {e.m2:.4g}, fit {fit}")
+        text += " | alarms: " + (", ".join(p.active) if p.active else "none")
+        bar(p.done, text)
+
+    return update
+
+
+def _print_summary(result: MonitorResult, model_file: ModelFile, unit: str, elapsed: float) -> None:
+    e = result.estimate
+    ref = model_file.model
+    rows = []
+    for name, start in zip(e.names, ref.values()):
+        rows.append([name, f"{start:.6g}", f"{e.value(name):.6g}", f"{e.std_of(name):.2g}"])
+    rows.append(["c1 + c2", f"{ref.dead_zone:.6g}", f"{e.dead_zone:.6g}", f"{e.dead_zone_std:.2g}"])
+    _term.table(f"servoid monitor: {result.samples} samples", ["parameter", "model", "now", "std"], rows,
+                console=_term.stderr)  # fmt: skip
+    out = _term.stderr
+    counts = result.counts
+    out.print(f"slots: ok {counts['ok']}, late {counts['late']}, missed {counts['missed']}, timeout "
+              f"{counts['timeout']} ({elapsed:.1f} s of wall time)", markup=False, soft_wrap=True)  # fmt: skip
+    fit = "-" if math.isnan(e.fit) else f"{e.fit:.4g}"
+    out.print(f"fit (free-run NRMSE, recent) {fit}; recoveries {result.recoveries}; restarts {result.restarts}; "
+              f"compensation updates {result.compensation_updates}", markup=False, soft_wrap=True)  # fmt: skip
+    raised = [ev for ev in result.events if ev.raised]
+    out.print(f"alarms raised {len(raised)}" + (f", still active: {', '.join(a.bound.label for a in result.active)}"
+                                                 if result.active else ""), markup=False, soft_wrap=True)  # fmt: skip
+    if result.stopped == "interrupted":
+        out.print(f"interrupted after {result.samples} samples; the outputs are complete", markup=False, soft_wrap=True)
+    for name, path in result.files.items():
+        out.print(f"  {name:13s} {path}", markup=False, soft_wrap=True)
+
+
+def _summary_json(result: MonitorResult, model_file: ModelFile, unit: str) -> dict[str, Any]:
+    e = result.estimate
+    return {
+        "samples": result.samples,
+        "counts": result.counts,
+        "unit": unit,
+        "stopped": result.stopped,
+        "estimate": {n: e.value(n) for n in e.names} | {"dead_zone": e.dead_zone},
+        "std": {n: e.std_of(n) for n in e.names} | {"dead_zone": e.dead_zone_std},
+        "fit": None if math.isnan(e.fit) else e.fit,
+        "model": model_file.model.to_dict(),
+        "alarms": [
+            {"quantity": ev.bound.quantity, "raised": ev.raised, "sample": ev.sample, "since": ev.since,
+             "value": ev.value, "std": ev.std, "side": ev.side, "limit": ev.limit}
+            for ev in result.events
+        ],  # fmt: skip
+        "active": [ev.bound.quantity for ev in result.active],
+        "recoveries": result.recoveries,
+        "restarts": result.restarts,
+        "compensation_updates": result.compensation_updates,
+        "files": {k: str(v) for k, v in result.files.items()},
+    }

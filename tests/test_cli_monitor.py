@@ -1,0 +1,98 @@
+"""``servoid monitor`` from the command line, on the simulated servo in virtual time."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import pytest
+
+from servoid.cli import main
+from servoid.cli.monitor import parse_bounds
+from servoid.errors import ConfigError
+from servoid.ident.wear import GEAR_PLANT
+from servoid.modelfile import ModelFile, save_model
+from servoid.monitor import EXIT_ALARM, read_estimates
+
+GEAR = "sim://?plant=gear&snr=40&clock=virtual"
+
+
+@pytest.fixture
+def model(tmp_path):
+    """The gear servo's model as `servoid identify` would write it (at 1 kHz, SNR 40)."""
+    return save_model(tmp_path / "model.json", ModelFile(model=GEAR_PLANT, noise_std=0.0337, sample_period_s=0.001))
+
+
+def test_fail_on_alarm_stops_at_a_gear_swap_with_a_clear_line_and_status_3(tmp_path, model, capsys):
+    out = tmp_path / "run"
+    code = main(["monitor", "--driver", f"{GEAR}&swap_at=20000&swap_factor=1.2", "--model", str(model),
+                 "--duration", "60", "--fail-on-alarm", "--out", str(out)])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == EXIT_ALARM == 3
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("servoid monitor: stopped on alarm (exit 3): ALARM dead zone c1 + c2")
+    assert "ALARM dead zone c1 + c2 = 1.1" in err  # printed when it was raised, with the value
+    rows, meta = read_estimates(out / "estimates.csv")
+    assert 20_000 < rows["k"][-1] < 22_000  # the run ended soon after the swap (at 1 kHz, the model's rate)
+    assert meta["period_s"] == "0.001" and rows["alarms"][-1] == "dead_zone"
+
+
+def test_a_run_without_wear_raises_nothing_and_summarises_in_json(tmp_path, model, capsys):
+    out = tmp_path / "quiet"
+    code = main(["monitor", "--driver", GEAR, "--model", str(model), "--duration", "30", "--dead-zone", "0.95,1.05",
+                 "--m2", "none", "--fit", "0.05", "--every", "0.5", "--json", "--out", str(out)])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0 and "ALARM" not in captured.err
+    summary = json.loads(captured.out)
+    assert summary["samples"] == 30_000 and summary["alarms"] == [] and summary["stopped"] is None
+    assert summary["estimate"]["dead_zone"] == pytest.approx(1.0, abs=0.02)
+    assert summary["fit"] == pytest.approx(1 / 40, rel=0.3)
+    rows, meta = read_estimates(out / "estimates.csv")
+    assert rows["k"].size == 60 and "m2" not in meta["bounds"] and "fit <= 0.05" in meta["bounds"]
+    assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {"start", "stop"}
+
+
+def test_a_drift_with_a_plot_raises_the_alarm_and_draws_the_figure(tmp_path, model, capsys):
+    plot = tmp_path / "live.png"
+    code = main(["monitor", "--driver", f"{GEAR}&drift=1.5&drift_samples=20000", "--model", str(model),
+                 "--duration", "25", "--plot", str(plot), "--plot-every", "0.05", "--out", str(tmp_path / "p")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0 and plot.stat().st_size > 10_000 and "ALARM dead zone" in err
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["--dead-zone", "1.2,0.9"], "--dead-zone (='1.2,0.9') must have finite MIN < MAX"),
+        (["--m2", "lots"], "--m2 (='lots') must be MIN,MAX"),
+        (["--dead-zone", "150%"], "P must lie in (0, 100) %"),
+        (["--rate", "500"], "differs from the rate the model was identified at (1000 Hz)"),
+        (["--duration", "-1"], "--duration (=-1) must be > 0"),
+        (["--fit", "0"], "--fit (=0) must be a positive NRMSE"),
+        (["--persist", "0"], "persist"),
+        (["--excitation", "uniform:amplitude=-1"], "amplitude"),
+    ],
+)
+def test_bad_options_are_one_line_errors(tmp_path, model, capsys, argv, fragment):
+    code = main(["monitor", "--driver", GEAR, "--model", str(model), "--out", str(tmp_path / "x"), *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and fragment in err and "Traceback" not in err
+
+
+def test_a_model_in_another_unit_is_refused(tmp_path, capsys):
+    counts = save_model(tmp_path / "m.json", ModelFile(model=GEAR_PLANT, output_unit="counts"))
+    code = main(["monitor", "--driver", GEAR, "--model", str(counts), "--duration", "1", "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert code == 2 and "the model is in 'counts'" in err
+    code = main(["monitor", "--driver", GEAR, "--model", str(tmp_path / "none.json")])
+    assert code == 2 and "no such model file" in capsys.readouterr().err
+
+
+def test_bounds_parse_absolute_relative_or_none():
+    b = parse_bounds("10%", quantity="dead_zone", label="dz", reference=2.0, unit="rad")
+    assert (b.low, b.high, b.unit) == (pytest.approx(1.8), pytest.approx(2.2), "rad")
+    assert parse_bounds("0.5, 0.7", quantity="m2", label="m2", reference=1.0).high == 0.7
+    assert parse_bounds("none", quantity="m2", label="m2", reference=1.0) is None
+    with pytest.raises(ConfigError, match="--dead-zone"):
+        parse_bounds("1", quantity="dead_zone", label="dz", reference=1.0)
+    assert dataclasses.is_dataclass(b)
