@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import re
 from dataclasses import dataclass
 from typing import Any, Callable, ContextManager, Iterator
 
@@ -161,4 +160,4 @@ def test_one_crc_error_costs_one_sample_and_the_session_goes_on(tmp_path):
         assert servo.stats.rejected == 1
     assert result.counts["timeout"] == 1 and len(result) == 200
     assert len(read_recording(tmp_path / "r.csv")) == 200
-    assert re.fullmatch(r"ok|late", str(result.status[-1]))
+    assert np.sum(result.status[FAULT_AT:] == "ok") > 100  # the samples after it are measured again
