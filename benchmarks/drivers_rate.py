@@ -30,14 +30,7 @@ from servoid.drivers.serial.emulator import FirmwareEmulator
 from servoid.ident import MRGIA, MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session
 
-
-def table(title: str, cols: list[str], rows: list[list[str]]) -> None:
-    widths = [max(len(c), *(len(r[i]) for r in rows)) for i, c in enumerate(cols)]
-    print(f"\n{title}")
-    print("  ".join(c.rjust(w) for c, w in zip(cols, widths)))
-    print("  ".join("-" * w for w in widths))
-    for r in rows:
-        print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 
 def latency(url: str, n: int) -> np.ndarray:

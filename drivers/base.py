@@ -38,12 +38,24 @@ What a driver MAY implement
 ``clock_wrap_s`` (class attribute)
     Period after which the device clock wraps (a u32 microsecond counter wraps
     after 4294.967296 s, the Dynamixel tick after 32.768 s); the base unwraps.
+``clock_resolution_s`` (class attribute)
+    Resolution of the device clock, seconds (the Dynamixel tick counts whole
+    milliseconds); the sampling session widens its check of the device's
+    timing by it, so that the tick's rounding alone never makes a sample late.
+``command_step`` (instance attribute, set in ``__init__`` or ``_open``)
+    The smallest change of the command the device can apply, in native units
+    (1 for a goal in whole encoder counts); None (the default) for a
+    continuous command. The base rounds every command to it, never past a
+    limit, before ``_exchange`` sees it, and reports the rounded command as
+    the one sent: what the servo got, to identify from (the rounding is
+    otherwise an input error of up to half a step).
 ``from_url(cls, url)``
     Only if the defaults (options parsed into keyword arguments) do not fit.
 
 What the base class owns
 ------------------------
 Unit conversion (native <-> the user's unit, stated in :class:`UnitConversion`),
+rounding of commands to the device's resolution (:meth:`Driver.quantise`),
 safety limits (a command outside the position range, farther than
 ``amplitude`` from ``centre`` or changing faster than ``max_step`` per sample
 is clamped and counted, never sent; a measured position farther than
@@ -228,7 +240,8 @@ class Measurement:
     requested : float
         The command asked for.
     command : float
-        The command actually sent (after the safety limits).
+        The command actually sent: after the safety limits, rounded to the
+        device's resolution (:attr:`Driver.command_step`).
     clamped : bool
         Whether the limits changed the command.
     position : float
@@ -325,6 +338,7 @@ class Driver(abc.ABC):
     scheme: ClassVar[str] = ""
     options: ClassVar[Mapping[str, Option]] = {}
     clock_wrap_s: ClassVar[float | None] = None
+    clock_resolution_s: ClassVar[float] = 0.0
 
     def __init__(
         self,
@@ -336,6 +350,8 @@ class Driver(abc.ABC):
         self.limits = limits if limits is not None else Limits()
         self.position_unit = position_unit if position_unit is not None else UnitConversion()
         self.command_unit = command_unit if command_unit is not None else self.position_unit
+        #: Smallest change of the command the device applies, native unit (None: continuous).
+        self.command_step: float | None = None
         self.stats = DriverStats()
         self.url: str = ""
         self._is_open = False
@@ -528,16 +544,34 @@ class Driver(abc.ABC):
         requested = float(u)
         if not math.isfinite(requested):
             raise ConfigError(f"command u (={requested!r}) must be finite")
-        command = self.limits.clamp(requested, self._last_command)
-        clamped = command != requested
+        limited = self.limits.clamp(requested, self._last_command)
+        clamped = limited != requested
         if clamped:
             self.stats.clamped += 1
+        command = self.quantise(limited)
         reading = self._call(self._exchange, self.command_unit.to_native(command))
         self._last_command = command
         self.stats.exchanges += 1
         measurement = self._measurement(reading, requested, command, clamped)
         self._guard(measurement.position)
         return measurement
+
+    def quantise(self, command: float) -> float:
+        """``command`` (user unit, within the limits) as the device applies it: the nearest step inside the limits.
+
+        Rounding never carries a command past a limit, not even by half a
+        step; a range narrower than one step gets the nearest step.
+        """
+        step = self.command_step
+        if step is None:
+            return command
+        steps = self.command_unit.to_native(command) / step
+        low, high = self.limits.low, self.limits.high
+        for candidate in (round(steps), math.floor(steps), math.ceil(steps)):
+            user = self.command_unit.to_user(candidate * step)
+            if low <= user <= high:
+                return user
+        return self.command_unit.to_user(round(steps) * step)
 
     def read(self) -> Measurement:
         """A measurement without commanding (only for drivers that support it)."""

@@ -14,11 +14,14 @@ points and keeps running on its own when the host falls silent:
   host skipped ``n - 1`` slots or stalled), the plant first runs ``n - 1``
   samples on the held command, as a position loop holds its set point;
   between requests nothing needs to run;
-* ``n`` is what the host says (from its slot numbers, ``periods=``) when it does:
-  then the plant's samples follow the host's slots exactly, and the jitter of
-  the link shows in the timestamps only; otherwise ``n`` is the time since
-  the previous command in periods, rounded (commands closer than one and a
-  half periods are one sample each);
+* ``n`` is what the host says when it does -- a count of periods
+  (``periods=``), or the number of the command's slot (``slot=``; also a
+  counter modulo ``slot_modulus``, such as the CiA 301 SYNC counter, whose
+  wraps the time since the previous command resolves): then the plant's
+  samples follow the host's slots exactly, and the jitter of the link shows
+  in the timestamps only; otherwise ``n`` is the time since the previous
+  command in periods, rounded (commands closer than one and a half periods
+  are one sample each): a device that runs on its own clock;
 * a read without a command runs the held samples due up to its time and
   returns the latest (the first request after the torque went on, command or
   read, starts the count of sample times);
@@ -28,7 +31,8 @@ Without a period (``period_ns=None``) every command is one sample, whatever
 the time between them.
 
 The serial firmware's simulated motor (``drivers/serial/firmware/host/sim_motor.c``)
-implements the same rules in C; the CAN and Dynamixel emulators can use this class.
+implements the same rules in C; the simulated CAN drives and the emulated
+Dynamixel servos use this class.
 """
 
 from __future__ import annotations
@@ -38,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid import validation
+from servoid.drivers.clock import NS_PER_S
 from servoid.errors import DriverError
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
@@ -84,6 +89,9 @@ class SampledPlant:
         Dead zones that change with the plant's age in samples
         (:class:`~servoid.ident.wear.WearingPlant`); :attr:`model` is then
         the plant as it is now.
+    slot_modulus : int, optional
+        The slot numbers given to :meth:`command` count modulo this (a
+        CiA 301 SYNC counter: 2..240); None: they are plain sample numbers.
     """
 
     def __init__(
@@ -94,8 +102,11 @@ class SampledPlant:
         noise_std: float = 0.0,
         rng: np.random.Generator | None = None,
         wear: Wear | None = None,
+        slot_modulus: int | None = None,
     ) -> None:
         self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
+        self.slot_modulus = None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
+        self._last_slot: int | None = None
         self.noise_std = validation.non_negative("noise_std", noise_std)
         if self.noise_std > 0 and rng is None:
             raise DriverError("noise_std > 0 needs rng=np.random.default_rng(seed)")
@@ -104,6 +115,8 @@ class SampledPlant:
         self.enabled = False
         self.held = 0.0
         self.index = -1
+        #: Change of the output over the time between the latest two timed samples, plant unit per second.
+        self.velocity = 0.0
         self._last_ns: int | None = None  # time of the latest sample (None: the next command starts afresh)
         self.set_period(period_ns)
 
@@ -117,12 +130,14 @@ class SampledPlant:
             period_ns = validation.integer("period_ns", period_ns, minimum=1)
         self.period_ns = period_ns
         self._last_ns = None
+        self._last_slot = None
 
     def enable(self) -> None:
         """Torque on: the plant follows commands from the next one on."""
         if not self.enabled:
             self.enabled = True
             self._last_ns = None
+            self._last_slot = None
 
     def disable(self) -> None:
         """Torque off: the plant stays where it is."""
@@ -134,9 +149,11 @@ class SampledPlant:
         self.enabled = False
         self.held = 0.0
         self.index = -1
+        self.velocity = 0.0
         self._last_ns = None
+        self._last_slot = None
 
-    def command(self, u: float, t_ns: int, *, periods: int | None = None) -> PlantSample:
+    def command(self, u: float, t_ns: int, *, periods: int | None = None, slot: int | None = None) -> PlantSample:
         """Apply the set point ``u`` arriving at ``t_ns``; return the reading of its sample.
 
         Parameters
@@ -147,7 +164,11 @@ class SampledPlant:
             Its arrival time.
         periods : int, optional
             Periods since the previous set point as the host counts them
-            (>= 1); default: from the time since the previous one.
+            (>= 1); default: from ``slot``, else from the time since the previous one.
+        slot : int, optional
+            The host's number of this set point's sample (modulo
+            ``slot_modulus`` when set): the periods since the previous set
+            point are the difference of the two (at least one).
 
         Raises
         ------
@@ -156,14 +177,21 @@ class SampledPlant:
         """
         if not self.enabled:
             raise DriverError("the torque is off: commands are refused")
-        if self._last_ns is not None:
+        if slot is not None:
+            if periods is None:
+                periods = self._slot_periods(int(slot), t_ns)
+            self._last_slot = int(slot)
+        before, last_ns = self.plant.y, self._last_ns
+        if last_ns is not None:
             if periods is None and self.period_ns is not None:
-                periods = _nearest(t_ns - self._last_ns, self.period_ns)
+                periods = _nearest(t_ns - last_ns, self.period_ns)
             for _ in range((periods or 1) - 1):
                 self._step(self.held)
         self._step(float(u))
         self.held = float(u)
         self._last_ns = t_ns
+        if last_ns is not None and t_ns > last_ns:
+            self.velocity = (self.plant.y - before) * NS_PER_S / (t_ns - last_ns)
         return self._reading(t_ns)
 
     def read(self, t_ns: int) -> PlantSample:
@@ -171,12 +199,32 @@ class SampledPlant:
         if self.enabled and self.period_ns is not None:
             if self._last_ns is None:
                 self._last_ns = t_ns  # sample times count from the first request, command or read
-            due = (t_ns - self._last_ns) // self.period_ns
-            for _ in range(max(due, 0)):
+            due = max((t_ns - self._last_ns) // self.period_ns, 0)
+            before = self.plant.y
+            for _ in range(due):
                 self._step(self.held)
-            self._last_ns += max(due, 0) * self.period_ns
+            if due:
+                self.velocity = (self.plant.y - before) * NS_PER_S / (due * self.period_ns)
+            self._last_ns += due * self.period_ns
             return self._reading(self._last_ns)
         return self._reading(t_ns)
+
+    def _slot_periods(self, slot: int, t_ns: int) -> int | None:
+        """Periods from the previous set point's slot to ``slot`` (None for the first after the torque went on)."""
+        last = self._last_slot
+        if last is None or self._last_ns is None:
+            return None
+        modulus = self.slot_modulus
+        if modulus is None:
+            # a device cannot refuse a sample: a slot number that does not follow (told late, out of
+            # band) counts as the next sample
+            return max(slot - last, 1)
+        gap = (slot - last) % modulus or modulus
+        if self.period_ns is not None:
+            # a counter cannot tell n from n + modulus periods: the time since the last set point can
+            elapsed = (t_ns - self._last_ns) / self.period_ns
+            gap += modulus * max(0, round((elapsed - gap) / modulus))
+        return gap
 
     def _step(self, u: float) -> None:
         self.plant.step(u)

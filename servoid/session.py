@@ -9,16 +9,18 @@ scheduled and actual times, the command, the position and a status:
     Exchanged on time.
 ``late``
     Exchanged, but not at its instant: the exchange started more than
-    ``late_tolerance_s`` after its slot, or the device's clock shows the
-    reading more than half a period away from where the schedule puts it
-    (the request reached the device in the next sample). The position is
+    ``late_tolerance_s`` after its slot, or ended after the next slot began,
+    or the device's clock shows the reading more than half a period (plus
+    the clock's resolution) away from where the schedule puts it (the
+    request reached the device in another sample). The position is
     recorded; the estimator does not use it unless ``use_late`` is set,
     because a reading taken at the wrong instant biases an estimator that
     assumes a fixed period (HARDWARE.md: an ARX fit went from a = 0.975 to
     0.62-0.74 on a few late samples).
 ``missed``
-    The session was half a period or more behind when the slot came, so the
-    slot was skipped rather than sent in a burst. Nothing was sent: the servo
+    The session was half a period or more behind when the slot came (or woke
+    up that late from its wait for it), so the slot was skipped rather than
+    sent in a burst. Nothing was sent: the servo
     held the previous command, which is what the row's ``u`` says.
 ``timeout``
     Sent, but no usable reply came in time (none, or a corrupted one); ``u``
@@ -490,6 +492,11 @@ class _Sampler:
                 self._missed(k, scheduled, reference)
                 continue
             clock.sleep_until_ns(scheduled)
+            if k > 0 and clock.now_ns() - scheduled >= period // 2:
+                # the sleep overshot (a loaded host): sent now, the command would reach a servo that runs
+                # on its own clock in another sample than its slot, and the record would say otherwise
+                self._missed(k, scheduled, reference)
+                continue
             command = self.command_filter(reference) if self.command_filter is not None else reference
             start = clock.now_ns()  # after the filter: a slow filter makes the exchange late, and that shows
             try:
@@ -518,21 +525,26 @@ class _Sampler:
     def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
         # whether the servo applied the command is unknown (a lost reply or a lost
         # request); a lost reply is taken as the likelier, so the servo holds it from now
-        u = self.driver.limits.clamp(command, self.driver.last_command)
+        limited = self.driver.limits.clamp(command, self.driver.last_command)
+        u = self.driver.quantise(limited)  # what the servo got, as the driver would have reported it
         self.held = u
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, Status.TIMEOUT,
-                         exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
+                         exchange_s=(end - start) / NS_PER_S, clamped=limited != command))  # fmt: skip
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
-        late = start - scheduled > self.tolerance_ns
+        # started late, or answered after the next slot began: a device without a clock of its own to
+        # show may have taken the reading in a later sample (a host stalled between request and reply)
+        late = start - scheduled > self.tolerance_ns or end - scheduled > self.period_ns
         device_time = math.nan if m.device_time is None else float(m.device_time)
         if m.device_time is not None:
             if self._last_device is not None:
                 prev_k, prev_t = self._last_device
                 expected = (k - prev_k) * self.config.period_s
-                # the request reached the device in another sample than its slot
-                late = late or abs((device_time - prev_t) - expected) >= self.config.period_s / 2
+                # the request reached the device in another sample than its slot (a device clock
+                # that counts whole milliseconds may be off by one count without that)
+                slack = self.config.period_s / 2 + self.driver.clock_resolution_s
+                late = late or abs((device_time - prev_t) - expected) >= slack
             self._last_device = (k, device_time)
         status = Status.LATE if late else Status.OK
         self.held = m.command

@@ -1,12 +1,25 @@
-"""The mechanics behind both simulated CAN drives: the bench plant, stepped once per cycle.
+"""The mechanics behind both simulated CAN drives: the bench plant, sampled by the drive's cycles.
 
-Sample-synchronous by design: the plant advances one sample per cyclic
-exchange of the protocol (per SYNC for CiA 402, per Set_Input_Pos /
-Set_Input_Torque for ODrive), never on a clock. Whatever the bus's latency
-and jitter, the k-th reply therefore carries ``y(k)`` of the plant driven by
-the commands ``u(0..k)`` -- exactly what :func:`servoid.ident.simulate` gives
-for the same inputs. Transports differ in timing (rate, late samples), not in
-the data; that is what makes their identification results comparable.
+The plant is a :class:`~servoid.drivers.sampled.SampledPlant`: one sample per
+cyclic command of the protocol, and held samples for the cycles the host
+skipped, counted as the protocol allows:
+
+* CiA 402 -- the drive runs one control cycle per SYNC; a SYNC that carries a
+  counter (CiA 301 SYNC with counter, 0x1019) tells how many cycles passed
+  since the previous one: a gap means SYNCs that never came, cycles the drive
+  ran on the held target. The driver numbers its SYNCs by the sampling
+  session's slots, so the drive's samples follow the host's exactly.
+* ODrive -- CAN Simple carries no cycle number: a real axis runs on its own
+  clock. With a period (``period_s``) the simulated axis does too, counting the
+  samples between two inputs from the time between them; without one, each
+  Set_Input_Pos / Set_Input_Torque is one sample. In-process tests may tell it
+  the host's slot numbers out of band (``SimOdriveAxis.slot_source``).
+
+Times are the frames' timestamps as the bus stamped them (python-can's
+``Message.timestamp``: when the virtual bus took the frame, or the kernel's
+receive time for ``udp_multicast``), as a CAN controller stamps frames in
+hardware: how late the drive's own thread gets to a frame does not move it
+to another sample.
 
 Position mode: the command is the target position (rad) fed to
 :data:`~servoid.drivers.bench.BENCH_PLANT`. Torque mode: the same plant, with
@@ -19,10 +32,11 @@ and the same backlash.
 from __future__ import annotations
 
 import math
-import time
 
 from servoid import validation
 from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.clock import NS_PER_S
+from servoid.drivers.sampled import SampledPlant
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
 
@@ -41,49 +55,81 @@ class SimAxis:
         Plant behind the drive (rad in, rad out).
     torque_gain : float
         rad per Nm in torque mode (:data:`TORQUE_GAIN`).
+    period_s : float, optional
+        The drive's own sample period: commands further apart than one and a
+        half periods run held samples in between (see
+        :class:`~servoid.drivers.sampled.SampledPlant`); None: one sample per command.
 
     Attributes
     ----------
-    position : float
-        Last output of the plant, rad.
-    velocity : float
-        Change of :attr:`position` over the wall-clock time between the last
-        two steps, rad/s (0 before the second step).
-    steps : int
-        Samples the plant has advanced.
+    sampled : SampledPlant
+        The plant and its sample count.
     """
 
-    def __init__(self, model: BacklashModel = BENCH_PLANT, *, torque_gain: float = TORQUE_GAIN) -> None:
-        self.plant = Plant(model)
+    def __init__(
+        self,
+        model: BacklashModel = BENCH_PLANT,
+        *,
+        torque_gain: float = TORQUE_GAIN,
+        period_s: float | None = None,
+    ) -> None:
         # the backlash step is compiled on first use (numba, ~0.1-1 s): do it now, not in a drive's first reply
         Plant(model).step(0.0)
+        self.sampled = SampledPlant(model)
+        self.set_period(period_s)
         self.torque_gain = validation.positive("torque_gain", torque_gain)
-        self.position = self.plant.y
-        self.velocity = 0.0
-        self.steps = 0
         self._last_input = 0.0
-        self._last_step_ns: int | None = None
 
-    def step(self, command: float, *, torque: bool) -> float:
-        """Advance one sample with ``command`` (rad, or Nm when ``torque``); return the position (rad).
+    @property
+    def position(self) -> float:
+        """Output of the plant's latest sample, rad."""
+        return self.sampled.plant.y
 
-        A non-finite command (a corrupted frame) holds the last input rather
-        than poisoning the plant's state.
+    @property
+    def velocity(self) -> float:
+        """Change of :attr:`position` over the time between the last two samples, rad/s."""
+        return self.sampled.velocity
+
+    @property
+    def steps(self) -> int:
+        """Samples the plant has advanced (held ones included)."""
+        return self.sampled.index + 1
+
+    @property
+    def powered(self) -> bool:
+        return self.sampled.enabled
+
+    def set_period(self, period_s: float | None) -> None:
+        """The drive's own sample period, s (None: one sample per command)."""
+        period = None if period_s is None else int(round(validation.positive("period_s", period_s) * NS_PER_S))
+        self.sampled.set_period(period)
+
+    def set_counter(self, modulus: int | None) -> None:
+        """Slot numbers given to :meth:`step` count modulo ``modulus`` (a SYNC counter); None: plain numbers."""
+        self.sampled.slot_modulus = modulus
+        self.sampled.set_period(self.sampled.period_ns)  # the count starts afresh
+
+    def power(self, on: bool) -> None:
+        """Switch the power stage: on, the plant follows commands; off, it stays where it is."""
+        if on:
+            self.sampled.enable()
+            return
+        self.sampled.disable()
+
+    def step(self, command: float, *, torque: bool, at: float, slot: int | None = None) -> float:
+        """Apply ``command`` (rad, or Nm when ``torque``) as the next sample; return the position (rad).
+
+        ``at`` is the command frame's timestamp, s; ``slot`` the host's number
+        of the command's sample (or a counter of them), when the protocol
+        carries one. A non-finite command (a corrupted frame) holds the last
+        input rather than poisoning the plant's state.
         """
         u = command * self.torque_gain if torque else command
         if not math.isfinite(u):
             u = self._last_input
         self._last_input = u
-        previous = self.position
-        self.position = self.plant.step(u)
-        now = time.perf_counter_ns()
-        if self._last_step_ns is not None and now > self._last_step_ns:
-            self.velocity = (self.position - previous) / ((now - self._last_step_ns) * 1e-9)
-        self._last_step_ns = now
-        self.steps += 1
-        return self.position
+        return self.sampled.command(u, _ns(at), slot=slot).position
 
-    def hold(self) -> None:
-        """A sample with the power stage off: nothing moves."""
-        self.velocity = 0.0
-        self._last_step_ns = None
+
+def _ns(seconds: float) -> int:
+    return int(round(seconds * NS_PER_S))

@@ -1,4 +1,4 @@
-"""What both simulated CAN drives share: node, bus, plant, life cycle, URL and a mutable transmitter."""
+"""What both simulated CAN drives share: node, bus, plant, life cycle, URL, and injected faults."""
 
 from __future__ import annotations
 
@@ -6,6 +6,9 @@ import abc
 import time
 from typing import Any, ClassVar
 
+import numpy as np
+
+from servoid import validation
 from servoid.drivers.can._bus import BusAddress
 from servoid.drivers.can._sim_axis import SimAxis
 from servoid.ident.model import BacklashModel
@@ -26,14 +29,47 @@ class SimDrive(abc.ABC):
         The plant (rad in, rad out).
     torque_gain : float
         rad per Nm of the plant in torque mode.
+    period_s : float, optional
+        The drive's own sample period (see :class:`~servoid.drivers.can._sim_axis.SimAxis`).
+    mute_after : int, optional
+        Fault: after this many cyclic replies the drive stops transmitting
+        (it still receives and obeys: a broken transmitter, or a cut CAN_H
+        seen from the host).
+    drop : float
+        Fault: probability that a cyclic reply is lost.
+    restart_after : int, optional
+        Fault: the drive restarts at the cyclic request after this many
+        (where the protocol has a restart the host can see).
+    seed : int
+        Seed of the dropped replies.
     """
 
     protocol: ClassVar[str] = ""
 
-    def __init__(self, *, node: int, bus: BusAddress | None, model: BacklashModel, torque_gain: float) -> None:
+    def __init__(
+        self,
+        *,
+        node: int,
+        bus: BusAddress | None,
+        model: BacklashModel,
+        torque_gain: float,
+        period_s: float | None = None,
+        mute_after: int | None = None,
+        drop: float = 0.0,
+        restart_after: int | None = None,
+        seed: int = 0,
+    ) -> None:
         self.node = node
         self.bus = bus if bus is not None else BusAddress("virtual", "ch0")
-        self.axis = SimAxis(model, torque_gain=torque_gain)
+        self.axis = SimAxis(model, torque_gain=torque_gain, period_s=period_s)
+        self.mute_after = None if mute_after is None else validation.integer("mute_after", mute_after, minimum=0)
+        self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)
+        self.restart_after = None if restart_after is None else validation.integer("restart_after", restart_after, minimum=0)
+        self._rng = np.random.default_rng(seed)
+        #: Cyclic requests served (SYNCs in Operation Enabled, inputs in closed-loop control).
+        self.requests = 0
+        #: Cyclic replies sent or lost.
+        self.replies = 0
         self._muted = False
         self._reply_delay = 0.0
 
@@ -62,11 +98,20 @@ class SimDrive(abc.ABC):
         """Answer the next cyclic exchange ``seconds`` late (a drive stalled once)."""
         self._reply_delay = seconds
 
-    def _stall(self) -> None:
-        """Called before each cyclic reply: sleep once if a delay was asked for."""
+    def _restart_due(self) -> bool:
+        """Count one cyclic request; whether the injected restart happens at it."""
+        self.requests += 1
+        return self.restart_after is not None and self.requests == self.restart_after + 1
+
+    def _reply_lost(self) -> bool:
+        """Called before each cyclic reply: stall once if asked to; whether the reply is lost."""
         if self._reply_delay:
             delay, self._reply_delay = self._reply_delay, 0.0
             time.sleep(delay)
+        self.replies += 1
+        if self.mute_after is not None and self.replies > self.mute_after:
+            self._muted = True
+        return self._muted or (self.drop > 0 and self._rng.random() < self.drop)
 
     def url(self, **options: Any) -> str:
         """The ``can://`` URL that reaches this drive (extra driver options as keywords)."""

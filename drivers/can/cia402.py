@@ -12,11 +12,17 @@ PRE-OPERATIONAL:
 4. map RPDO1 = controlword + target position (or target torque) and
    TPDO1 = statusword + position actual value, both synchronous (transmission
    type 1), and switch PDOs 2-4 off;
-5. NMT start (OPERATIONAL).
+5. configure the SYNC counter (0x1019 = 240; a drive without one gets plain SYNCs);
+6. NMT start (OPERATIONAL).
 
 Each cyclic exchange is RPDO1 then SYNC, answered by TPDO1: the drive
 applies the target on the SYNC and reports the statusword and the actual
-position it measured. Torque on walks the state machine (Switch On Disabled
+position it measured. The SYNC carries a counter (CiA 301), advanced by the
+number of the sampling session's slots since the previous exchange: a slot
+the session skipped is a SYNC that never came, and the counter's gap tells
+the drive how many of its cycles ran on the held target, so that its
+samples follow the session's slots exactly. The session's period goes to
+the communication cycle period (0x1006) as well. Torque on walks the state machine (Switch On Disabled
 -> Ready to Switch On -> Switched On -> Operation Enabled) through the same
 cycle, holding the target on the actual position so nothing jumps; torque
 off is "disable voltage" (transition 9), confirmed by the statusword.
@@ -24,7 +30,9 @@ off is "disable voltage" (transition 9), confirmed by the statusword.
 Errors: an EMCY from the drive, or a statusword that leaves Operation
 Enabled during the run, is :class:`~servoid.errors.DeviceFault` (with the EMCY
 code and 0x603F error code); no TPDO within ``timeout`` after a SYNC is
-:class:`~servoid.errors.DriverTimeout`. Closing switches the torque off and
+:class:`~servoid.errors.DriverTimeout`; a boot-up message from the drive
+(it reset: power stage off, configuration lost) is
+:class:`~servoid.errors.DeviceRestarted`. Closing switches the torque off and
 sends the drive back to PRE-OPERATIONAL.
 
 Units: positions in encoder increments (native), radians for the user;
@@ -45,7 +53,7 @@ from servoid.drivers.base import Limits, Option, Reading, UnitConversion
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import import_vendor
 from servoid.drivers.can.driver import DEFAULT_NODES, DEFAULT_TIMEOUT_S, CanDriver, parse_bool
-from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
+from servoid.errors import ConfigError, DeviceFault, DeviceRestarted, DriverError, DriverTimeout, ProtocolError
 
 __all__ = ["Cia402Driver"]
 
@@ -118,6 +126,7 @@ class Cia402Driver(CanDriver):
             raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")
         self.counts_per_rev = None if counts_per_rev is None else validation.integer("counts_per_rev", counts_per_rev, minimum=1)
         self.fault_reset = bool(fault_reset)
+        self.command_step = 1.0  # targets are whole increments, or whole per mille of the rated torque
         if self.counts_per_rev is not None:
             self._set_units(self.counts_per_rev, rated_torque_mnm=None)
         self._network: Any = None
@@ -132,6 +141,10 @@ class Cia402Driver(CanDriver):
         self._position = 0
         self._emcy: deque[Any] = deque()  # appended by canopen's thread, taken by ours
         self._info: dict[str, Any] = {}
+        self._counter_overflow: int | None = None  # 0x1019 as configured (None: plain SYNCs)
+        self._counter = 0  # the last SYNC's counter
+        self._last_slot: int | None = None  # the session's slot of the last exchange
+        self._restarted = False  # set by canopen's thread on a boot-up message
 
     # ---- units -----------------------------------------------------------------------------
     def _set_units(self, counts_per_rev: int, *, rated_torque_mnm: int | None) -> None:
@@ -147,11 +160,13 @@ class Cia402Driver(CanDriver):
         canopen = import_vendor("canopen")
         self._replies, self._cycles, self._statusword, self._position = 0, 0, 0, 0
         self._emcy.clear()
+        self._restarted, self._counter, self._last_slot = False, 0, None
         network = canopen.Network(self.address.open())
         network.NOTIFIER_CYCLE = 0.05  # so that closing does not wait a second for the reader thread
         node = canopen.RemoteNode(self.node, profile.object_dictionary(self.node))
         node.sdo.RESPONSE_TIMEOUT = max(self.timeout, 0.3)
         network.add_node(node)
+        node.nmt.add_heartbeat_callback(self._on_nmt_state)
         network.connect()
         self._network, self._node = network, node
         try:
@@ -201,6 +216,7 @@ class Cia402Driver(CanDriver):
                 raise ConfigError(f"{self._who()} reports no motor rated torque (0x6076): torque mode cannot scale Nm")
         self._set_units(counts, rated_torque_mnm=rated)
         self._sdo_call(lambda: self._map_pdos(0x607A if self.mode == "position" else 0x6071), "map the PDOs")
+        self._counter_overflow = self._sdo_write_optional(0x1019, profile.SYNC_COUNTER_OVERFLOW)
         node.emcy.add_callback(self._on_emcy)
         self._info = self._read_identity(counts, rated)
         node.nmt.send_command(_NMT_OPERATIONAL)
@@ -234,10 +250,18 @@ class Cia402Driver(CanDriver):
         finally:
             network.disconnect()
 
+    def _set_period(self, period_s: float) -> None:
+        # the SYNC interval, for a drive that watches it (optional: the counter carries the slots)
+        self._sdo_write_optional(0x1006, max(1, round(period_s * 1e6)))
+        self._last_slot = None
+
     def _set_torque(self, enabled: bool) -> None:
+        self._last_slot = None  # the drive's count of cycles starts afresh
         if enabled:
             self._enable()
             return
+        if self._restarted:
+            return  # a drive that reset has its power stage off, and answers no SYNC before it is set up again
         statusword, _ = self._cycle(_DISABLE_VOLTAGE, self._hold_target())
         state = profile.state_of(statusword)
         if state in _POWERED:
@@ -273,7 +297,15 @@ class Cia402Driver(CanDriver):
 
     def _exchange(self, command: float) -> Reading:
         self._raise_emcy()
-        statusword, position = self._cycle(_ENABLE_OPERATION, command)
+        periods = 1
+        slot = self.exchange_slot
+        if slot is not None:
+            if self._last_slot is not None:
+                periods = slot - self._last_slot
+                if periods < 1:
+                    raise DriverError(f"{self.describe()}: slot {slot} does not follow slot {self._last_slot}")
+            self._last_slot = slot
+        statusword, position = self._cycle(_ENABLE_OPERATION, command, periods=periods)
         self._raise_emcy()
         state = profile.state_of(statusword)
         if state != _OE:
@@ -290,8 +322,12 @@ class Cia402Driver(CanDriver):
         return dict(self._info)
 
     # ---- the cycle -------------------------------------------------------------------------
-    def _cycle(self, controlword: int, target: float) -> tuple[int, int]:
-        """RPDO1 (controlword, target) then SYNC; wait for TPDO1; return (statusword, position)."""
+    def _cycle(self, controlword: int, target: float, *, periods: int = 1) -> tuple[int, int]:
+        """RPDO1 (controlword, target) then SYNC; wait for TPDO1; return (statusword, position).
+
+        ``periods``: cycles since the previous SYNC, which the SYNC counter advances by.
+        """
+        self._raise_restart()
         low, high = _INT32 if self.mode == "position" else _INT16
         value = round(target)
         if not low <= value <= high:
@@ -308,9 +344,15 @@ class Cia402Driver(CanDriver):
             before = self._replies
             self._cycles = before + 1
         self._rpdo.transmit()
-        self._network.sync.transmit()
+        if self._counter_overflow:
+            self._counter = (self._counter + periods - 1) % self._counter_overflow + 1
+            self._network.sync.transmit(self._counter)
+        else:
+            self._network.sync.transmit()
         with self._reply:
-            if not self._reply.wait_for(lambda: self._replies > before, self.timeout):
+            answered = self._reply.wait_for(lambda: self._replies > before or self._restarted, self.timeout)
+            self._raise_restart()
+            if not answered:
                 raise DriverTimeout(
                     f"{self._who()}: no TPDO within {self.timeout * 1e3:.0f} ms after SYNC (the drive stopped answering)"
                 )
@@ -330,11 +372,24 @@ class Cia402Driver(CanDriver):
             self._replies += 1
             self._reply.notify_all()
 
+    def _on_nmt_state(self, state: int) -> None:
+        if state == 0:  # a boot-up message: the drive reset
+            with self._reply:
+                self._restarted = True
+                self._reply.notify_all()
+
     def _on_emcy(self, error: Any) -> None:
         if error.code & 0xFF00:  # 0x00xx is "error reset / no error"
             self._emcy.append(error)
 
     # ---- helpers -------------------------------------------------------------------------------
+    def _raise_restart(self) -> None:
+        if self._restarted:
+            raise DeviceRestarted(
+                f"{self._who()} restarted (it sent a boot-up message): its power stage is off and the "
+                "configuration servoid gave it (PDO mapping, mode of operation) is lost; open it again"
+            )
+
     def _raise_emcy(self) -> None:
         errors = []
         while self._emcy:
@@ -365,6 +420,17 @@ class Cia402Driver(CanDriver):
         except canopen.SdoAbortedError as exc:
             raise ProtocolError(f"{self._who()} refused to {what}: {exc}") from exc
 
+    def _sdo_write_optional(self, index: int, value: int) -> int | None:
+        """Write an object the drive may not have; ``value`` if it took it, None if it refused."""
+        canopen = import_vendor("canopen")
+        try:
+            self._node.sdo[index].raw = value
+        except canopen.SdoCommunicationError as exc:
+            raise DriverTimeout(f"{self._who()} stopped answering SDO requests (writing 0x{index:04X})") from exc
+        except (canopen.SdoAbortedError, KeyError):
+            return None
+        return value
+
     def _sdo_read(self, index: int, subindex: int | None = None, *, what: str, optional: bool = False) -> Any:
         """One SDO upload; no answer is DriverTimeout, an abort raises unless ``optional`` (then None)."""
         canopen = import_vendor("canopen")
@@ -383,7 +449,7 @@ class Cia402Driver(CanDriver):
             raise ProtocolError(f"{self._who()} refused to give {what} (0x{index:04X}): {exc}") from exc
 
     def _read_identity(self, counts_per_rev: int, rated_torque_mnm: int | None) -> dict[str, Any]:
-        info: dict[str, Any] = {"protocol": "CiA 402", "node": self.node, "mode": self.mode, "counts_per_rev": counts_per_rev}
+        info: dict[str, Any] = {"driver": "can", "protocol": "CiA 402", "node": self.node, "mode": self.mode, "counts_per_rev": counts_per_rev}
         if rated_torque_mnm is not None:
             info["rated_torque_mNm"] = rated_torque_mnm
         names = {

@@ -13,9 +13,11 @@ Objects (index, meaning, type)::
 
     0x1000 device type           U32  (low 16 bits 402 = 0x192 for a drive)
     0x1001 error register        U8
+    0x1006 communication cycle period  U32  us (the SYNC interval; 0: not used)
     0x1008/0x1009/0x100A device name, hardware and software version (strings)
     0x1017 producer heartbeat    U16  ms
     0x1018 identity              vendor id, product code, revision, serial (U32)
+    0x1019 synchronous counter overflow value  U8  (0: SYNC without counter; 2..240)
     0x1400..0x1403 / 0x1600..    RPDO communication / mapping
     0x1800..0x1803 / 0x1A00..    TPDO communication / mapping
     0x603F error code            U16  (the EMCY code of the active fault)
@@ -39,6 +41,7 @@ from servoid.drivers.can._bus import import_vendor
 
 __all__ = [
     "DEVICE_TYPE_402",
+    "SYNC_COUNTER_OVERFLOW",
     "MODES",
     "SUPPORTED_MODE_BITS",
     "EMCY_COMMUNICATION",
@@ -51,6 +54,9 @@ __all__ = [
 
 #: Device type of a CiA 402 servo drive: profile 402 in the low word, "servo drive" (2) above it.
 DEVICE_TYPE_402 = 0x0002_0192
+
+#: Overflow value of the SYNC counter servoid configures (0x1019): the largest CiA 301 allows.
+SYNC_COUNTER_OVERFLOW = 240
 
 #: servoid's mode name -> CiA 402 mode of operation (0x6060): cyclic synchronous position / torque.
 MODES = {"position": 8, "torque": 10}
@@ -131,6 +137,7 @@ def object_dictionary(node: int) -> Any:
 
     add(var("Device type", 0x1000, 0, U32, "ro", DEVICE_TYPE_402))
     add(var("Error register", 0x1001, 0, U8, "ro", 0))
+    add(var("Communication cycle period", 0x1006, 0, U32, "rw", 0))
     add(var("Manufacturer device name", 0x1008, 0, STR, "const", ""))
     add(var("Manufacturer hardware version", 0x1009, 0, STR, "const", ""))
     add(var("Manufacturer software version", 0x100A, 0, STR, "const", ""))
@@ -139,6 +146,7 @@ def object_dictionary(node: int) -> Any:
         ("Vendor-ID", U32, "ro", 0), ("Product code", U32, "ro", 0),
         ("Revision number", U32, "ro", 0), ("Serial number", U32, "ro", 0),
     ]))  # fmt: skip
+    add(var("Synchronous counter overflow value", 0x1019, 0, U8, "rw", 0))
     invalid = 1 << 31
     for n in range(4):
         enabled = n == 0

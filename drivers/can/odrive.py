@@ -245,7 +245,7 @@ class OdriveDriver(CanDriver):
         raise DeviceFault(f"ODrive {self._who()} reported {beat.describe()}{detail}")
 
     def _read_identity(self) -> dict[str, Any]:
-        info: dict[str, Any] = {"protocol": "ODrive CAN Simple", "node": self.node, "mode": self.mode}
+        info: dict[str, Any] = {"driver": "can", "protocol": "ODrive CAN Simple", "node": self.node, "mode": self.mode}
         if self.node == 0:
             return info  # id 0x000 is CANopen NMT on firmware 0.5: do not send a remote frame there
         reply = self._request(proto.GET_VERSION, timeout=min(self.timeout, 0.05))

@@ -6,18 +6,28 @@ message, EMCY producer, PDOs mapped by the master through SDO, and the CiA
 402 state machine driven by the controlword (0x6040) and shown in the
 statusword (0x6041), in cyclic synchronous position (8) or torque (10) mode.
 
-Cycle (sample-synchronous, see :mod:`servoid.drivers.can._sim_axis`): the
-RPDOs the master sends are latched, and on each SYNC the drive applies the
-latched controlword, advances the plant one sample with the latched target
-(only in Operation Enabled), and answers with its TPDOs (statusword, actual
-position). Positions are in encoder increments, ``counts_per_rev`` per
-revolution (0x608F); torques in per mille of the rated torque (0x6071, 0x6076).
+Cycle (see :mod:`servoid.drivers.can._sim_axis`): the RPDOs the master
+sends are latched, and on each SYNC the drive applies the latched
+controlword, runs its control cycle with the latched target (only in
+Operation Enabled: one sample of the plant, after the held samples of any
+cycles whose SYNC never came, which the SYNC counter shows), and answers
+with its TPDOs (statusword, actual position). Positions are in encoder
+increments, ``counts_per_rev`` per revolution (0x608F); torques in per mille
+of the rated torque (0x6071, 0x6076).
 
-Faults for tests, each applied at the next SYNC so that tests are
-deterministic: :meth:`SimCia402Drive.inject_fault` (FAULT with an EMCY),
+SYNC counter (CiA 301): with a synchronous counter overflow value (0x1019,
+2..240) configured, each SYNC carries a counter 1..overflow; the difference
+to the previous SYNC's counter is the number of cycles that passed. The
+communication cycle period (0x1006, us) resolves a gap longer than the
+counter's range; a SYNC without a counter is one cycle.
+
+Faults for tests: :meth:`SimCia402Drive.inject_fault` (FAULT with an EMCY),
 :meth:`SimCia402Drive.drop_out` (leaves Operation Enabled without an EMCY,
-like a lost enable input) and :meth:`SimCia402Drive.mute` (the drive keeps
-listening and obeying, but sends nothing: a broken transmitter).
+like a lost enable input), each applied at the next SYNC so that tests are
+deterministic; :meth:`SimCia402Drive.mute` and ``mute_after`` (the drive
+keeps listening and obeying, but sends nothing: a broken transmitter),
+``drop`` (a lost TPDO now and then), ``restart_after`` (the drive resets at
+a SYNC: boot-up message, PRE-OPERATIONAL, configuration lost, power off).
 
 Not modelled: a SYNC/heartbeat watchdog (real drives fault when the master
 goes quiet, 0x6007), the quick stop ramp, event-driven PDOs.
@@ -35,6 +45,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from typing import Any
 
 from servoid import validation
@@ -119,6 +130,9 @@ class SimCia402Drive(SimDrive):
         Motor rated torque (0x6076), mNm.
     device_type : int
         What 0x1000 says (default a CiA 402 servo drive; tests set others).
+    mute_after, drop, restart_after, seed
+        Injected faults (:class:`~servoid.drivers.can._sim_base.SimDrive`),
+        counted in SYNCs answered in Operation Enabled.
     """
 
     protocol = "cia402"
@@ -133,15 +147,24 @@ class SimCia402Drive(SimDrive):
         rated_torque_mnm: int = SIM_RATED_TORQUE_MNM,
         torque_gain: float = TORQUE_GAIN,
         device_type: int = profile.DEVICE_TYPE_402,
+        mute_after: int | None = None,
+        drop: float = 0.0,
+        restart_after: int | None = None,
+        seed: int = 0,
     ) -> None:
         node = validation.integer("node", node, minimum=1)
         if node > 127:
             raise ConfigError(f"node (={node}) must be 1..127 for a CANopen drive")
-        super().__init__(node=node, bus=bus, model=model, torque_gain=torque_gain)
+        super().__init__(
+            node=node, bus=bus, model=model, torque_gain=torque_gain, mute_after=mute_after, drop=drop,
+            restart_after=restart_after, seed=seed,
+        )  # fmt: skip
         self.counts_per_rev = validation.integer("counts_per_rev", counts_per_rev, minimum=1)
         self.rated_torque_mnm = validation.integer("rated_torque_mnm", rated_torque_mnm, minimum=1)
         self.device_type = validation.integer("device_type", device_type, minimum=0)
-        self.state = _SOD
+        self._state = _SOD
+        self.counter_overflow = 0  # 0x1019: 0, no SYNC counter
+        self.restarts = 0
         self.mode = 0
         self.error_code = 0
         self.syncs = 0
@@ -191,6 +214,16 @@ class SimCia402Drive(SimDrive):
             network.disconnect()
 
     # ---- what tests look at ----------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        """The CiA 402 state (``"OPERATION ENABLED"``, ...)."""
+        return self._state
+
+    @state.setter
+    def state(self, state: str) -> None:
+        self._state = state
+        self.axis.power(state == _OE)  # the plant follows targets in Operation Enabled only
+
     @property
     def power_on(self) -> bool:
         """Whether the power stage is on (Operation Enabled or Quick Stop Active)."""
@@ -255,6 +288,13 @@ class SimCia402Drive(SimDrive):
                 self._apply_controlword(int(value))
             elif index == 0x6076:
                 self.rated_torque_mnm = max(int(value), 1)
+            elif index == 0x1006:
+                self.axis.set_period(value * 1e-6 if value else None)
+            elif index == 0x1019:
+                if value == 1 or value > 240:
+                    raise canopen.SdoAbortedError(0x06090030)
+                self.counter_overflow = int(value)
+                self.axis.set_counter(self.counter_overflow or None)
 
     def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
         with self._lock:
@@ -265,7 +305,7 @@ class SimCia402Drive(SimDrive):
                 log.info("node %d: NMT left OPERATIONAL while enabled, disabling", self.node)
                 self.state = _SOD
 
-    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
+    def _on_sync(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002 - timestamp: the bus's
         with self._lock:
             self.syncs += 1
             if self.nmt_state == "OPERATIONAL" and 0x6040 in self._rx:
@@ -274,10 +314,14 @@ class SimCia402Drive(SimDrive):
             if self.nmt_state != "OPERATIONAL":
                 return
             if self.state == _OE and self.mode in _MODES:
-                self.axis.step(self._target(), torque=self.mode == profile.MODES["torque"])
-            else:
-                self.axis.hold()
-            self._stall()
+                if self._restart_due():
+                    self._restart()
+                    return
+                counter = data[0] if data and self.counter_overflow else None
+                torque = self.mode == profile.MODES["torque"]
+                self.axis.step(self._target(), torque=torque, at=timestamp or time.time(), slot=counter)
+                if self._reply_lost():
+                    return
             for pdo in self._tx_maps:
                 if self.syncs % max(pdo.trans_type, 1) == 0:
                     for var in pdo:
@@ -311,6 +355,18 @@ class SimCia402Drive(SimDrive):
             elif kind == "drop":
                 self.state = arg
         self._pending.clear()
+
+    def _restart(self) -> None:
+        """Reset as after a power glitch: boot-up message, PRE-OPERATIONAL, power off, configuration lost."""
+        log.info("node %d: restarting (injected)", self.node)
+        self.restarts += 1
+        self.state, self.mode, self._controlword = _SOD, 0, 0
+        self.counter_overflow = 0
+        self.axis.set_counter(None)
+        self.axis.set_period(None)
+        self._node.data_store.clear()  # what the master wrote by SDO (PDO mapping, mode, ...) is gone
+        self._node.nmt.send_command(0x81)  # reset node: boot-up message
+        self._node.nmt.send_command(0x80)
 
     def _read_pdo_configuration(self) -> None:
         """Take the PDO mapping the master wrote (over SDO) into effect, as a drive does on NMT start."""

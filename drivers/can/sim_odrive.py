@@ -7,14 +7,32 @@ remote requests for Get_Encoder_Estimates, Get_Error, Get_Version and the
 heartbeat; it sends a heartbeat every ``heartbeat_ms`` and at once on every
 change of axis state or error.
 
-Sample-synchronous (see :mod:`servoid.drivers.can._sim_axis`): each
-Set_Input_Pos (or Set_Input_Torque) advances the plant one sample, in
-closed-loop control only; the estimates then report the new position.
+Samples (see :mod:`servoid.drivers.can._sim_axis`): each Set_Input_Pos (or
+Set_Input_Torque) is one sample of the plant, in closed-loop control only;
+the estimates then report the new position. CAN Simple carries no sample
+number, so how many samples lie between two inputs is the axis's own
+business, as on a real ODrive, whose loop runs on its own clock:
 
-Faults for tests, applied at the next Set_Input_* so that tests are
-deterministic: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms to
-IDLE and says why in the heartbeat, as the firmware does) and
-:meth:`SimOdriveAxis.mute` (receives and obeys, sends nothing).
+* ``period_s`` given: the axis runs on its own clock at that period -- an
+  input that comes ``n`` periods after the previous one (rounded) first runs
+  ``n - 1`` samples on the held input. Sample at the axis's period, or the
+  plant seen is another. (The estimates report the latest sample: held
+  samples are counted when the next input comes, so that a request the host
+  sends late does not commit a sample the next input belongs to.)
+* no period: each input is one sample, whatever the time between them (the
+  inputs are the clock; a slot the host skips is not seen).
+* ``slot_source`` (in-process tests only): a callable that returns the host's
+  slot number of the input being handled (``lambda: driver.exchange_slot``),
+  told out of band because the protocol has no room for it; the axis then
+  follows the host's slots exactly, as the CiA 402 drive does from its SYNC
+  counter.
+
+Faults for tests: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms
+to IDLE and says why in the heartbeat, as the firmware does), applied at
+the next Set_Input_* so that tests are deterministic, as is
+:meth:`SimOdriveAxis.inject_reboot` (back in IDLE without an error);
+:meth:`SimOdriveAxis.mute` and ``mute_after`` (receives and obeys, sends
+nothing), ``drop`` (estimates lost now and then in closed-loop control).
 """
 
 from __future__ import annotations
@@ -22,7 +40,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from typing import Any
+from typing import Any, Callable
 
 from servoid import validation
 from servoid.drivers.bench import BENCH_PLANT
@@ -53,6 +71,17 @@ class SimOdriveAxis(SimDrive):
         As for :class:`~servoid.drivers.can._sim_base.SimDrive`.
     heartbeat_ms : float
         Period of the cyclic heartbeat, ms (ODrive's default 100).
+    period_s : float, optional
+        The axis's own sample period (see the module docstring); None: one
+        sample per input.
+    mute_after, drop, seed
+        Injected faults (:class:`~servoid.drivers.can._sim_base.SimDrive`),
+        counted in encoder estimates sent in closed-loop control.
+
+    Attributes
+    ----------
+    slot_source : callable or None
+        In-process tests: returns the host's slot of the input being handled.
     """
 
     protocol = "odrive"
@@ -65,18 +94,27 @@ class SimOdriveAxis(SimDrive):
         model: BacklashModel = BENCH_PLANT,
         torque_gain: float = TORQUE_GAIN,
         heartbeat_ms: float = 100.0,
+        period_s: float | None = None,
+        mute_after: int | None = None,
+        drop: float = 0.0,
+        seed: int = 0,
     ) -> None:
         node = validation.integer("node", node, minimum=0)
         if node > 63:
             raise ConfigError(f"node (={node}) must be 0..63 for ODrive CAN Simple")
-        super().__init__(node=node, bus=bus, model=model, torque_gain=torque_gain)
+        super().__init__(
+            node=node, bus=bus, model=model, torque_gain=torque_gain, period_s=period_s, mute_after=mute_after,
+            drop=drop, seed=seed,
+        )  # fmt: skip
         self.heartbeat_s = validation.positive("heartbeat_ms", heartbeat_ms) / 1000.0
-        self.axis_state = proto.IDLE
+        self.slot_source: Callable[[], int | None] | None = None
+        self._axis_state = proto.IDLE
         self.axis_error = 0
         self.control_mode = proto.CONTROL_MODES["position"]
         self.inputs = 0
         self._input = 0.0
         self._pending_error = 0
+        self._pending_reboot = False
         self._can: Any = None
         self._bus: Any = None
         self._thread: threading.Thread | None = None
@@ -106,6 +144,16 @@ class SimOdriveAxis(SimDrive):
 
     # ---- what tests look at ----------------------------------------------------------------
     @property
+    def axis_state(self) -> int:
+        """IDLE (1), CLOSED_LOOP_CONTROL (8), ..."""
+        return self._axis_state
+
+    @axis_state.setter
+    def axis_state(self, state: int) -> None:
+        self._axis_state = state
+        self.axis.power(state == proto.CLOSED_LOOP_CONTROL)
+
+    @property
     def power_on(self) -> bool:
         """Whether the axis is in closed-loop control (the power stage on)."""
         return self.axis_state == proto.CLOSED_LOOP_CONTROL
@@ -119,6 +167,10 @@ class SimOdriveAxis(SimDrive):
     def inject_axis_error(self, code: int = 0x1000) -> None:
         """At the next Set_Input_*: set axis error ``code`` (default CURRENT_LIMIT_VIOLATION) and disarm."""
         self._pending_error = code
+
+    def inject_reboot(self) -> None:
+        """At the next Set_Input_*: the board reboots (a brown-out): IDLE, no error, default controller mode."""
+        self._pending_reboot = True
 
     # ---- the server thread -----------------------------------------------------------------
     def _serve(self) -> None:
@@ -138,14 +190,15 @@ class SimOdriveAxis(SimDrive):
         node, command = proto.split_id(msg.arbitration_id)
         if node != self.node:
             return
+        at = msg.timestamp or time.time()  # when the bus took the frame (the kernel's stamp over UDP)
         if msg.is_remote_frame:
             self._answer(command)
             return
         data = bytes(msg.data)
         if command == proto.SET_INPUT_POS and len(data) >= proto.INPUT_POS_FORMAT.size:
-            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False)
+            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False, at=at)
         elif command == proto.SET_INPUT_TORQUE and len(data) >= proto.INPUT_TORQUE_FORMAT.size:
-            self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True)
+            self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True, at=at)
         elif command == proto.SET_AXIS_STATE and len(data) >= proto.AXIS_STATE_FORMAT.size:
             self._on_state_request(proto.AXIS_STATE_FORMAT.unpack_from(data)[0])
         elif command == proto.SET_CONTROLLER_MODE and len(data) >= proto.CONTROLLER_MODE_FORMAT.size:
@@ -156,16 +209,20 @@ class SimOdriveAxis(SimDrive):
         elif command == proto.ESTOP:
             self._disarm(0x2000000)  # ESTOP_REQUESTED
 
-    def _on_input(self, value: float, *, torque: bool) -> None:
+    def _on_input(self, value: float, *, torque: bool, at: float) -> None:
         self.inputs += 1
         if self._pending_error:
             code, self._pending_error = self._pending_error, 0
             self._disarm(code)
+        if self._pending_reboot:
+            self._pending_reboot = False
+            self.axis_state, self.axis_error = proto.IDLE, 0
+            self.control_mode = proto.CONTROL_MODES["position"]
+            self._send_heartbeat()  # the first heartbeat after boot
         matches = self.control_mode == proto.CONTROL_MODES["torque" if torque else "position"]
         if self.axis_state == proto.CLOSED_LOOP_CONTROL and matches:
-            self.axis.step(value, torque=torque)
-        else:
-            self.axis.hold()
+            slot = self.slot_source() if self.slot_source is not None else None
+            self.axis.step(value, torque=torque, at=at, slot=slot)
 
     def _on_state_request(self, requested: int) -> None:
         if requested == proto.CLOSED_LOOP_CONTROL and not self.axis_error:
@@ -181,7 +238,8 @@ class SimOdriveAxis(SimDrive):
 
     def _answer(self, command: int) -> None:
         if command == proto.GET_ENCODER_ESTIMATES:
-            self._stall()
+            if self.power_on and self._reply_lost():
+                return
             self._send(command, proto.ESTIMATES_FORMAT.pack(self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI))
         elif command == proto.HEARTBEAT:
             self._send_heartbeat()

@@ -46,7 +46,9 @@ Pitfalls of the SDK handled here
   pseudo-terminal, whose other end is a program; else 1 ms; URL option
   ``latency_ms``), and waits for bytes with ``select`` instead of spinning a
   core. That short timeout applies to the per-sample exchange; opening,
-  switching the torque and rebooting allow at least 25 ms of latency.
+  switching the torque and rebooting allow at least 25 ms of latency, and
+  try a transaction up to three times (a noisy line costs a retry there,
+  not the run; a per-sample goal is never sent twice).
 * Status codes and the error byte become exceptions:
   :class:`~servoid.errors.DriverTimeout` (no answer),
   :class:`~servoid.errors.ProtocolError` (corrupted answer, or the servo's
@@ -68,11 +70,11 @@ import os
 import select
 import threading
 import time
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, TypeVar
 
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
 
-from servoid.drivers.base import Driver, DriverURL, Limits, Measurement, Option, Reading, UnitConversion
+from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, UnitConversion
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ALERT, MAX_ID, ErrorNumber, Instruction, describe_error
@@ -81,6 +83,8 @@ from servoid.errors import ConfigError, DeviceFault, DriverError, DriverTimeout,
 __all__ = ["DynamixelDriver", "MODES", "SUPPORTED_BAUD_RATES", "POSITION_UNIT", "COMMAND_UNITS"]
 
 log = logging.getLogger("servoid.drivers.dynamixel")
+
+T = TypeVar("T")
 
 #: URL ``mode`` -> Operating Mode (11).
 MODES: dict[str, OperatingMode] = {"position": OperatingMode.POSITION, "current": OperatingMode.CURRENT, "pwm": OperatingMode.PWM}
@@ -102,8 +106,9 @@ COMMAND_UNITS = {
 #: nothing there is timed, and a servo just powered up or a loaded host may be slow to answer.
 SETUP_LATENCY_MS = 25.0
 
-#: Tries of the torque-off write before closing gives up on it.
-TORQUE_OFF_ATTEMPTS = 3
+#: Tries of a transaction outside the per-sample exchange (opening, torque, reboot) before giving
+#: up: a noisy line costs a retry there, never the run; a goal is never sent twice.
+SETUP_ATTEMPTS = 3
 
 #: Latency timer (ms) assumed for a pseudo-terminal (an emulator) when the URL does not say.
 PTY_LATENCY_MS = 10.0
@@ -262,6 +267,7 @@ class DynamixelDriver(Driver):
 
     scheme = "dxl"
     clock_wrap_s = ct.TICK_WRAP_S
+    clock_resolution_s = 1e-3  # the Realtime Tick counts whole milliseconds
     options = {
         "id": Option(_servo_id, "servo ID 0..252 (default 1)", "servo_id"),
         "baud": Option(_baud, f"baud rate of port and servo, bit/s (default {DEFAULT_BAUD}, the factory setting)"),
@@ -295,11 +301,14 @@ class DynamixelDriver(Driver):
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
-        self._requested_limits: Limits = self.limits
+        # goals are whole units (counts, 2.69 mA, 0.113 %): the base rounds every command to one,
+        # inside the limits, and reports the goal as the servo received it
+        self.command_step = 1.0
         self._port: _Port | None = None
         self._ph: Any = None
         self._goal_writer: Any = None
         self._owner = 0
+        self._attempts = 1  # SETUP_ATTEMPTS inside _setup()
         self._info: dict[str, Any] = {}
         self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
 
@@ -312,19 +321,6 @@ class DynamixelDriver(Driver):
         driver = cls(port, **cls.parse_options(url))
         driver.url = url.raw
         return driver
-
-    def exchange(self, u: float) -> Measurement:
-        """Command ``u`` (rad, A or %, by mode) and return the measurement (see :meth:`Driver.exchange`).
-
-        ``command`` in the result is the goal as the servo received it: the
-        limited command rounded to the servo's resolution (a whole encoder
-        count, 2.69 mA or 0.113 %). Identify from it rather than from the
-        requested value: the rounding is otherwise an input error of up to
-        0.77 mrad (4 % of the bench servo's smaller dead zone).
-        """
-        m = super().exchange(u)
-        unit = self.command_unit
-        return dataclasses.replace(m, command=unit.to_user(round(unit.to_native(m.command))))
 
     # ---- primitives ---------------------------------------------------------------------
     def _open(self) -> None:
@@ -340,7 +336,7 @@ class DynamixelDriver(Driver):
         self._port, self._ph = port, PacketHandler(2.0)
         self._owner = threading.get_ident()
         try:
-            with port.patience(SETUP_LATENCY_MS):
+            with self._setup():
                 self._configure()
         except BaseException:
             port.closePort()
@@ -353,7 +349,7 @@ class DynamixelDriver(Driver):
             self._port = None
 
     def _set_torque(self, enabled: bool) -> None:
-        with self._open_port().patience(SETUP_LATENCY_MS):
+        with self._setup():
             if enabled:
                 self._torque_on()
             else:
@@ -369,18 +365,15 @@ class DynamixelDriver(Driver):
         self._write_value(ct.TORQUE_ENABLE, 1)
 
     def _torque_off(self) -> None:
-        # switching off matters most when the line is bad: try again before giving up
-        for attempt in range(TORQUE_OFF_ATTEMPTS):
-            try:
-                self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
-                return
-            except DriverError:
-                if attempt == TORQUE_OFF_ATTEMPTS - 1:
-                    raise
+        # switching off matters most when the line is bad: retried (SETUP_ATTEMPTS) before giving up
+        self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
 
     def _exchange(self, command: float) -> Reading:
         self._require_owner()
-        value = round(command)
+        if not self.torque_enabled:
+            # a Dynamixel stores a goal written with the torque off and does nothing: refuse it here
+            raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
+        value = int(round(command))  # whole already (command_step)
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
@@ -397,20 +390,13 @@ class DynamixelDriver(Driver):
     def reboot(self) -> None:
         """REBOOT the servo (clears a hardware error; the torque comes back off) and wait for it."""
         self._require_open()
-        with self._open_port().patience(SETUP_LATENCY_MS):
+        with self._setup():
             self._call(self._reboot)
         self._torque = False
 
     # ---- configuration at open -------------------------------------------------------------------
     def _configure(self) -> None:
-        where = f"{self.port} at {self.baud} bit/s"
-        model, result, error = self._sdk(self._ph.ping, self._port, self.servo_id)
-        if result == COMM_RX_TIMEOUT:
-            raise DriverTimeout(
-                f"{self.describe()}: no Dynamixel with ID {self.servo_id} answers on {where} "
-                f"(check the ID, the baud rate (factory setting 57600), power and wiring)"
-            )
-        self._check(result, error, "PING", allow_alert=True)
+        model = self._retried(self._ping)
         self._ensure_status_return_level()
         state = self._read_block(0, ct.HARDWARE_ERROR_STATUS.end, "READ of the control table", allow_alert=True)
         hardware_error = ct.decode_value(ct.HARDWARE_ERROR_STATUS, state, ct.HARDWARE_ERROR_STATUS.address)
@@ -440,6 +426,17 @@ class DynamixelDriver(Driver):
         self._goal_writer = GroupSyncWrite(self._port, self._ph, self._goal.address, self._goal.size)
         self._goal_writer.addParam(self.servo_id, list(ct.encode_value(self._goal, 0)))
 
+    def _ping(self) -> int:
+        """PING the servo; its model number."""
+        model, result, error = self._sdk(self._ph.ping, self._port, self.servo_id)
+        if result == COMM_RX_TIMEOUT:
+            raise DriverTimeout(
+                f"{self.describe()}: no Dynamixel with ID {self.servo_id} answers on {self.port} at {self.baud} bit/s "
+                f"(check the ID, the baud rate (factory setting 57600), power and wiring)"
+            )
+        self._check(result, error, "PING", allow_alert=True)
+        return int(model)
+
     def _ensure_status_return_level(self) -> None:
         """Make the servo answer every instruction (Status Return Level 2).
 
@@ -468,6 +465,7 @@ class DynamixelDriver(Driver):
 
         number = value(ct.MODEL_NUMBER) or model
         return {
+            "driver": "dxl",
             "vendor": "ROBOTIS",
             "protocol": "2.0",
             "model_number": number,
@@ -481,7 +479,7 @@ class DynamixelDriver(Driver):
         }
 
     def _servo_limits(self, state: bytes) -> Limits:
-        """The requested limits narrowed to the servo's own (the servo ignores goals beyond them)."""
+        """The limits set on the driver, narrowed to the servo's own (the servo ignores goals beyond them)."""
         if self._goal is ct.GOAL_POSITION:
             low, high = self._position_range
         else:
@@ -490,14 +488,14 @@ class DynamixelDriver(Driver):
             low = -high
         unit = self.command_unit
         servo_low, servo_high = unit.to_user(low), unit.to_user(high)
-        asked = self._requested_limits
+        asked = self.limits
         minimum, maximum = max(asked.minimum, servo_low), min(asked.maximum, servo_high)
         if not minimum < maximum:
             raise ConfigError(
                 f"{self.describe()}: the limits min={asked.minimum}, max={asked.maximum} {unit.unit} do not overlap "
                 f"the servo's own range {servo_low:.4g} .. {servo_high:.4g} {unit.unit}"
             )
-        return Limits(minimum=minimum, maximum=maximum, max_step=asked.max_step)
+        return dataclasses.replace(asked, minimum=minimum, maximum=maximum)
 
     def _reboot(self) -> None:
         result, error = self._sdk(self._ph.reboot, self._port, self.servo_id)
@@ -528,13 +526,17 @@ class DynamixelDriver(Driver):
         request = [0] * 14
         request[4], request[5], request[7] = self.servo_id, 7, Instruction.READ
         request[8:12] = [address & 0xFF, address >> 8, length & 0xFF, length >> 8]
-        reply, result, error = self._sdk(self._ph.txRxPacket, self._port, request)
-        self._check(result, error, what, allow_alert=allow_alert, reply_length=length)
-        received = (reply[5] | reply[6] << 8) - 4  # LEN counts instruction, error and CRC too
-        if received != length:
-            # an answer meant for another request (a stray reply) has the wrong length
-            raise ProtocolError(f"{self.describe()}: the reply to the {what} has {received} data bytes, expected {length}")
-        return bytes(reply[9 : 9 + length])
+
+        def transaction() -> bytes:
+            reply, result, error = self._sdk(self._ph.txRxPacket, self._port, request)
+            self._check(result, error, what, allow_alert=allow_alert, reply_length=length)
+            received = (reply[5] | reply[6] << 8) - 4  # LEN counts instruction, error and CRC too
+            if received != length:
+                # an answer meant for another request (a stray reply) has the wrong length
+                raise ProtocolError(f"{self.describe()}: the reply to the {what} has {received} data bytes, expected {length}")
+            return bytes(reply[9 : 9 + length])
+
+        return self._retried(transaction)
 
     def _read_value(self, field: ct.Field, *, allow_alert: bool = False) -> int:
         data = self._read_block(field.address, field.size, f"READ of {field.name}({field.address})", allow_alert=allow_alert)
@@ -542,8 +544,33 @@ class DynamixelDriver(Driver):
 
     def _write_value(self, field: ct.Field, value: int, *, allow_alert: bool = False) -> None:
         data = list(ct.encode_value(field, value))
-        result, error = self._sdk(self._ph.writeTxRx, self._port, self.servo_id, field.address, field.size, data)
-        self._check(result, error, f"WRITE of {field.name}({field.address}) = {value}", allow_alert=allow_alert)
+
+        def transaction() -> None:
+            result, error = self._sdk(self._ph.writeTxRx, self._port, self.servo_id, field.address, field.size, data)
+            self._check(result, error, f"WRITE of {field.name}({field.address}) = {value}", allow_alert=allow_alert)
+
+        self._retried(transaction)
+
+    @contextlib.contextmanager
+    def _setup(self) -> Iterator[None]:
+        """Outside the per-sample exchange: patient timeouts, and a failed transaction tried again."""
+        with self._open_port().patience(SETUP_LATENCY_MS):
+            self._attempts = SETUP_ATTEMPTS
+            try:
+                yield
+            finally:
+                self._attempts = 1
+
+    def _retried(self, transaction: Callable[[], T]) -> T:
+        """``transaction()``, tried again after a timeout or a corrupted answer inside :meth:`_setup`."""
+        for attempt in range(1, self._attempts + 1):
+            try:
+                return transaction()
+            except (DriverTimeout, ProtocolError) as exc:
+                if attempt == self._attempts:
+                    raise
+                log.debug("%s: attempt %d failed (%s), trying again", self.describe(), attempt, exc)
+        raise AssertionError("unreachable")
 
     def _sdk(self, func: Callable[..., Any], *args: Any) -> Any:
         try:
@@ -564,6 +591,7 @@ class DynamixelDriver(Driver):
                 timeout = self._port.timeout_ms(reply_length + 11) if self._port is not None else float("nan")
                 raise DriverTimeout(f"{self.describe()}: servo {sid} did not answer the {what} within {timeout:.1f} ms")
             if result == COMM_RX_CORRUPT:
+                self.stats.rejected += 1
                 raise ProtocolError(f"{self.describe()}: the answer of servo {sid} to the {what} was corrupted (bad CRC or cut short)")
             raise DriverError(f"{self.describe()}: {what} failed: {self._ph.getTxRxResult(result)}")
         number = error & 0x7F

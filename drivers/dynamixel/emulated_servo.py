@@ -11,12 +11,29 @@ What the emulated servo does
   its initial values; read-only entries, partial writes of an entry, values out
   of range and the EEPROM lock while the torque is on are refused with the
   e-manual's error numbers (Access, Data Length, Data Range, Data Limit).
-* **Sample-synchronous plant**: the plant (:data:`servoid.drivers.bench.BENCH_PLANT`
-  unless another is given) advances exactly one step each time the goal of the
-  active operating mode is written while the torque is on, whatever the time
-  between writes. The driver writes one goal per sample, so the emulated servo
-  behaves like the simulated one at any sample rate, and a slow host cannot
-  make it drift. Present Position, Velocity, Current and PWM change only then.
+* **The plant, sampled**: the plant (:data:`servoid.drivers.bench.BENCH_PLANT`
+  unless another is given) is a :class:`~servoid.drivers.sampled.SampledPlant`;
+  each write of the goal of the active operating mode with the torque on is
+  one sample of it. Protocol 2.0 carries no sample number, and a real servo's
+  loop runs on its own clock; how many samples lie between two goals is
+  therefore the servo's business:
+
+  - ``period_s`` given: the servo runs on its own clock at that period -- a
+    goal that comes ``n`` periods after the previous one (rounded) first runs
+    ``n - 1`` samples on the held goal, as a position loop holds its set point
+    while the host is silent. Sample at the servo's period, or the plant seen
+    is another. (A READ reports the latest sample: the held samples are
+    counted when the next goal comes, so that a READ the host sends late
+    does not commit a sample the next goal belongs to);
+  - no period: each goal is one sample, whatever the time between goals (the
+    goals are the clock: any rate sees the same plant, but a slot the host
+    skips is not seen);
+  - ``slot_source`` (in-process tests only): a callable that returns the
+    host's slot number of the goal being handled (``lambda:
+    driver.exchange_slot``), told out of band because the protocol has no
+    room for it; the servo then follows the host's slots exactly.
+
+  Present Position, Velocity, Current and PWM change only when the plant does.
 * Operating modes (the plant's input is in rad):
 
   - position (3, and 4, 5): the goal position, ``(goal - 2048) * 2 pi / 4096`` rad;
@@ -30,7 +47,7 @@ What the emulated servo does
   same deflection, ``(u - y) / CURRENT_GAIN`` (an indication, not physics).
 * Realtime Tick: milliseconds since boot from the injected ``clock``, wrapping
   at 32768. Present Velocity: the position change over the clock time between
-  the last two steps.
+  the last two samples.
 * Hardware errors (:meth:`inject_hardware_error`): Hardware Error Status is
   set, the alert bit goes into every status packet, the torque is switched off
   when the error is one of Shutdown's bits, and the torque cannot be switched
@@ -41,17 +58,17 @@ What the emulated servo does
 
 from __future__ import annotations
 
-import time
 from typing import Callable
 
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
+from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
 from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
 
@@ -93,9 +110,18 @@ class EmulatedServo:
     return_delay_us : int
         Initial Return Delay Time in microseconds (even, 0..508; the factory
         setting is 500).
-    clock : callable
-        Seconds, monotonic; drives the Realtime Tick and Present Velocity.
-        Inject a virtual clock for deterministic tests.
+    clock : Clock, optional
+        Drives the Realtime Tick, the plant's own sample clock and Present
+        Velocity (default the real one); inject a
+        :class:`~servoid.drivers.clock.VirtualClock` for deterministic tests.
+    period_s : float, optional
+        The servo's own sample period (see the module docstring); None: one
+        sample per goal.
+
+    Attributes
+    ----------
+    slot_source : callable or None
+        In-process tests: returns the host's slot of the goal being written.
     """
 
     def __init__(
@@ -106,7 +132,8 @@ class EmulatedServo:
         model_number: int = ct.MODEL_NUMBER.initial,
         firmware: int = ct.FIRMWARE_VERSION.initial,
         return_delay_us: int = 500,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock | None = None,
+        period_s: float | None = None,
     ) -> None:
         validation.integer("servo_id", servo_id, minimum=0)
         if servo_id > 252:
@@ -114,8 +141,10 @@ class EmulatedServo:
         delay = validation.integer("return_delay_us", return_delay_us, minimum=0)
         if delay > 508 or delay % 2:
             raise ConfigError(f"return_delay_us (={delay}) must be even and in 0..508 (unit 2 us)")
-        self._clock = clock
-        self._plant = Plant(plant)
+        self._clock: Clock = clock if clock is not None else MonotonicClock()
+        period_ns = None if period_s is None else int(round(validation.positive("period_s", period_s) * NS_PER_S))
+        self._sampled = SampledPlant(plant, period_ns=period_ns)
+        self.slot_source: Callable[[], int | None] | None = None
         self._memory = bytearray(ct.TABLE_SIZE)
         self._registered: tuple[int, bytes] | None = None
         for f in ct.FIELDS:
@@ -125,10 +154,7 @@ class EmulatedServo:
         self._put(ct.ID, servo_id)
         self._put(ct.RETURN_DELAY_TIME, delay // 2)
         self._eeprom_defaults = bytes(self._memory[: ct.TORQUE_ENABLE.address])
-        self._boot = clock()
-        self._last_step_time: float | None = None
-        #: Number of plant steps taken (goal writes with the torque on).
-        self.steps = 0
+        self._boot = self._clock.now_ns()
         #: Number of reboots.
         self.reboots = 0
 
@@ -161,15 +187,20 @@ class EmulatedServo:
         return self.value(ct.RETURN_DELAY_TIME) * ct.SECONDS_PER_RETURN_DELAY_UNIT
 
     @property
-    def plant(self) -> Plant:
-        """The mechanics (its model can be swapped while running, to emulate wear)."""
-        return self._plant
+    def plant(self) -> SampledPlant:
+        """The mechanics and their sample count (the model can be swapped while running, to emulate wear)."""
+        return self._sampled
+
+    @property
+    def steps(self) -> int:
+        """Samples the plant has advanced (goal writes with the torque on, and held samples)."""
+        return self._sampled.index + 1
 
     def _put(self, field: Field, value: int) -> None:
         self._memory[field.address : field.end] = ct.encode_value(field, value)
 
     def _update_tick(self) -> None:
-        ms = int((self._clock() - self._boot) * 1000.0)
+        ms = (self._clock.now_ns() - self._boot) // 1_000_000
         self._put(ct.REALTIME_TICK, ms % int(ct.TICK_WRAP_S * 1000))
 
     # ---- instructions ------------------------------------------------------------------
@@ -188,6 +219,7 @@ class EmulatedServo:
             return error
         torque_before = self.torque
         self._memory[address : address + len(data)] = data
+        self._follow_torque()
         goal = _GOAL_OF_MODE.get(self.value(ct.OPERATING_MODE))
         if goal is not None and torque_before and self.torque and address <= goal.address < address + len(data):
             self._step()
@@ -253,10 +285,10 @@ class EmulatedServo:
             if not f.eeprom:
                 self._put(f, f.initial)
         self._registered = None
-        self._show_plant_output(self._plant.y, velocity=0.0)
+        self._follow_torque()
+        self._show_plant_output(self._sampled.plant.y, velocity=0.0)
         self._put(ct.GOAL_POSITION, self.value(ct.PRESENT_POSITION))
-        self._boot = self._clock()
-        self._last_step_time = None
+        self._boot = self._clock.now_ns()
         self.reboots += 1
 
     def factory_reset(self, option: int) -> ErrorNumber:
@@ -286,6 +318,7 @@ class EmulatedServo:
         self._put(ct.HARDWARE_ERROR_STATUS, status)
         if status & self.value(ct.SHUTDOWN):
             self._put(ct.TORQUE_ENABLE, 0)
+            self._follow_torque()
 
     # ---- the plant -------------------------------------------------------------------------
     def plant_input(self) -> float | None:
@@ -299,18 +332,22 @@ class EmulatedServo:
             return self.value(ct.GOAL_PWM) * ct.PERCENT_PER_PWM_UNIT * PWM_GAIN
         return None
 
+    def _follow_torque(self) -> None:
+        """The plant follows goals while Torque Enable is 1 (a new count of samples each time it comes on)."""
+        if self.torque:
+            self._sampled.enable()
+        else:
+            self._sampled.disable()
+
     def _step(self) -> None:
         u = self.plant_input()
         if u is None:
             return
-        y_before = self._plant.y
-        y = self._plant.step(u)
-        now = self._clock()
-        dt = None if self._last_step_time is None else now - self._last_step_time
-        self._last_step_time = now
-        velocity = (y - y_before) / dt if dt else 0.0
-        self._show_plant_output(y, velocity=velocity, u=u)
-        self.steps += 1
+        slot = self.slot_source() if self.slot_source is not None else None
+        self._show(self._sampled.command(u, self._clock.now_ns(), slot=slot), u)
+
+    def _show(self, sample: PlantSample, u: float) -> None:
+        self._show_plant_output(sample.position, velocity=self._sampled.velocity, u=u)
 
     def _show_plant_output(self, y: float, *, velocity: float, u: float | None = None) -> None:
         self._put(ct.PRESENT_POSITION, _clip(ct.PRESENT_POSITION, round(y / ct.RAD_PER_COUNT) + ct.POSITION_CENTRE))

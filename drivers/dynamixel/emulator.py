@@ -17,9 +17,15 @@ addressed to a servo is answered with the CRC error number. FAST_SYNC_READ,
 FAST_BULK_READ and CLEAR are answered with an Instruction Error.
 
 Faults for tests (:class:`LinkFaults`, :meth:`DynamixelEmulator.unplug`,
-:meth:`EmulatedServo.inject_hardware_error`): a servo that stops answering, a
-servo gone from the bus, corrupted replies, corrupted requests, a hardware
-error.
+:meth:`EmulatedServo.inject_hardware_error`, and ``flip`` on the whole line):
+a servo that stops answering (at once or after some replies), a servo gone
+from the bus, lost replies, corrupted replies, corrupted requests, random bit
+flips in both directions, a hardware error. ``trace`` writes every reading
+of the present values a servo sends, before any corruption, so that a test
+can check that nothing else was ever accepted.
+
+Samples: see :mod:`~servoid.drivers.dynamixel.emulated_servo` (one per goal,
+or on the servo's own clock with ``period_s``).
 
 Two ways to run it: :meth:`DynamixelEmulator.start` serves from a thread of
 the calling process (deterministic logic tests, with an injected clock);
@@ -38,12 +44,16 @@ import select
 import subprocess
 import sys
 import threading
-import time
 import tty
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable
+from pathlib import Path
+from typing import IO, Any, Callable, Iterable
 
+import numpy as np
+
+from servoid import validation
 from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
 from servoid.drivers.dynamixel.protocol import (
@@ -56,28 +66,16 @@ from servoid.drivers.dynamixel.protocol import (
     Packet,
     PacketReader,
     status_packet,
+    unstuff,
 )
 from servoid.errors import ConfigError, DriverError
 from servoid.ident.model import BacklashModel
 from servoid.ident.plant import Plant
 
-__all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "sleep_until", "dxl_url"]
+__all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "dxl_url"]
 
 #: A partial frame is dropped when the line stays quiet this long (s), as a servo's packet timeout does.
 IDLE_DISCARD_S = 0.05
-
-
-def sleep_until(deadline: float) -> None:
-    """Wait until ``time.perf_counter() >= deadline``: sleep to 0.3 ms before it, then spin.
-
-    ``time.sleep`` alone overshoots by about 50 us on these machines; the final
-    spin lands within a microsecond.
-    """
-    remaining = deadline - time.perf_counter()
-    if remaining > 3e-4:
-        time.sleep(remaining - 3e-4)
-    while time.perf_counter() < deadline:
-        pass
 
 
 def dxl_url(port: str, servo_id: int, *, baud: int = 1_000_000, **options: Any) -> str:
@@ -105,12 +103,18 @@ class LinkFaults:
         Answer this many of the next READs with an empty status packet, as a
         late answer to an earlier WRITE would look to the SDK (success, but no
         data).
+    mute_after : int, optional
+        Set ``mute`` after the servo sent this many more status packets (counts down).
+    drop : float
+        Probability that a status packet is lost on the way back.
     """
 
     mute: bool = False
     corrupt_replies: int = 0
     corrupt_requests: int = 0
     stale_replies: int = 0
+    mute_after: int | None = None
+    drop: float = 0.0
 
 
 class DynamixelBus:
@@ -305,6 +309,7 @@ class EmulatorStats:
     replies: int = 0
     corrupt_received: int = 0
     dropped_replies: int = 0
+    flipped_bits: int = 0
 
 
 class DynamixelEmulator:
@@ -320,9 +325,20 @@ class DynamixelEmulator:
         What the servos report (default XM430-W350, firmware 48).
     return_delay_us : int
         Initial Return Delay Time of each servo, microseconds (factory: 500).
-    clock : callable
-        Seconds, monotonic: the servos' Realtime Tick (inject a virtual clock
-        for deterministic tests).
+    clock : Clock, optional
+        The servos' time (Realtime Tick, own sample clock) and the Return
+        Delay Time's wait; default the real clock (inject a
+        :class:`~servoid.drivers.clock.VirtualClock` for deterministic tests).
+    period_s : float, optional
+        Each servo's own sample period (see
+        :mod:`~servoid.drivers.dynamixel.emulated_servo`); None: one sample per goal.
+    flip : float
+        Probability per byte of one flipped bit, in both directions (a noisy line).
+    seed : int
+        Seed of the flipped bits and lost replies.
+    trace : path, optional
+        File to which every reading of the present values is written as it
+        is sent, before any corruption: ``<id> <tick ms> <position counts>``.
 
     Examples
     --------
@@ -339,15 +355,24 @@ class DynamixelEmulator:
         model_number: int = 1020,
         firmware: int = 48,
         return_delay_us: int = 500,
-        clock: Callable[[], float] = time.monotonic,
+        clock: Clock | None = None,
+        period_s: float | None = None,
+        flip: float = 0.0,
+        seed: int = 0,
+        trace: str | Path | None = None,
     ) -> None:
         id_list = [int(i) for i in ids]
         if not id_list or len(set(id_list)) != len(id_list):
             raise ConfigError(f"ids (={id_list}) must be one or more distinct servo IDs")
+        self.clock: Clock = clock if clock is not None else MonotonicClock()
         servos = [
-            EmulatedServo(i, plant=plant, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us, clock=clock)
+            EmulatedServo(i, plant=plant, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us,
+                          clock=self.clock, period_s=period_s)
             for i in id_list
-        ]
+        ]  # fmt: skip
+        self.flip = validation.in_unit_interval("flip", flip, open_low=False, open_high=False)
+        self._rng = np.random.default_rng(seed)
+        self._trace: IO[str] | None = open(trace, "w", encoding="ascii") if trace is not None else None  # noqa: SIM115
         self.bus = DynamixelBus(servos)
         Plant(plant).step(0.0)  # compile (or load) the plant's kernel now, not while a reply is awaited
         self._faults = {id(s): LinkFaults() for s in servos}
@@ -413,6 +438,8 @@ class DynamixelEmulator:
             return
         self.stop()
         self._closed = True
+        if self._trace is not None:
+            self._trace.close()
         for fd in (self._master, self._slave, self._wake_r, self._wake_w):
             try:
                 os.close(fd)
@@ -443,11 +470,37 @@ class DynamixelEmulator:
                 if exc.errno == errno.EIO:
                     break
                 raise
-            received = time.perf_counter()
-            for frame in self._reader.feed(data):
+            received = self.clock.now_ns()
+            for frame in self._reader.feed(self._flipped(data)):
                 self._serve_frame(frame, received)
 
-    def _serve_frame(self, frame: Frame, received: float) -> None:
+    def _flipped(self, data: bytes) -> bytes:
+        """``data`` with one random bit flipped in each byte hit (probability ``flip`` per byte)."""
+        if not self.flip:
+            return data
+        hit = np.flatnonzero(self._rng.random(len(data)) < self.flip)
+        if not hit.size:
+            return data
+        out = bytearray(data)
+        for i in hit:
+            out[i] ^= 1 << int(self._rng.integers(8))
+        self.stats.flipped_bits += int(hit.size)
+        return bytes(out)
+
+    def _write_trace(self, servo: EmulatedServo, frame: Frame, reply: bytes) -> None:
+        """Note the reading of the present values (tick and position) in ``reply``, about to be sent."""
+        if not isinstance(frame, Packet) or frame.instruction != Instruction.READ or len(frame.params) != 4:
+            return
+        address, length = _u16(frame.params, 0), _u16(frame.params, 2)
+        if address <= ct.REALTIME_TICK.address and address + length >= ct.PRESENT_POSITION.end:
+            data = unstuff(reply[7:-2])[2:]  # after header (4), ID, LEN (2): instruction, error, then the data
+            tick = ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address)
+            position = ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)
+            assert self._trace is not None
+            self._trace.write(f"{servo.id} {tick} {position}\n")
+            self._trace.flush()
+
+    def _serve_frame(self, frame: Frame, received: int) -> None:
         self.stats.received += 1
         if isinstance(frame, Packet):
             target = self.bus.find(frame.id)
@@ -459,22 +512,31 @@ class DynamixelEmulator:
         last = received
         for servo, reply in self.bus.handle(frame):
             faults = self._faults[id(servo)]
+            if faults.mute_after is not None and faults.mute_after <= 0:
+                faults.mute = True
             if faults.mute:
+                continue
+            if faults.mute_after is not None:
+                faults.mute_after -= 1
+            if faults.drop and self._rng.random() < faults.drop:
+                self.stats.dropped_replies += 1
                 continue
             if faults.stale_replies > 0 and isinstance(frame, Packet) and frame.instruction == Instruction.READ:
                 faults.stale_replies -= 1
                 reply = status_packet(servo.id, 0)
+            elif self._trace is not None:
+                self._write_trace(servo, frame, reply)
             if faults.corrupt_replies > 0:
                 faults.corrupt_replies -= 1
                 reply = reply[:-1] + bytes((reply[-1] ^ 0xFF,))
             # each servo waits its Return Delay Time after the bus went quiet
-            sleep_until(last + servo.return_delay_s)
+            self.clock.sleep_until_ns(last + round(servo.return_delay_s * NS_PER_S))
             try:
-                os.write(self._master, reply)
+                os.write(self._master, self._flipped(reply))
                 self.stats.replies += 1
             except BlockingIOError:
                 self.stats.dropped_replies += 1
-            last = time.perf_counter()
+            last = self.clock.now_ns()
 
 
 def _serve_child() -> None:
@@ -500,8 +562,9 @@ class EmulatorProcess:
     ids : iterable of int
         Servo IDs on the bus.
     **options
-        Passed to :class:`DynamixelEmulator` (picklable ones: ``plant``,
-        ``model_number``, ``firmware``, ``return_delay_us``).
+        Passed to :class:`DynamixelEmulator` (all but ``clock``: ``plant``,
+        ``model_number``, ``firmware``, ``return_delay_us``, ``period_s``,
+        ``flip``, ``seed``, ``trace``).
 
     Examples
     --------

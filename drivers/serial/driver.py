@@ -16,7 +16,6 @@ timed out in ``stats.stale``, a change of boot id raises
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import select
 import time
@@ -106,6 +105,7 @@ class SerialDriver(Driver):
         self._tick: int | None = None
         self._info: dict[str, Any] = {}
         self._stream: deque[Reply] = deque()
+        self.command_step = 1.0  # set points travel as whole encoder counts
 
     @classmethod
     def from_url(cls, url: DriverURL) -> "SerialDriver":
@@ -154,19 +154,8 @@ class SerialDriver(Driver):
             raise ConfigError(f"period_s (={period_s!r}) must lie in [1e-6, 1] s for the firmware")
         self._config("C", period_us, "K")
 
-    def _counts(self, native: float) -> int:
-        """The whole count to send for a native command: the nearest one inside the limits.
-
-        Rounding must not carry a command past a limit, not even by half a count.
-        """
-        low, high = self.limits.low, self.limits.high
-        for candidate in (round(native), math.floor(native), math.ceil(native)):
-            if low <= self.command_unit.to_user(candidate) <= high:
-                return int(candidate)
-        return int(round(native))  # a range narrower than one count
-
     def _exchange(self, command: float) -> Reading:
-        counts = self._counts(command)
+        counts = int(round(command))  # whole already (command_step): the base rounded it inside the limits
         slot = self.exchange_slot
         if slot is None:
             return self._position(self._transact("S", counts, "P"))
@@ -178,17 +167,6 @@ class SerialDriver(Driver):
 
     def _identity(self) -> dict[str, Any]:
         return {"driver": "serial", "port": self.port_name, **self._info}
-
-    def exchange(self, u: float) -> Measurement:
-        """Command ``u`` and return the measurement (see :meth:`Driver.exchange`).
-
-        ``command`` in the result is the set point as the firmware received
-        it, a whole number of encoder counts: identify from it, not from the
-        requested value (the rounding is otherwise an input error of up to
-        half a count).
-        """
-        m = super().exchange(u)
-        return dataclasses.replace(m, command=self.command_unit.to_user(self._counts(self.command_unit.to_native(m.command))))
 
     # ---- serial-specific ----------------------------------------------------------------
     def status(self) -> dict[str, int]:

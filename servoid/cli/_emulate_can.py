@@ -8,6 +8,7 @@ import sys
 import threading
 from types import FrameType
 
+from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.can._bus import UDP_GROUP, UDP_PORT, BusAddress
 from servoid.drivers.can.driver import DEFAULT_NODES, PROTOCOLS
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
@@ -30,10 +31,15 @@ talk to it as to a drive on a real bus.
            Set_Controller_Mode, Set_Input_Pos / Set_Input_Torque,
            Get_Encoder_Estimates, Get_Error, Get_Version, Clear_Errors
 
-The plant advances one sample per cyclic exchange (per SYNC for CiA 402, per
-Set_Input_Pos / Set_Input_Torque for ODrive): what the driver reads back does
-not depend on the bus's timing. Position mode: target in rad. Torque mode: the
-same plant driven by torque x 1 rad/Nm (a joint held by a 1 Nm/rad spring).
+The plant advances one sample per cycle. The CiA 402 drive runs a cycle per
+SYNC, and the SYNC counter the driver sends tells it how many cycles passed
+(slots the host skipped are cycles on the held target): it follows the
+host's slots exactly, whatever the bus's timing. The ODrive axis, whose
+protocol has no cycle number, runs on its own clock at --rate, as a real
+axis does: sample it at the same rate (servoid identify --rate), or the plant
+seen is another one (--rate 0: one sample per Set_Input_*). Position mode:
+target in rad. Torque mode: the same plant driven by torque x 1 rad/Nm (a
+joint held by a 1 Nm/rad spring).
 
 The first line on stdout is the URL; status lines go to stderr. The drive
 runs until Ctrl-C (or SIGTERM).
@@ -44,6 +50,7 @@ examples:
   servoid emulate can                                # CiA 402 drive, node 1
   servoid emulate can --protocol odrive --node 3
   servoid emulate can --port 47000                   # a second, separate bus
+  servoid emulate can --protocol odrive --rate 500   # an ODrive axis sampled at 500 Hz
 then, in another terminal, with the printed URL:
   servoid identify --driver 'can://udp_multicast/239.74.163.2?protocol=cia402&node=1&port=43113'
 """
@@ -64,6 +71,9 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
     p.add_argument("--counts-per-rev", type=int, default=SIM_COUNTS_PER_REV, metavar="N",
                    help=f"cia402: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
+    p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
+                   help=f"odrive: the axis's own sample rate, Hz (default {DEFAULT_RATE_HZ:g}, that of servoid identify; "
+                        "0: one sample per input); cia402 follows the SYNC counter")  # fmt: skip
     p.add_argument("--quiet", action="store_true", help="no status lines on stderr")
 
 
@@ -77,7 +87,12 @@ def run(args: argparse.Namespace) -> int:
         )
     port = args.port if args.port is not None or args.interface != "udp_multicast" else UDP_PORT
     bus = BusAddress(args.interface, args.channel or "", port=port)
-    options = {"counts_per_rev": args.counts_per_rev} if args.protocol == "cia402" else {}
+    if not (args.rate >= 0 and args.rate < float("inf")):
+        raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per input)")
+    if args.protocol == "cia402":
+        options: dict[str, object] = {"counts_per_rev": args.counts_per_rev}
+    else:
+        options = {"period_s": 1.0 / args.rate if args.rate else None}
     drive = simulated_drive(args.protocol, bus=bus, node=args.node, **options)
     stop = threading.Event()
 

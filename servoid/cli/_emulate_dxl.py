@@ -9,6 +9,7 @@ from pathlib import Path
 
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
+from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
 from servoid.errors import ConfigError
 
@@ -19,9 +20,12 @@ Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
 table) on a pseudo-terminal that the official dynamixel-sdk, and so the dxl://
 driver, talks to as to a U2D2 adapter. Several IDs share one bus.
 
-Behind every servo is the bench backlash plant (servoid.drivers.bench), in rad.
-It advances one sample each time the goal of the active operating mode is
-written with the torque on (sample-synchronous, whatever the rate):
+Behind every servo is the bench backlash plant (servoid.drivers.bench), in rad,
+sampled at --rate: like a real servo, whose loop runs on its own clock, it
+takes each goal written with the torque on as the next sample, and when the
+host is silent for n periods it runs n samples on the held goal. Sample at
+the same rate (servoid identify --rate), or the plant seen is another one;
+--rate 0 makes every goal one sample, whatever the time between them.
   position mode   input = goal position, (count - 2048) x 2 pi / 4096 rad
   current mode    input = goal current x {CURRENT_GAIN:g} rad/A
   pwm mode        input = goal PWM x {PWM_GAIN:g} rad/%
@@ -37,11 +41,12 @@ The emulator prints its port and a driver URL per servo, then serves until
 Ctrl-C.
 """
 
-EPILOG = """\
+EPILOG = f"""\
 examples:
-  servoid emulate dxl                        # one servo, ID 1
+  servoid emulate dxl                        # one servo, ID 1, sampled at {DEFAULT_RATE_HZ:g} Hz
   servoid emulate dxl --ids 1,2,3 --link /tmp/ttyDXL
-  servoid identify --driver 'dxl:///dev/pts/5?id=1&baud=1000000'    # in another terminal
+  servoid emulate dxl --rate 500
+  servoid identify --driver 'dxl:///dev/pts/5?id=1&baud=1000000' --rate 500    # in another terminal
 """
 
 
@@ -67,12 +72,19 @@ def register(parser: argparse.ArgumentParser) -> None:
                              "setting; the dxl:// driver sets 0 unless told return_delay_us=keep)")  # fmt: skip
     parser.add_argument("--model-number", type=int, default=ct.MODEL_NUMBER.initial, metavar="N",
                         help=f"Model Number the servos report (default {ct.MODEL_NUMBER.initial}, XM430-W350)")  # fmt: skip
+    parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
+                        help=f"the servos' own sample rate, Hz: sample them at this rate (default {DEFAULT_RATE_HZ:g}, "
+                             "that of servoid identify; 0: one sample per goal)")  # fmt: skip
     parser.add_argument("--link", type=Path, metavar="PATH",
                         help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts)")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
-    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number)
+    if not (args.rate >= 0 and args.rate < float("inf")):
+        raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per goal)")
+    period_s = 1.0 / args.rate if args.rate else None
+    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number,
+                                 period_s=period_s)  # fmt: skip
     link: Path | None = args.link
     try:
         if link is not None:
@@ -83,10 +95,12 @@ def run(args: argparse.Namespace) -> int:
             os.symlink(emulator.port, link)
         port = str(link) if link is not None else emulator.port
         model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
-        print(f"Dynamixel emulator on {emulator.port} (Protocol 2.0, {model}, any baud rate)", flush=True)
+        sampled = f"sampled at {args.rate:g} Hz" if args.rate else "one sample per goal"
+        print(f"Dynamixel emulator on {emulator.port} (Protocol 2.0, {model}, any baud rate, {sampled})", flush=True)
         for servo_id in args.ids:
             print(f"  servo {servo_id}: {dxl_url(port, servo_id)}", flush=True)
-        print(f"try: servoid identify --driver '{dxl_url(port, args.ids[0])}'", flush=True)
+        rate = f" --rate {args.rate:g}" if args.rate else ""
+        print(f"try: servoid identify --driver '{dxl_url(port, args.ids[0])}'{rate}", flush=True)
         print("serving until Ctrl-C", flush=True)
         # `kill` stops it as cleanly as Ctrl-C (a shell starts background jobs with Ctrl-C ignored)
         signal.signal(signal.SIGTERM, _interrupt)

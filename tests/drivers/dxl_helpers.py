@@ -6,6 +6,7 @@ from typing import Iterator
 
 import pytest
 
+from servoid.drivers import clock as clock_module
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 
 #: Latency timer (ms) for tests, so reply timeouts are 2 x this + 2 ms: generous, because on a
@@ -13,17 +14,11 @@ from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 TEST_LATENCY_MS = 100
 
 
-class VirtualClock:
-    """A clock that moves only when told (seconds)."""
-
-    def __init__(self, start: float = 0.0) -> None:
-        self.now = start
-
-    def __call__(self) -> float:
-        return self.now
+class VirtualClock(clock_module.VirtualClock):
+    """The drivers' virtual clock, moved in seconds."""
 
     def advance(self, seconds: float) -> None:
-        self.now += seconds
+        self.advance_ns(round(seconds * clock_module.NS_PER_S))
 
 
 @pytest.fixture

@@ -53,6 +53,21 @@ def test_commands_outside_the_limits_are_clamped_counted_and_never_sent():
     assert max(abs(v) for v in d.sent) <= 1.0 and d.stats.clamped == 3 and d.stats.exchanges == 5
 
 
+def test_commands_are_rounded_to_the_device_step_inside_the_limits_and_reported_as_sent():
+    counts = UnitConversion("rad", scale=2 * math.pi / 4096, offset=2048)
+    d = Recorder(position_unit=counts, command_unit=counts, limits=Limits(minimum=-0.3, maximum=0.5))
+    d.command_step = 1.0
+    with d:
+        d.enable()
+        ms = [d.exchange(u) for u in (0.1, 0.4999, -1.0)]
+    # 0.1 rad is 65.2 counts; 0.4999 rad is 325.9 counts, whose nearest count (326 = 0.5001 rad)
+    # lies past the limit, and -1 rad is clamped to -0.3 rad = -195.6 counts (-196 = -0.3007 rad):
+    # the count on the inside is sent instead
+    assert d.sent == [2048 + 65, 2048 + 325, 2048 - 195]
+    assert [m.command for m in ms] == pytest.approx([counts.to_user(v) for v in d.sent], abs=1e-15)
+    assert [m.clamped for m in ms] == [False, False, True]  # rounding is not clamping
+
+
 def test_units_convert_both_ways():
     counts = UnitConversion("rad", scale=2 * math.pi / 4096, offset=2048)
     d = Recorder(position_unit=counts, command_unit=counts)

@@ -8,6 +8,7 @@ within the encoder's increments.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -124,3 +125,28 @@ def test_commands_outside_the_drive_range_are_refused_before_sending(drive):
         with pytest.raises(ConfigError, match="outside the drive's range.*min/max"):
             servo.exchange(1e6)  # rad: ~2e10 increments, beyond INTEGER32
         assert drive.power_on  # nothing was sent
+
+
+def test_the_sync_counter_tells_the_drive_how_many_cycles_passed(drive):
+    """Slots the host skipped are SYNCs that never came: the drive runs them on the held target.
+
+    The counter (0x1019 = 240) wraps; a gap of 299 slots is told from 59 by the
+    cycle period (0x1006) the driver wrote and the time that passed.
+    """
+    slots = [0, 1, 4, 5, 304, 305]
+    u = bench_input(len(slots), seed=5)
+    with driver_from_url(drive.url(timeout=PATIENT_S)) as servo:
+        assert drive.counter_overflow == 240
+        servo.set_sample_period(0.001)
+        assert drive.axis.sampled.period_ns == 1_000_000
+        servo.enable()
+        y = []
+        for slot, value in zip(slots, u):
+            if slot == 304:
+                time.sleep(0.299)  # 299 cycles of 1 ms since slot 5, give or take the host's timing
+            servo.exchange_slot = slot
+            y.append(servo.exchange(value).position)
+    held = np.repeat(u, np.diff(slots, append=slots[-1] + 1))  # the target each cycle had
+    expected = simulate(BENCH_PLANT, held).y[np.array(slots) - slots[0]]
+    assert np.max(np.abs(np.array(y) - expected)) < 2 * COUNT
+    assert drive.axis.steps == 1 + slots[-1] + 1  # the enable cycle, then one per slot 0..305

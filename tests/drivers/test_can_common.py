@@ -98,7 +98,9 @@ def test_socketcan_vcan(protocol):
 @pytest.mark.parametrize("protocol", ["cia402", "odrive"])
 def test_the_emulator_in_another_process_over_udp_multicast(protocol):
     port = free_udp_port()
-    cmd = [sys.executable, "-m", "servoid", "emulate", "can", "--protocol", protocol, "--port", str(port), "--quiet"]
+    # --rate 0: one sample per input, since the exchanges below come as fast as they can, not at a rate
+    cmd = [sys.executable, "-m", "servoid", "emulate", "can", "--protocol", protocol, "--port", str(port), "--quiet",
+           "--rate", "0"]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         url = proc.stdout.readline().strip()

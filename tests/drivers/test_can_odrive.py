@@ -7,6 +7,7 @@ equal the bench plant simulated directly (to float32 precision of turns).
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -81,3 +82,21 @@ def test_velocity_is_reported_in_rad_per_second(axis):
         ms = [servo.exchange(0.1) for _ in range(3)]
     # the simulated axis differentiates over wall-clock time: the sign and the unit are what can be checked
     assert ms[-1].velocity == pytest.approx(axis.axis.velocity, rel=1e-6) and ms[-1].velocity > 0
+
+
+def test_on_its_own_clock_the_axis_holds_the_input_between_samples():
+    """With a period, silence is samples on the held input, counted by the axis's clock (CAN Simple has no count)."""
+    period = 0.05  # long, so that the host's timing is far inside half a period
+    u = bench_input(4, seed=13)
+    with SimOdriveAxis(node=3, bus=private_bus(), period_s=period) as axis:
+        with driver_from_url(axis.url(timeout=PATIENT_S)) as servo:
+            servo.enable()
+            start = time.perf_counter()
+            y = []
+            for k, at in enumerate((0.0, 1.0, 4.0, 5.0)):  # periods after the first input
+                time.sleep(max(start + at * period - time.perf_counter(), 0.0))
+                y.append(servo.exchange(u[k]).position)
+            assert axis.axis.steps == 6
+    held = np.repeat(u, [1, 3, 1, 1])  # 2 samples on u[1] held before u[2]
+    expected = simulate(BENCH_PLANT, held).y
+    assert np.max(np.abs(np.array(y) - expected[[0, 1, 4, 5]])) < FLOAT32_TURN

@@ -32,7 +32,7 @@ def transport(request: pytest.FixtureRequest) -> Transport:
 
 def needs(transport: Transport, fault: str) -> None:
     if fault not in transport.faults:
-        pytest.skip(f"{transport.name} cannot inject {fault}")
+        pytest.skip(f"{transport.name}: {transport.cannot.get(fault, f'cannot inject {fault}')}")
 
 
 def excitation(n: int, amplitude: float = 0.2, seed: int = 0) -> np.ndarray:
@@ -68,7 +68,7 @@ def test_life_cycle_and_torque(transport):
         with pytest.raises(DriverError, match="not open"):
             servo.exchange(0.0)
         servo.open()
-        assert servo.identity.get("driver") == transport.name
+        assert servo.identity.get("driver") == servo.scheme
         with pytest.raises(DriverError):
             servo.exchange(0.01)  # torque off: refused, never silently ignored
         servo.enable()
@@ -159,17 +159,13 @@ def test_corrupted_bytes_are_rejected_and_counted_never_accepted(transport, tmp_
     trace = tmp_path / "sent.txt"
     with transport.servo(Faults(flip=0.004, seed=5, trace=trace, timeout=0.01), None) as servo:
         servo.open()
-        scale = servo.position_unit.scale
+        to_native = servo.position_unit.to_native
         result = run_session(servo, excitation(1500), SessionConfig(period_s=1 / RATE_HZ, give_up_after_s=2.0))
         rejected = servo.stats.rejected
     time.sleep(0.05)
-    sent = set()
-    for line in trace.read_text().splitlines():
-        fields = line.split("*")[0].split(" ")
-        if fields[1] == "P":
-            sent.add((int(fields[4]), int(fields[5])))  # (device us, counts) as the firmware sent them
+    sent = transport.sent_readings(trace)
     measured = np.isfinite(result.y)
-    accepted = {(round(t * 1e6), round(y / scale)) for t, y in zip(result.device_time[measured], result.y[measured])}
+    accepted = {(round(t * 1e6), round(to_native(y))) for t, y in zip(result.device_time[measured], result.y[measured])}
     assert rejected > 0 and result.counts["timeout"] > 0
     assert accepted <= sent, f"{len(accepted - sent)} readings were accepted that the firmware never sent"
     assert len(accepted) > 300

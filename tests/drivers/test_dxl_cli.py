@@ -28,7 +28,8 @@ def test_emulate_dxl_prints_the_port_and_serves_until_interrupted(tmp_path):
             line = proc.stdout.readline()
             assert line, f"the emulator ended early: {proc.stderr.read()}"
             lines.append(line.strip())
-        assert re.fullmatch(r"Dynamixel emulator on /dev/pts/\d+ \(Protocol 2\.0, XM430-W350, any baud rate\)", lines[0])
+        assert re.fullmatch(r"Dynamixel emulator on /dev/pts/\d+ \(Protocol 2\.0, XM430-W350, any baud rate, "
+                            r"sampled at 200 Hz\)", lines[0])  # fmt: skip
         urls = [line.split(": ", 1)[1] for line in lines if line.startswith("servo ")]
         assert urls == [f"dxl://{link}?id=1&baud=1000000", f"dxl://{link}?id=4&baud=1000000"]
         with driver_from_url(f"{urls[1]}&latency_ms={TEST_LATENCY_MS}") as servo:

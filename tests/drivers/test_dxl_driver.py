@@ -62,7 +62,7 @@ def test_opening_reads_the_servo_and_leaves_the_torque_off(emulator):  # noqa: F
     servo.write(ct.MAX_POSITION_LIMIT.address, b"")  # no-op: refused, nothing changes
     with driver_from_url(url(emulator, mode="current")) as d:
         assert d.identity == {
-            "vendor": "ROBOTIS", "protocol": "2.0", "model_number": 1020, "model": "XM430-W350",
+            "driver": "dxl", "vendor": "ROBOTIS", "protocol": "2.0", "model_number": 1020, "model": "XM430-W350",
             "firmware_version": 48, "id": 1, "baud": 1_000_000, "port": emulator.port,
             "operating_mode": "current", "return_delay_us": 0,
         }  # fmt: skip

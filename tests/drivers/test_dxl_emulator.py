@@ -132,6 +132,38 @@ def test_the_plant_advances_one_step_per_goal_written(bus, emulator, clock):  # 
     assert emulator.servo(1).steps == len(goals) and emulator.servo(2).steps == 0
 
 
+def test_on_its_own_clock_the_servo_holds_the_goal_between_samples(clock):  # noqa: F811
+    """With a period, the servo's loop runs on: silence is samples on the held goal, counted by its clock."""
+    period = 0.01
+    with DynamixelEmulator(ids=[1], clock=clock, return_delay_us=0, period_s=period) as emu:
+        port = sdk.PortHandler(emu.port)
+        assert port.openPort() and port.setBaudRate(1_000_000)
+        ph = sdk.PacketHandler(2.0)
+        writer = sdk.GroupSyncWrite(port, ph, ct.GOAL_POSITION.address, 4)
+        writer.addParam(1, list(ct.encode_value(ct.GOAL_POSITION, 2048)))
+        ph.write1ByteTxRx(port, 1, ct.TORQUE_ENABLE.address, 1)
+        reference, held, latest = Plant(BENCH_PLANT), 0.0, 2048
+        # goals 1.3, 3.2 and 3.6 periods apart (nearest: 1, 3 and 4 samples); a READ 2.6 periods after the
+        # third goal reports the latest sample (held samples are counted when the next goal comes)
+        for gap, goal in ((0.0, 2048 + 150), (1.3, 2048 - 90), (3.2, 2048 + 60), (3.6, 2048 - 20)):
+            if gap == 3.6:
+                clock.advance(2.6 * period)
+                assert ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0] == latest
+                clock.advance(1.0 * period)
+            else:
+                clock.advance(gap * period)
+            for _ in range(max(round(gap), 1) - 1):
+                reference.step(held)
+            held = (goal - 2048) * ct.RAD_PER_COUNT
+            expected = round(reference.step(held) / ct.RAD_PER_COUNT) + 2048
+            writer.changeParam(1, list(ct.encode_value(ct.GOAL_POSITION, goal)))
+            assert writer.txPacket() == sdk.COMM_SUCCESS
+            latest = ph.read4ByteTxRx(port, 1, ct.PRESENT_POSITION.address)[0]
+            assert latest == expected
+        assert emu.servo(1).steps == 1 + 1 + 3 + 4
+        port.closePort()
+
+
 def test_negative_values_and_the_header_pattern_survive_the_wire(bus, emulator):  # noqa: F811
     port, ph = bus
     # 0x00FDFFFF is FF FF FD 00 on the wire: the SDK stuffs it, the emulator must unstuff, and back

@@ -99,3 +99,11 @@ def test_a_pending_hardware_error_is_refused_at_open_unless_rebooting(emulator):
         servo.enable()
         assert servo.exchange(0.0).position == 0.0
     assert emulator.servo(1).reboots == 1 and not emulator.servo(1).alert
+
+
+def test_a_corrupted_answer_while_opening_is_tried_again(emulator):  # noqa: F811
+    emulator.faults(1).corrupt_replies = 2  # the PING's answer, then the first READ's
+    with driver_from_url(url(emulator)) as servo:
+        servo.enable()
+        assert servo.exchange(0.1).position == 0.0
+        assert servo.stats.rejected == 2 and emulator.stats.received >= 2

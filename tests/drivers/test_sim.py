@@ -34,6 +34,27 @@ def test_each_command_is_one_sample_and_silence_holds_the_last_one():
     assert sampled.read(int(7.8 * MS)).index == 10
 
 
+def test_slot_numbers_and_a_wrapping_counter_say_how_many_samples_passed():
+    by_slot, by_counter = SampledPlant(BENCH_PLANT), SampledPlant(BENCH_PLANT, period_ns=MS, slot_modulus=4)
+    ref, ref_u = Plant(BENCH_PLANT), 0.0
+    for plant in (by_slot, by_counter):
+        plant.enable()
+    # slots 0, 1, 4, 13 at times that say nothing (all at 0 ns, or one period apart): the slots decide;
+    # the counter (slot mod 4) wraps, and its 9-period gap 1 -> 1 is told from 1 or 5 by the time
+    for slot, u in ((0, 0.1), (1, 0.2), (4, -0.1), (13, 0.15)):
+        held = {0: 0, 1: 0, 4: 2, 13: 8}[slot]
+        for _ in range(held):
+            ref.step(ref_u)
+        expected = ref.step(u)
+        ref_u = u
+        assert by_slot.command(u, 0, slot=slot).position == expected
+        assert by_counter.command(u, slot * MS + 200_000, slot=slot % 4).position == expected
+    assert by_slot.index == by_counter.index == 13
+    assert by_slot.command(0.0, 0, slot=13).index == 14  # a device cannot refuse a sample: a repeat is the next
+    by_slot.disable(), by_slot.enable()
+    assert by_slot.command(0.0, 0, slot=3).index == 15  # the count starts afresh when the torque comes back
+
+
 def test_torque_off_freezes_the_plant_and_refuses_commands():
     sampled = SampledPlant(BENCH_PLANT, period_ns=MS)
     with pytest.raises(DriverError, match="torque is off"):
