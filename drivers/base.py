@@ -42,6 +42,15 @@ What a driver MAY implement
     Resolution of the device clock, seconds (the Dynamixel tick counts whole
     milliseconds); the sampling session widens its check of the device's
     timing by it, so that the tick's rounding alone never makes a sample late.
+``carries_slots`` (class attribute)
+    True when the protocol tells the device which sample slot each command
+    belongs to (the serial firmware's ``S <counts> <slot>``, CiA 402's SYNC
+    counter, the simulated servo), so that a late exchange cannot shift the
+    device's input sequence. A device on its own clock (ODrive, Dynamixel)
+    applies a late command in a later sample than the recording says, and
+    the samples after it carry that error for a few periods; for such
+    drivers (the default) the sampling session leaves a guard window after
+    every sample it could not use (:class:`servoid.session.UsableRule`).
 ``command_step`` (instance attribute, set in ``__init__`` or ``_open``)
     The smallest change of the command the device can apply, in native units
     (1 for a goal in whole encoder counts); None (the default) for a
@@ -339,6 +348,7 @@ class Driver(abc.ABC):
     options: ClassVar[Mapping[str, Option]] = {}
     clock_wrap_s: ClassVar[float | None] = None
     clock_resolution_s: ClassVar[float] = 0.0
+    carries_slots: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -184,6 +184,7 @@ class SimDriver(Driver):
     """
 
     scheme: ClassVar[str] = "sim"
+    carries_slots: ClassVar[bool] = True  # the simulated plant steps on the session's slots
     options: ClassVar[Mapping[str, Option]] = {
         "plant": Option(opt.choice(*SIM_PLANTS), f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
         "snr": Option(opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"),

@@ -56,7 +56,7 @@ from servoid.ident.model import BacklashModel
 from servoid.ident.monitor import Tracker, TrackerConfig, TrackerEstimate
 from servoid.modelfile import ModelFile
 from servoid.recording import RecordingWriter
-from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, is_usable, run_session
+from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, run_session
 
 __all__ = [
     "MonitorConfig",
@@ -472,7 +472,7 @@ class _Loop:
         self.alarms = Alarms(config.bounds, config.rule)
         self.history = MonitorHistory()
         self.names = self.tracker.estimate().names
-        self.use_late = session.use_late
+        self.usable = session.resolved(driver).usable_rule()  # the session's own rule, in step with it
         self.n = 0
         self.last: Sample | None = None
         self.stop = False
@@ -559,7 +559,7 @@ class _Loop:
             yield value
 
     def on_sample(self, sample: Sample) -> None:
-        if is_usable(sample.status, use_late=self.use_late):
+        if self.usable(sample.status):
             self.on_time += 1
             try:
                 self.tracker.update(sample.u, sample.y)

@@ -12,7 +12,7 @@ from servoid.drivers.sim import SimDriver
 from servoid.errors import ConfigError, DriverError
 from servoid.ident import MRGIA, MRGIAConfig, run_mrgia
 from servoid.recording import read_recording
-from servoid.session import COLUMNS, SessionConfig, is_usable, run_session, usable
+from servoid.session import COLUMNS, SessionConfig, run_session, usable
 
 T = 0.001  # s
 
@@ -152,4 +152,33 @@ def test_a_streaming_session_hands_out_every_sample_and_keeps_none():
     assert result.counts["timeout"] > 0 and result.late_share == pytest.approx(kept.late_share)
     assert [x.k for x in seen] == list(range(2000)) and tuple(seen) == kept.samples
     assert est.samples == 2000  # the estimator saw each sample before the callback did
-    assert list(usable([x.status for x in seen])) == [is_usable(x.status) for x in seen]
+    # the rule applied to the streamed statuses gives the session's own mask
+    assert usable([x.status for x in seen], guard=kept.config.guard_samples).tolist() == kept.valid.tolist()
+
+
+def test_usable_rule_leaves_a_guard_window_after_each_unusable_sample():
+    from servoid.session import UsableRule, usable
+
+    status = ["ok", "late", "ok", "ok", "ok", "missed", "ok", "timeout", "ok", "ok", "ok", "ok"]
+    assert usable(status, guard=0).tolist() == [s == "ok" for s in status]
+    assert usable(status, guard=2).tolist() == [1, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 1]
+    # late samples the user accepts are not unusable, so they start no guard
+    assert usable(status, use_late=True, guard=2).tolist() == [1, 1, 1, 1, 1, 0, 0, 0, 0, 0, 1, 1]
+    rule = UsableRule(guard=1)
+    assert [rule(s) for s in ("missed", "ok", "ok")] == [False, False, True]
+
+
+def test_the_guard_defaults_by_whether_the_protocol_carries_the_slot():
+    from servoid.drivers.can.odrive import OdriveDriver
+    from servoid.drivers.dynamixel import DynamixelDriver
+    from servoid.drivers.serial import SerialDriver
+    from servoid.drivers.sim import SimDriver
+    from servoid.session import DEFAULT_GUARD_SAMPLES, SessionConfig
+
+    cfg = SessionConfig(period_s=0.002)
+    by_class = {cls: cls.carries_slots for cls in (SimDriver, SerialDriver, OdriveDriver, DynamixelDriver)}
+    assert by_class == {SimDriver: True, SerialDriver: True, OdriveDriver: False, DynamixelDriver: False}
+    with SimDriver() as sim:
+        assert cfg.resolved(sim).guard_samples == 0
+    assert SessionConfig(period_s=0.002, guard_samples=3).resolved(sim).guard_samples == 3
+    assert DEFAULT_GUARD_SAMPLES == 10

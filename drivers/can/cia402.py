@@ -98,6 +98,7 @@ class Cia402Driver(CanDriver):
     """
 
     protocol = "cia402"
+    carries_slots: ClassVar[bool] = True  # the SYNC counter (0x1019) carries the session's slots
     options: ClassVar[Mapping[str, Option]] = {
         **CanDriver.options,
         "counts_per_rev": Option(_counts, "encoder increments per revolution (default: the drive's 0x608F)"),

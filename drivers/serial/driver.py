@@ -73,6 +73,7 @@ class SerialDriver(Driver):
     """
 
     scheme: ClassVar[str] = "serial"
+    carries_slots: ClassVar[bool] = True  # the set-input request carries the slot: S <counts> <slot>
     options: ClassVar[Mapping[str, Option]] = {
         "baud": Option(opt.integer(minimum=1), "line rate in bit/s (default 1000000)"),
         "timeout": Option(opt.number(low=0, low_open=True), "seconds to wait for a reply (default 0.1)"),

@@ -45,6 +45,11 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     live.add_argument("--amplitude", type=float, metavar="A",
                       help="half-width of the uniform excitation, in the driver's unit "
                            f"(default: the simulated servo's reference, else {BENCH_AMPLITUDE} for the bench servo)")  # fmt: skip
+    live.add_argument("--guard", type=int, metavar="N",
+                      help="samples left out after each one that could not be used (late, missed, timed out): "
+                          "a device on its own clock applies a late command in a later sample and the next "
+                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
+                          "(sim, serial, CiA 402), else 10")  # fmt: skip
     live.add_argument("--use-late", action="store_true",
                       help="let the estimator use samples exchanged late (default: leave them out)")
 
@@ -64,7 +69,9 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
     """The samples of a recording to identify from: all, or for a live recording those its session used."""
     if rec.status is None:
         return None
-    return usable(rec.status, use_late=rec.metadata.get("use_late") == "True") & np.isfinite(rec.y)
+    guard = rec.metadata.get("guard_samples", "0")
+    guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
+    return usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples) & np.isfinite(rec.y)
 
 
 def live_record(
@@ -96,7 +103,7 @@ def live_record(
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
         u = excitation(args, amplitude, driver.limits.centre)
-        config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late)
+        config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         path = args.out / "recording.csv"
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
         if not quiet:

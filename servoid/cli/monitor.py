@@ -92,6 +92,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                        help=f"sample rate in Hz (default: the model's, else {_live.DEFAULT_RATE_HZ:g}); "
                             "the model's linear block holds at the rate it was identified at")  # fmt: skip
     servo.add_argument("--duration", type=float, metavar="S", help="run this many seconds (default: until Ctrl-C)")
+    servo.add_argument("--guard", type=int, metavar="N",
+                       help="samples left out after each one that could not be used (late, missed, timed out): "
+                          "a device on its own clock applies a late command in a later sample and the next "
+                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
+                          "(sim, serial, CiA 402), else 10")  # fmt: skip
     servo.add_argument("--use-late", action="store_true", help="let the estimator use samples exchanged late")
     inp = p.add_argument_group("input")
     inp.add_argument("--operating", metavar="SPEC",
@@ -263,7 +268,7 @@ def run(args: argparse.Namespace) -> int:
         started = time.perf_counter()
         with _term.live_progress("monitor", total) as bar:
             result = run_monitor(
-                driver, inputs, SessionConfig(period_s=period, use_late=args.use_late), config,
+                driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard), config,
                 model_file=model_file, out=args.out, total=total, truth_at=getattr(driver, "truth_at", None),
                 on_event=_print_event, on_progress=_progress(bar, unit), plot=args.plot, metadata=meta,
             )  # fmt: skip
