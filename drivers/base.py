@@ -273,16 +273,31 @@ class Measurement:
 
 @dataclass
 class DriverStats:
-    """Counters a driver keeps while open."""
+    """Counters a driver keeps while open.
+
+    Attributes
+    ----------
+    exchanges : int
+        Commands exchanged for a measurement.
+    clamped : int
+        Commands the safety limits changed before they were sent.
+    errors : int
+        Failed calls of a primitive (timeouts included).
+    timeouts : int
+        Calls that got no answer in time.
+    rejected : int
+        Replies thrown away as corrupted (bad CRC, length, framing): never used.
+    stale : int
+        Replies that came after their request had timed out (matched by
+        sequence number), discarded.
+    """
 
     exchanges: int = 0
     clamped: int = 0
     errors: int = 0
     timeouts: int = 0
     rejected: int = 0
-    """Replies thrown away as corrupted (bad CRC, length, framing): never used."""
     stale: int = 0
-    """Replies that came after their request had timed out (matched by sequence number), discarded."""
 
 
 @dataclass(frozen=True)
@@ -306,7 +321,21 @@ class Option:
 
 @dataclass(frozen=True)
 class DriverURL:
-    """A parsed driver URL ``scheme://location/path?key=value&...``."""
+    """A parsed driver URL ``scheme://location/path?key=value&...``.
+
+    Attributes
+    ----------
+    raw : str
+        The URL as given.
+    scheme : str
+        ``sim``, ``serial``, ``can``, ``dxl``, ...
+    host : str
+        The part after ``//`` up to the path (the CAN interface, e.g. ``virtual``).
+    path : str
+        The path (a serial port, a CAN channel).
+    options : mapping of str to str
+        The query options, as text.
+    """
 
     raw: str
     scheme: str

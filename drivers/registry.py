@@ -38,7 +38,15 @@ _PACKAGES = {"serial": "pyserial", "can": "python-can", "canopen": "canopen", "d
 
 
 def register(scheme: str, target: str) -> None:
-    """Map ``scheme`` to a driver class given as ``"package.module:Class"``."""
+    """Map ``scheme`` to a driver class given as ``"package.module:Class"``.
+
+    Parameters
+    ----------
+    scheme : str
+        The URL scheme, a bare name such as ``"sim"``.
+    target : str
+        ``"package.module:Class"``, imported when a URL with ``scheme`` is opened.
+    """
     if "://" in scheme or not scheme.isidentifier():
         raise ConfigError(f"scheme (={scheme!r}) must be a bare name such as 'sim'")
     if ":" not in target:
@@ -53,6 +61,11 @@ def schemes() -> tuple[str, ...]:
 
 def parse_url(url: str) -> DriverURL:
     """Split a driver URL into scheme, host, path and options.
+
+    Parameters
+    ----------
+    url : str
+        ``scheme://host/path?key=value&...``.
 
     Raises
     ------
@@ -104,6 +117,11 @@ def driver_class(scheme: str) -> type[Driver]:
 
 def driver_from_url(url: str) -> Driver:
     """Build the driver a URL names (not yet open: use it as a context manager).
+
+    Parameters
+    ----------
+    url : str
+        A driver URL (see the module docstring for the forms).
 
     Examples
     --------
