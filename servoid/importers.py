@@ -18,7 +18,6 @@ Each reader returns a :class:`~servoid.recording.Recording`; write it with
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError
+from servoid.files import existing_file, read_json
 from servoid.recording import Recording, write_recording
 
 __all__ = ["read_emps", "read_bam", "to_csv", "split"]
@@ -64,9 +64,7 @@ def read_emps(path: str | os.PathLike[str], *, decimate: int = 1) -> Recording:
     from scipy.io.matlab import MatReadError
 
     factor = _factor(decimate)
-    p = Path(path)
-    if not p.is_file():
-        raise DataError(f"{p}: no such file")
+    p = existing_file(path)
     try:
         data = loadmat(p)
     except (MatReadError, ValueError, OSError, IndexError, TypeError) as exc:  # scipy's reader fails in many ways
@@ -92,12 +90,7 @@ def read_bam(path: str | os.PathLike[str], *, decimate: int = 1) -> Recording:
     """
     factor = _factor(decimate)
     p = Path(path)
-    if not p.is_file():
-        raise DataError(f"{p}: no such file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DataError(f"{p}: not a JSON file ({exc})") from exc
+    data = read_json(p)
     entries = data.get("entries") if isinstance(data, dict) else None
     if not isinstance(entries, list) or not entries:
         raise DataError(f"{p}: no 'entries' list; a BAM log is {{..., 'entries': [{{timestamp, goal_position, position}}]}}")

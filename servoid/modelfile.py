@@ -44,6 +44,7 @@ from collections.abc import Mapping
 
 from servoid import __version__, validation
 from servoid.errors import ConfigError, DataError, ModelError
+from servoid.files import read_json
 from servoid.ident.compensate import default_band
 from servoid.ident.model import BacklashModel
 
@@ -172,12 +173,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         The model inside is invalid (the message names the value).
     """
     p = Path(path)
-    if not p.is_file():
-        raise DataError(f"{p}: no such model file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise DataError(f"{p}: not a JSON file ({exc})") from exc
+    data = read_json(p, what="model file")
     if not isinstance(data, Mapping) or data.get("schema") != SCHEMA:
         found = data.get("schema") if isinstance(data, Mapping) else type(data).__name__
         raise DataError(f"{p}: not a servoid model file (schema {found!r}, expected {SCHEMA!r})")

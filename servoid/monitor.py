@@ -55,7 +55,8 @@ from servoid.ident.compensate import default_band
 from servoid.ident.model import BacklashModel
 from servoid.ident.monitor import Tracker, TrackerConfig, TrackerEstimate
 from servoid.modelfile import ModelFile
-from servoid.recording import RecordingWriter
+from servoid.files import read_text
+from servoid.recording import RecordingWriter, split_metadata
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, run_session
 
 __all__ = [
@@ -332,17 +333,7 @@ def read_estimates(path: str | os.PathLike[str]) -> tuple[dict[str, np.ndarray],
         A missing file, or one that is not an ``estimates.csv`` of ``servoid monitor``.
     """
     p = Path(path)
-    if not p.is_file():
-        raise DataError(f"{p}: no such file")
-    meta: dict[str, str] = {}
-    with open(p, encoding="utf-8", newline="") as fh:
-        lines = []
-        for line in fh:
-            if line.startswith("#"):
-                key, _, value = line[1:].partition(":")
-                meta[key.strip()] = value.strip()
-            else:
-                lines.append(line)
+    meta, lines = split_metadata(read_text(p).splitlines())
     rows = list(csv.reader(lines))
     if not rows or "dead_zone" not in rows[0]:
         raise DataError(f"{p}: not an estimates.csv of servoid monitor (no dead_zone column)")

@@ -31,8 +31,9 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from servoid.errors import DataError
+from servoid.files import read_text
 
-__all__ = ["Recording", "read_recording", "write_recording", "RecordingWriter"]
+__all__ = ["Recording", "read_recording", "write_recording", "RecordingWriter", "split_metadata"]
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,8 @@ class Recording:
         return float(np.median(np.diff(self.t)))
 
 
-def _metadata_and_body(lines: list[str]) -> tuple[dict[str, str], list[str]]:
+def split_metadata(lines: list[str]) -> tuple[dict[str, str], list[str]]:
+    """The leading ``# key: value`` lines as a dict, and the lines after them."""
     meta: dict[str, str] = {}
     i = 0
     while i < len(lines) and (lines[i].startswith("#") or not lines[i].strip()):
@@ -105,16 +107,9 @@ def read_recording(path: str | os.PathLike[str], *, u_column: str = "u", y_colum
         its row and column), or no data rows.
     """
     p = Path(path)
-    if not p.exists():
-        raise DataError(f"{p}: no such file")
-    if p.is_dir():
-        raise DataError(f"{p} is a directory, expected a CSV file")
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DataError(f"{p}: cannot read as UTF-8 text ({exc})") from exc
+    text = read_text(p, what="CSV file")
     lines = text.splitlines()
-    meta, body = _metadata_and_body(lines)
+    meta, body = split_metadata(lines)
     if not body:
         raise DataError(f"{p}: no header row (expected column names such as 't,u,y')")
     first_row = len(lines) - len(body) + 1  # 1-based line number of the header

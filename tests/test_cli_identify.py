@@ -56,7 +56,7 @@ def test_table_output_has_units_and_the_truth(tmp_path, capsys):
 @pytest.mark.parametrize(
     "content, args, fragment",
     [
-        (None, [], "no such file"),
+        (None, [], "no such CSV file"),
         ("a,b\n1,2\n", [], "missing column(s) 'u', 'y'"),
         ("u,y\n" + "1,2\n" * 10 + "1,nan\n", [], "column 'y': 'nan' is not finite"),
         ("u,y\n" + "".join(f"{i},{i}\n" for i in range(20)), [], "too few"),

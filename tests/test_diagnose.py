@@ -119,7 +119,7 @@ def test_cli_table_names_the_effect_with_its_unit(csv_pair, tmp_path, capsys):
 @pytest.mark.parametrize(
     "content_b, args, fragment",
     [
-        (None, [], "no such file"),
+        (None, [], "no such CSV file"),
         ("u,v\n1,2\n", [], "missing column(s) 'y'"),
         ("# unit: mm\nt,u,y\n" + "".join(f"{0.01 * i},{np.sin(i)},{np.cos(i)}\n" for i in range(500)), [],
          "differ in 'unit'"),

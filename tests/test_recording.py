@@ -42,7 +42,7 @@ def test_bad_files_name_the_problem(tmp_path, text, fragment):
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(DataError, match="no such file"):
+    with pytest.raises(DataError, match="no such CSV file"):
         read_recording(tmp_path / "nope.csv")
 
 

@@ -155,7 +155,7 @@ def plot_candidates(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
         ax.barh(np.arange(len(names)), gaps, color=colours)
         none = rnd.candidates[0]
         ax.axvline(none.gap / (1 + diagnosis.config.penalty), color="tab:red", ls="--", lw=1,
-                   label=f"a 1-parameter effect must beat this")  # fmt: skip
+                   label="a 1-parameter effect must beat this")  # fmt: skip
         ax.set_yticks(np.arange(len(names)))
         ax.set_yticklabels(names, fontsize=8)
         ax.set_xscale("log")
