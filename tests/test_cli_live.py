@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import select
 import subprocess
 import sys
@@ -68,16 +69,27 @@ def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):
 def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
     """The issue's "done when": the emulated bench servo, identified over its pseudo-terminal."""
     emulator = subprocess.Popen([sys.executable, "-m", "servoid", "emulate", "serial"], stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True)  # fmt: skip
+                                stderr=subprocess.PIPE)  # fmt: skip
     try:
-        url = None
+        # Raw reads: a buffered readline() after select() can pull several lines
+        # into Python's buffer, after which select() never fires for the rest.
+        fd = emulator.stdout.fileno()
+        printed = b""
         deadline = time.monotonic() + 60
+        url = None
         while url is None and time.monotonic() < deadline:
-            if select.select([emulator.stdout], [], [], 1.0)[0]:
-                line = emulator.stdout.readline()
-                if line.strip().startswith("url"):
-                    url = line.split()[-1]
-        assert url is not None and url.startswith("serial:///dev/")
+            if not select.select([fd], [], [], 1.0)[0]:
+                continue
+            chunk = os.read(fd, 4096)
+            if not chunk:  # the emulator exited
+                break
+            printed += chunk
+            url = next((ln.split()[-1] for ln in printed.decode().splitlines() if ln.strip().startswith("url")), None)
+        if url is None:
+            emulator.terminate()
+            _, err = emulator.communicate(timeout=10)
+            pytest.fail(f"the emulator printed no url: stdout {printed.decode()!r}, stderr {err.decode()!r}")
+        assert url.startswith("serial:///dev/")
         done = subprocess.run([sys.executable, "-m", "servoid", "identify", "--driver", url, "--rate", "500",
                                "--samples", "2500", "--json", "--no-plots", "--out", str(tmp_path)],
                               capture_output=True, text=True, timeout=120)  # fmt: skip
