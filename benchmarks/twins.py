@@ -17,8 +17,10 @@ Two tables, one row per preset:
    settings (``MRGIAConfig()``: na 2, nb 0, delay 1, no structure flags) on
    (command, output encoder). Printed as they are: the true play, the
    identified ``c1 + c2``, its error, the fit's free-run NRMSE, and what the
-   drive did meanwhile (share of ticks with saturated duty, time the motor
-   was stuck). Nothing here is tuned to make these numbers good.
+   drive did meanwhile (shares of its ticks with saturated duty and with the
+   current command at its limit, share of the time the motor was stuck,
+   whether the online estimate settled or the drive faulted). Nothing here
+   is tuned to make these numbers good.
 
 The machine may be shared: the speed table is the best of the repeats.
 """
@@ -100,11 +102,12 @@ def ident_row(name: str, samples: int, seed: int) -> list[str]:
     play = twin.truth.play_rad
     counters = twin.counters
     fault = twin.read().fault
+    limited = counters.current_limited_ticks / counters.ticks if counters.ticks else 0.0
     try:
         result = identify(rec.u, rec.y, MRGIAConfig())
     except ServoidError as exc:
         return [name, f"{play:.5f}", "failed", "-", "-", "-", "-", f"{counters.saturated_share:.2f}",
-                f"{counters.stuck_motor_s / counters.time_s:.2f}", str(exc)[:40]]
+                f"{limited:.2f}", f"{counters.stuck_motor_s / counters.time_s:.2f}", str(exc)[:40]]
     m = result.model
     width = m.c1 + m.c2
     return [
@@ -116,6 +119,7 @@ def ident_row(name: str, samples: int, seed: int) -> list[str]:
         f"{m.m2:.3f}",
         f"{result.fit_nrmse:.4f}",
         f"{counters.saturated_share:.2f}",
+        f"{limited:.2f}",
         f"{counters.stuck_motor_s / counters.time_s:.2f}",
         fault or ("settled" if result.mrgia.settled else "not settled"),
     ]
@@ -143,7 +147,7 @@ def main() -> None:
         f"Offline identification: white set point +-{AMPLITUDE_RAD} rad at {HOST_RATE_HZ:g} Hz, "
         f"{args.samples} samples, identify(u, y, MRGIAConfig())",
         ["preset", "true play rad", "c1+c2 rad", "error rad", "rel. error", "m2", "fit NRMSE",
-         "saturated", "motor stuck", "online"],
+         "duty sat.", "current lim.", "motor stuck", "online"],
         rows,
     )
 

@@ -59,12 +59,13 @@ sourced ones, so a reader sees the arithmetic.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from servoid.errors import ConfigError
 from servoid.drivers.twin.params import TwinParams, override
 
-__all__ = ["preset", "preset_names", "PRESETS"]
+__all__ = ["preset", "preset_names", "PRESETS", "Published", "PUBLISHED"]
 
 _RPM = 2.0 * math.pi / 60.0  # rad/s per rpm
 _KGCM = 0.0980665  # N m per kg cm
@@ -335,6 +336,41 @@ ODRIVE = TwinParams(
 
 #: The presets by name.
 PRESETS: dict[str, TwinParams] = {p.name: p for p in (XM430, STS3215, CIA402, ODRIVE)}
+
+
+@dataclass(frozen=True)
+class Published:
+    """A servo's figures as its vendor publishes them (None: not published for this assembly).
+
+    Attributes
+    ----------
+    no_load_speed_rpm : float or None
+        Output speed without load at the preset's supply voltage, rpm.
+    stall_torque_nm : float or None
+        Output torque with the output held, N m.
+    stall_current_a : float or None
+        Current meanwhile, A.
+    output_cpr : int or None
+        Counts per output revolution of the output encoder.
+    source : str
+        Where the figures come from (the keys of this module's docstring).
+    """
+
+    no_load_speed_rpm: float | None
+    stall_torque_nm: float | None
+    stall_current_a: float | None
+    output_cpr: int | None
+    source: str
+
+
+#: What the vendors publish, to hold the twins against (:mod:`servoid.drivers.twin.figures`).
+PUBLISHED: dict[str, Published] = {
+    "xm430": Published(46.0, _XM_STALL_NM, _XM_STALL_A, 4096, "[XM]"),
+    "sts3215": Published(_ST_NOLOAD_W * 60.0 / (2.0 * math.pi), _ST_STALL_NM, None, 4096, "[STD]"),
+    # assembled from parts: the motor's and drive's figures apply to the parts, not to the servo
+    "cia402": Published(None, None, None, None, "[EP], [RE], [NP]"),
+    "odrive": Published(None, None, None, None, "[OD]"),
+}
 
 
 def preset_names() -> tuple[str, ...]:
