@@ -7,8 +7,10 @@ and while ``|theta_m / N - theta_l| < b / 2`` no torque passes (the load
 coasts on its own momentum). Past a flank the contact is a spring and
 damper, ``k pen + c d(pen)/dt``, that can push but never pull. The motor
 gets the contact torque back through the gear: divided by ``N * eta`` when
-it drives the load (power flows out), times ``eta / N`` when the load
-drives it. The winding obeys ``L di/dt = V - R i - Ke w_m``, the motor
+it drives the load (power flows out; at rest: when its torque pushes the
+way the contact does), times ``eta / N`` when the load drives it -- so a
+passive motor behind a lossy gear resists being back-driven, as a
+high-ratio spur train does. The winding obeys ``L di/dt = V - R i - Ke w_m``, the motor
 torque is ``Kt i``; the load feels gravity ``-m g l sin(theta_l)``.
 
 Friction on each body is viscous plus Coulomb with a Stribeck hump
@@ -193,7 +195,10 @@ def run(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, n_
             if torque_c > 0.0:
                 torque_c = 0.0
             n_contact += 1
-        if torque_c * w_l >= 0.0:
+        # who drives: the power the gear passes to the load; at rest, the motor if its own
+        # torque pushes the way the contact does (a passive motor is always driven)
+        power = torque_c * w_l
+        if power > 0.0 or (power == 0.0 and torque_c * cur > 0.0):
             reaction = torque_c / (n * eta)  # the motor drives the load
         else:
             reaction = torque_c * eta / n  # the load drives the motor

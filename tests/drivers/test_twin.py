@@ -177,6 +177,30 @@ def test_reversal_waits_until_the_motor_side_has_crossed_the_play(name):
     assert dead > 0.8 * twin.truth.play_rad / speed
 
 
+def test_a_held_pendulum_presses_on_the_gear_with_m_g_l_sin_theta():
+    # 0.1 kg at 0.1 m, held horizontal by the XM430: the gear carries the link's weight
+    twin = Twin(preset("xm430", load_mass_kg=0.1, load_arm_m=0.1))
+    twin.enable()
+    twin.command(math.pi / 2)
+    twin.advance(1.5)
+    ph = twin.physics()
+    assert ph.load_stuck and abs(ph.load_rad - math.pi / 2) < 0.1
+    weight = 0.1 * 9.80665 * 0.1 * math.sin(ph.load_rad)
+    assert ph.contact_torque_nm == pytest.approx(weight, abs=preset("xm430").load_breakaway_nm)
+    # torque off: back-driven through 353.5:1 at 79 % efficiency, 0.1 N m stays under the motor's
+    # break-away and the gear holds the link; ten times the weight back-drives it and it falls
+    twin.disable()
+    twin.advance(0.3)
+    assert twin.physics().load_rad == ph.load_rad
+    heavy = Twin(preset("xm430", load_mass_kg=1.0, load_arm_m=0.1))
+    heavy.enable()
+    heavy.command(math.pi / 2)
+    heavy.advance(1.5)
+    heavy.disable()
+    heavy.advance(0.5)
+    assert heavy.physics().load_rad < 1.0
+
+
 def test_torque_off_cuts_the_current_and_the_motor_coasts():
     twin = Twin(preset("xm430"))
     twin.enable()
