@@ -119,7 +119,8 @@ S_N_CUR_LIM = 24  # of those, ticks whose current command was at its limit
 S_N_STUCK_M = 25  # sub-steps the motor spent stuck with the output stage on
 S_N_STUCK_L = 26  # sub-steps the load spent stuck with the output stage on
 S_N_CONTACT = 27  # sub-steps with the gear in contact
-S_SIZE = 28
+S_POS_EST = 28  # the drive's position estimate on its loop encoder (PLL or raw), output rad
+S_SIZE = 29
 
 FAULT_NONE = 0
 FAULT_OVERSPEED = 1

@@ -142,6 +142,7 @@ def control_tick(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.nd
         pos_fb = pos
     mem[L.M_POS_PREV] = pos
     state[L.S_VEL] = vel / shaft_per_output
+    state[L.S_POS_EST] = pos_fb / shaft_per_output
 
     if state[L.S_ENABLED] < 0.5:
         state[L.S_DUTY] = 0.0

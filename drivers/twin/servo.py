@@ -54,6 +54,9 @@ class TwinReading:
         The motor encoder's reading, motor-shaft rad.
     velocity_rad_s : float
         The drive's velocity estimate, output rad/s.
+    position_estimate_rad : float
+        The drive's position estimate on its loop encoder, output rad (an
+        ODrive's encoder PLL; the encoder's reading for the others).
     current_a : float
         The winding current the drive measured, A.
     duty : float
@@ -73,6 +76,7 @@ class TwinReading:
     load_rad: float | None
     motor_rad: float | None
     velocity_rad_s: float
+    position_estimate_rad: float
     current_a: float
     duty: float
     setpoint_rad: float
@@ -354,6 +358,7 @@ class Twin:
             load_rad=load_rad,
             motor_rad=motor_rad,
             velocity_rad_s=float(s[L.S_VEL]),
+            position_estimate_rad=float(s[L.S_POS_EST]),
             current_a=float(s[L.S_CUR]),
             duty=float(s[L.S_DUTY]),
             setpoint_rad=float(s[L.S_SP]),

@@ -92,6 +92,11 @@ def test_odrive_runs_at_its_velocity_limit_and_cia402_at_its_current_limit():
         peak = max(peak, abs(drive.physics().current_a))
     assert peak == pytest.approx(15.0, rel=0.05)
     assert drive.counters.current_limited_ticks > 10
+    # the drives' own position estimates: the ODrive's PLL near its encoder, the EPOS4 its encoder
+    r = odrive.read()
+    assert r.position_estimate_rad == pytest.approx(r.motor_rad / 8, abs=2 * 2 * math.pi / 8192 / 8)
+    r = drive.read()
+    assert r.position_estimate_rad == r.motor_rad / 10
 
 
 # --- physics -----------------------------------------------------------------------------------
