@@ -65,9 +65,8 @@ def steps(name: str, ax_pos, ax_drive) -> None:
 
 def stall(name: str, ax) -> None:
     p = preset(name)
-    cpr = p.load_encoder_cpr if p.output_encoder == "load" else p.motor_encoder_cpr * p.gear_ratio
-    counts = 3 if cpr <= 4096 else 30
-    step = counts * 2 * np.pi / cpr
+    counts = 3 if p.output_counts_per_rev <= 4096 else 30
+    step = counts * 2 * np.pi / p.output_counts_per_rev
     u = np.r_[np.zeros(20), np.full(int(1.0 / HOST_S), step)]
     variants = [("factory gains", {})]
     if p.firmware != "cascade":

@@ -103,10 +103,9 @@ def measure(params: TwinParams) -> Figures:
         The servo.
     """
     torque, current = stall_torque(params)
-    cpr = params.load_encoder_cpr if params.output_encoder == "load" else params.motor_encoder_cpr * params.gear_ratio
     return Figures(
         no_load_speed_rpm=no_load_speed(params) * 60.0 / (2.0 * math.pi),
         stall_torque_nm=torque,
         stall_current_a=current,
-        output_cpr=float(cpr),
+        output_cpr=params.output_counts_per_rev,
     )

@@ -251,11 +251,11 @@ class TwinParams:
         return 1.0 / (self.current_rate_hz * self.substeps)
 
     @property
-    def output_cpr(self) -> int:
-        """Counts per output revolution of the output encoder."""
+    def output_counts_per_rev(self) -> float:
+        """Counts of the output encoder per output revolution (a motor encoder's times the ratio)."""
         if self.output_encoder == "load":
-            return self.load_encoder_cpr
-        return self.motor_encoder_cpr  # per motor revolution: N x that per output revolution
+            return float(self.load_encoder_cpr)
+        return self.motor_encoder_cpr * self.gear_ratio
 
     @property
     def structure(self) -> str:

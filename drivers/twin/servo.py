@@ -407,7 +407,6 @@ class Twin:
     def truth(self) -> TwinTruth:
         """Ground truth: play now, ratio, which encoder does what, the loop structure."""
         p = self._params
-        cpr = p.load_encoder_cpr if p.output_encoder == "load" else p.motor_encoder_cpr * p.gear_ratio
         return TwinTruth(
             name=p.name,
             play_rad=2.0 * float(self._phys[L.P_HALF_PLAY]),
@@ -418,7 +417,7 @@ class Twin:
             control_rate_hz=p.control_rate_hz,
             current_rate_hz=p.current_rate_hz,
             substep_s=self._h,
-            output_rad_per_count=2.0 * math.pi / cpr,
+            output_rad_per_count=2.0 * math.pi / p.output_counts_per_rev,
         )
 
     @property
