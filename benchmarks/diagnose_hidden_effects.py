@@ -2,7 +2,7 @@
 
 For every effect of the library at two strengths, and with no effect, at
 SNR 40 with 6000 training and 6000 validation samples (the paper's plant and
-input, :mod:`servoid.ident.hidden`), run :func:`servoid.ident.diagnose.diagnose`
+input, :mod:`servoid.ident.diagnosis.hidden_effects`), run :func:`servoid.ident.diagnosis.diagnose.diagnose`
 without telling it the effect, and print: the effect it names, its size
 estimate against the truth, the validation gap before and after, and the time
 per run. Then a confusion table over several seeds, which says which effects
@@ -16,10 +16,10 @@ from __future__ import annotations
 import argparse
 import time
 
-from servoid.ident.diagnose import DiagnoseConfig, diagnose
-from servoid.ident.effects import EFFECTS, EFFECT_NAMES, NONE
-from servoid.ident.hidden import HIDDEN_STRENGTHS, hidden_effect_record
-from servoid.ident.mrgia import MRGIAConfig
+from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+from servoid.ident.models.effects import EFFECTS, EFFECT_NAMES, NONE
+from servoid.ident.diagnosis.hidden_effects import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 
 SAMPLES = 6000

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT
 from servoid.drivers.serial.emulator import FirmwareEmulator
 from servoid.ident import MRGIA, MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session

@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.emulator import EmulatorProcess
 from servoid.session import SessionConfig, run_session
 

@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python benchmarks/monitor.py`` (about two minutes on one core). Everything
 runs through the real path: the simulated servo (``sim://``, virtual clock,
 so no real-time waiting), the sampling session keeping no samples, the
-tracker, the alarm rule and the files (:func:`servoid.monitor.run_monitor`),
+tracker, the alarm rule and the files (:func:`servoid.monitor_run.run_monitor`),
 at 1 kHz, checking every 100 samples and writing a row at every check.
 
 The servo is ``sim://?plant=gear&snr=40``: the paper's linear block and
@@ -16,7 +16,7 @@ default (beyond a bound by more than 2 std at 5 checks in a row).
 1. Tracking: c1 + c2 ramps from 1.0 to 1.5 over 200 000 samples (after
    20 000 at 1.0, then 100 000 at 1.5). RMS error of the estimate over the
    ramp, its lag, scatter and bias on the plateau (as in
-   ``benchmarks/tracking.py``: :func:`tracking.ramp_figures`); the reported
+   ``benchmarks/random_walk.py``: :func:`random_walk.ramp_figures`); the reported
    standard deviation; when the alarm came against the time the truth
    crossed the bound.
 2. Detection: a gear swap multiplies c1 and c2 by 1.2 at sample 50 000
@@ -49,16 +49,16 @@ from typing import Any, Callable
 import numpy as np
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.excitation import UniformSpec, parse_spec, stream
-from servoid.ident.alarms import AlarmRule, Alarms, Bound
-from servoid.ident.monitor import Tracker, TrackerConfig
+from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
+from servoid.ident.monitoring.wear_estimator import Tracker, TrackerConfig
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
-from servoid.ident.wear import GEAR_PLANT
+from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile
-from servoid.monitor import MonitorConfig, MonitorProgress, MonitorResult, read_estimates, run_monitor
+from servoid.monitor_run import MonitorConfig, MonitorProgress, MonitorResult, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
-from tracking import AFTER, BEFORE, PLATEAU, RAMP, ramp_figures  # benchmarks/tracking.py: one definition of the figures
+from random_walk import AFTER, BEFORE, PLATEAU, RAMP, ramp_figures  # benchmarks/random_walk.py: one definition of the figures
 
 RATE = 1000.0
 CHECK = 100
@@ -104,7 +104,7 @@ def monitor(
 
 
 def figures(rows: dict[str, np.ndarray], total: int) -> dict[str, float]:
-    """:func:`tracking.ramp_figures` of a run's rows, and the median reported std on the plateau (relative)."""
+    """:func:`random_walk.ramp_figures` of a run's rows, and the median reported std on the plateau (relative)."""
     f = ramp_figures(rows["k"], rows["dead_zone"], rows["true_dead_zone"], total=total)
     plateau = rows["k"] >= total - PLATEAU
     f["reported"] = float(np.median(rows["dead_zone_std"][plateau])) / rows["true_dead_zone"][0]

@@ -49,7 +49,7 @@ import numpy as np
 
 from servoid.cli import main as servoid_main
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT
 from servoid.ident import BacklashModel
 from servoid.session import SessionConfig, run_session
 

@@ -27,14 +27,14 @@ import numpy as np
 from servoid import validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
+from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
-from servoid.ident.simulate import simulate
-from servoid.ident.wear import GEAR_PLANT, Wear
+from servoid.ident.models.simulate import simulate
+from servoid.ident.models.wear import GEAR_PLANT, Wear
 
 __all__ = ["SimDriver", "SimDevice", "SimPlant", "SIM_PLANTS"]
 
@@ -152,9 +152,9 @@ class SimDriver(Driver):
     Parameters
     ----------
     plant : {"bench", "paper", "gear"}
-        ``bench``: :data:`~servoid.drivers.bench.BENCH_PLANT` in rad;
+        ``bench``: :data:`~servoid.drivers.model_plant.BENCH_PLANT` in rad;
         ``paper``: the paper's Section 4 plant, unitless; ``gear``: the paper's
-        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.wear.GEAR_PLANT`).
+        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.models.wear.GEAR_PLANT`).
     snr : float, optional
         Measurement noise as a signal-to-noise ratio: noise standard deviation
         = std of the output under the plant's reference input / ``snr``.
@@ -174,7 +174,7 @@ class SimDriver(Driver):
         Time source; default the real clock. ``virtual`` (also a URL option)
         runs in simulated time: a session takes no wall time and repeats exactly.
     drift, drift_samples, drift_start, swap_at, swap_factor : optional
-        Simulated wear (:class:`~servoid.ident.wear.Wear`): the dead zones
+        Simulated wear (:class:`~servoid.ident.models.wear.Wear`): the dead zones
         ``c1`` and ``c2`` ramp by the factor ``drift`` over ``drift_samples``
         samples from sample ``drift_start``, and are multiplied by
         ``swap_factor`` from sample ``swap_at`` on (a gear swap). Samples are

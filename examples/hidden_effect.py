@@ -5,7 +5,7 @@
 
 The plant is the paper's (Section 4) with the named effect of the library
 added, driven by the paper's uniform input, 6000 samples each, SNR 40
-(:func:`servoid.ident.hidden.hidden_effect_record`).
+(:func:`servoid.ident.diagnosis.hidden_effects.hidden_effect_record`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.effects import EFFECT_NAMES, NONE
-from servoid.ident.hidden import hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, NONE
+from servoid.ident.diagnosis.hidden_effects import hidden_effect_record
 from servoid.recording import write_recording
 
 

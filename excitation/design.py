@@ -19,7 +19,7 @@ from servoid.errors import ConfigError, ModelError
 from servoid.excitation.generate import sample
 from servoid.excitation.report import ExcitationReport, Level, Verdict, assess, worst_level
 from servoid.excitation.specs import SignalSpec, StepsSpec, UniformSpec
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Prior", "ServoLimits", "Design", "design"]
 

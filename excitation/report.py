@@ -32,8 +32,8 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.excitation.regressor import regressor
-from servoid.ident.model import BacklashModel
-from servoid.ident.simulate import Simulation, simulate
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import Simulation, simulate
 
 __all__ = [
     "Verdict",

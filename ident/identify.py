@@ -16,10 +16,10 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.metrics import nrmse
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
-from servoid.ident.refine import Refinement, arx_start, refine
-from servoid.ident.simulate import free_run
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
+from servoid.ident.offline.refine import Refinement, arx_start, refine
+from servoid.ident.models.simulate import free_run
 
 __all__ = ["Identification", "identify", "check_record"]
 
@@ -44,7 +44,7 @@ class Identification:
         The output-error refinement that won, when refinement ran.
     refined_from : {"mrgia", "arx"} or None
         Which start that refinement came from: the MRGIA estimate, or the
-        MRGIA-independent ARX start (:func:`servoid.ident.refine.arx_start`).
+        MRGIA-independent ARX start (:func:`servoid.ident.offline.refine.arx_start`).
     start_nrmse : dict
         Free-run NRMSE reached from each start that was tried.
     samples : int

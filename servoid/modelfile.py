@@ -26,7 +26,7 @@ samples; the output unit is whatever the recording was in (``rad``,
 ``counts``, or the user's unit, as stated).
 
 Versions: version 1 (no ``compensation``) is still read; its band is then
-servoid's default (:func:`servoid.ident.compensate.default_band`) and
+servoid's default (:func:`servoid.ident.control.compensate.default_band`) and
 :attr:`ModelFile.read_version` says so. Unknown top-level keys, ``effects``
 among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 """
@@ -45,8 +45,8 @@ from collections.abc import Mapping
 from servoid import __version__, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.files import read_json
-from servoid.ident.compensate import default_band
-from servoid.ident.model import BacklashModel
+from servoid.ident.control.compensate import default_band
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model"]
 

@@ -63,8 +63,8 @@ from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.errors import ConfigError, DriverError, DriverTimeout, EstimatorDiverged, ProtocolError, ServoidError
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIA
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIA
 from servoid.recording import RecordingWriter
 
 __all__ = [

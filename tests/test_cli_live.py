@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from servoid.cli import main
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.ident import BacklashModel
 from servoid.modelfile import load_model
 from servoid.recording import read_recording

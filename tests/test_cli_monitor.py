@@ -10,9 +10,9 @@ import pytest
 from servoid.cli import main
 from servoid.cli.monitor import parse_bounds
 from servoid.errors import ConfigError
-from servoid.ident.wear import GEAR_PLANT
+from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile, save_model
-from servoid.monitor import EXIT_ALARM, read_estimates
+from servoid.monitor_run import EXIT_ALARM, read_estimates
 
 GEAR = "sim://?plant=gear&snr=40&clock=virtual"
 

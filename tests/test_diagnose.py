@@ -10,10 +10,10 @@ from servoid.cli import main
 from servoid.errors import ConfigError
 from servoid.extendedfile import load_extended_model
 from servoid.ident import MRGIAConfig
-from servoid.ident.diagnose import DiagnoseConfig, diagnose
-from servoid.ident.effects import EFFECT_NAMES, EFFECTS, NONE
-from servoid.ident.extended import simulate_extended
-from servoid.ident.hidden import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+from servoid.ident.models.effects import EFFECT_NAMES, EFFECTS, NONE
+from servoid.ident.models.extended import simulate_extended
+from servoid.ident.diagnosis.hidden_effects import HIDDEN_STRENGTHS, hidden_effect_record
 from servoid.recording import write_recording
 
 SAMPLES = 6000
@@ -54,7 +54,7 @@ def test_the_hidden_effect_is_named_sized_and_closes_the_gap(effect, value):
 
 
 def test_a_second_effect_is_found_after_the_first():
-    from servoid.ident.extended import AppliedEffect, ExtendedModel
+    from servoid.ident.models.extended import AppliedEffect, ExtendedModel
     from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 
     truth = ExtendedModel(PAPER_PLANT, (AppliedEffect("input_saturation", (1.5,)), AppliedEffect("dead_zone", (0.3,))))

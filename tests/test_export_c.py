@@ -11,7 +11,7 @@ from servoid.cli import main
 from servoid.errors import ConfigError, ModelError
 from servoid.export import export_model
 from servoid.ident import BacklashModel
-from servoid.ident.compensate import InverseParams, backlash_inverse
+from servoid.ident.control.compensate import InverseParams, backlash_inverse
 from servoid.modelfile import ModelFile
 
 GCC = shutil.which("gcc")

@@ -10,7 +10,7 @@ import pytest
 from servoid.cli import main
 from servoid.errors import ConfigError, DataError
 from servoid.ident import PAPER_PLANT
-from servoid.ident.compensate import default_band
+from servoid.ident.control.compensate import default_band
 from servoid.modelfile import ModelFile, load_model, save_model
 
 SCHEMA = json.loads(resources.files("servoid").joinpath("model.schema.json").read_text())

@@ -7,8 +7,8 @@ from servoid.errors import DataError, ModelError
 from servoid.extendedfile import load_extended_model, save_extended_model
 from servoid.ident import PAPER_PLANT, BacklashModel, free_run
 from servoid.ident._jit import python_version
-from servoid.ident.effects import CANDIDATE_NAMES, EFFECT_NAMES, EFFECTS, NONE
-from servoid.ident.extended import AppliedEffect, ExtendedModel, extended_kernel, fit_extended, simulate_extended
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECT_NAMES, EFFECTS, NONE
+from servoid.ident.models.extended import AppliedEffect, ExtendedModel, extended_kernel, fit_extended, simulate_extended
 from servoid.modelfile import ModelFile, load_model, save_model
 
 

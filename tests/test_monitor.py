@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.errors import DataError
 from servoid.excitation import UniformSpec, stream
-from servoid.ident.alarms import Bound
-from servoid.ident.compensate import default_band
-from servoid.ident.monitor import Tracker, TrackerConfig
-from servoid.ident.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.monitoring.alarms import Bound
+from servoid.ident.control.compensate import default_band
+from servoid.ident.monitoring.wear_estimator import Tracker, TrackerConfig
+from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor import MonitorConfig, MonitorHistory, compensation_band, read_estimates, run_monitor
+from servoid.monitor_run import MonitorConfig, MonitorHistory, compensation_band, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
 
 NOISE = 0.0337  # the gear plant's noise at SNR 40
@@ -64,7 +64,7 @@ def test_one_setting_fits_every_unit():
     np.testing.assert_allclose(e100.values[-2:], e1.values[-2:] * 100, rtol=1e-9)
     np.testing.assert_allclose(e100.values[:-2], e1.values[:-2], rtol=1e-9)
     assert e100.dead_zone_std == pytest.approx(e1.dead_zone_std * 100, rel=1e-9)
-    # without the normalisation, a q sized for dead zones of 0.05 rad freezes the linear block (see ident/monitor.py)
+    # without the normalisation, a q sized for dead zones of 0.05 rad freezes the linear block (see ident/monitoring/wear_estimator.py)
 
 
 def test_the_fit_waits_for_its_window_and_sees_a_servo_the_model_does_not_explain():

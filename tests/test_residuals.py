@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from servoid.errors import ConfigError
-from servoid.ident.residuals import GROUPS, regime_breakdown, residual_tests, where_text
+from servoid.ident.diagnosis.residuals import GROUPS, regime_breakdown, residual_tests, where_text
 
 
 def triangle(n=2000, period=100):

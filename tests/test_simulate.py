@@ -3,7 +3,7 @@ import pytest
 
 from servoid.errors import ConfigError, ModelError
 from servoid.ident import BacklashModel, PAPER_PLANT, Plant, free_run, simulate
-from servoid.ident.backlash import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, backlash_step, schur_stable
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, backlash_step, schur_stable
 
 M2, C1, C2 = 1.5, 0.5, 1.0
 

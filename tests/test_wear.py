@@ -9,7 +9,7 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.sampled import SampledPlant
 from servoid.errors import ConfigError
 from servoid.ident import Plant
-from servoid.ident.wear import GEAR_PLANT, WEAR_RESOLUTION, Wear, WearingPlant
+from servoid.ident.models.wear import GEAR_PLANT, WEAR_RESOLUTION, Wear, WearingPlant
 from servoid.session import SessionConfig, run_session
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.can._bus import BusAddress
 from servoid.drivers.can._sim_axis import SimAxis
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimDrive"]
 

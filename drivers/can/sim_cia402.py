@@ -49,14 +49,14 @@ import time
 from typing import Any
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
 from servoid.errors import ConfigError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimCia402Drive", "SIM_COUNTS_PER_REV", "SIM_RATED_TORQUE_MNM"]
 

@@ -52,7 +52,7 @@ from typing import IO, Any, Callable, Iterable
 import numpy as np
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
@@ -69,8 +69,8 @@ from servoid.drivers.dynamixel.protocol import (
     unstuff,
 )
 from servoid.errors import ConfigError, DriverError
-from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.plant import Plant
 
 __all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "dxl_url"]
 

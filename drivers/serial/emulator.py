@@ -25,10 +25,10 @@ import time
 from dataclasses import dataclass
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.serial.build import firmware_binary
 from servoid.errors import ConfigError, DriverError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["FirmwareOptions", "FirmwareEmulator"]
 

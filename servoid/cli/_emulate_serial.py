@@ -7,7 +7,7 @@ import signal
 import time
 
 from servoid.cli import _term
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_PLANT
 

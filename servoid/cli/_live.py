@@ -20,12 +20,12 @@ import numpy as np
 
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import BENCH_AMPLITUDE
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.mrgia import MRGIA, MRGIAConfig, noise_epsilon
+from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, noise_epsilon
 from servoid.recording import Recording
-from servoid.report import Record
+from servoid.identify_outputs import Record
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]

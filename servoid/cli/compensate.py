@@ -8,7 +8,7 @@ from typing import Any
 
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.ident.compensation_study import (
+from servoid.ident.control.compensation_study import (
     ARMS,
     CHANGES,
     FAMILIES,
@@ -17,10 +17,10 @@ from servoid.ident.compensation_study import (
     compensation_study,
     default_resolution,
 )
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.references import amplitude_limit, reference_suite
-from servoid.ident.tracking import Sensor
+from servoid.ident.control.references import amplitude_limit, reference_suite
+from servoid.ident.control.tracking import Sensor
 from servoid.modelfile import ModelFile, load_model
 
 ORDER = 30

@@ -7,11 +7,11 @@ import time
 from pathlib import Path
 
 from servoid.cli import _term
-from servoid.diagnose_report import candidate_rows, diagnosis_json, write_diagnosis_outputs
+from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
 from servoid.errors import ConfigError, DataError
-from servoid.ident.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
-from servoid.ident.effects import CANDIDATE_NAMES, EFFECTS, NONE
-from servoid.ident.mrgia import MRGIAConfig
+from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
+from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 from servoid.recording import Recording, read_recording
 

@@ -16,7 +16,7 @@ from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sampl
 from servoid.excitation.design import Design, Prior, ServoLimits, design
 from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
 from servoid.excitation.specs import grammar
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
 from servoid.modelfile import load_model
 from servoid.recording import write_recording

@@ -12,7 +12,7 @@ from servoid.cli import _live, _term
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
-from servoid.ident.mrgia import MRGIAConfig, noise_epsilon
+from servoid.ident.online.mrgia import MRGIAConfig, noise_epsilon
 from servoid.ident.paper import (
     PAPER_INPUT_AMPLITUDE,
     PAPER_INPUT_VARIANCE,
@@ -20,9 +20,9 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
-from servoid.report import Record, result_json, summary_rows, write_outputs
+from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
 
 ORDER = 10
 

@@ -12,13 +12,13 @@ from typing import Any, Callable, Iterator
 from servoid.cli import _live, _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.base import Driver
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import BENCH_AMPLITUDE
 from servoid.errors import ConfigError
 from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
-from servoid.ident.alarms import AlarmRule, Bound
-from servoid.ident.monitor import DEFAULT_PROCESS_NOISE, TrackerConfig
+from servoid.ident.monitoring.alarms import AlarmRule, Bound
+from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, TrackerConfig
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
+from servoid.monitor_run import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
 from servoid.session import SessionConfig
 
 ORDER = 15

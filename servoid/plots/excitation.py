@@ -9,7 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from servoid.excitation.report import ExcitationReport
-from servoid.ident.backlash import ZONE_DOWN, ZONE_MEMORY, ZONE_UP
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 

@@ -8,8 +8,8 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIAResult
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIAResult
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers.base import Driver
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import BENCH_AMPLITUDE
 from servoid.drivers.can._bus import BusAddress
 from servoid.recording import RecordingWriter
 

@@ -34,10 +34,10 @@ from pathlib import Path
 from typing import Callable, ContextManager, Iterator
 
 from servoid.drivers import Driver, Limits, driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.clock import VirtualClock
 from servoid.drivers.sim import SimDriver
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Faults", "Transport", "TRANSPORTS"]
 

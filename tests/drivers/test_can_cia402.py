@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM, SimCia402Drive
 from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
 from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run

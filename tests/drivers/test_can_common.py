@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.can._bus import NO_KERNEL_CAN, BusAddress, kernel_has_can
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.simulated import simulated_drive
 from servoid.errors import ConfigError, DriverError, DriverTimeout
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
 from .can_helpers import PATIENT_S, bench_input, free_udp_port, private_bus, recorded_run

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.can.simulated import simulated_drive
 from servoid.ident import MRGIAConfig, identify, simulate
 

@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.sim_odrive import SimOdriveAxis
 from servoid.errors import DeviceFault, DriverTimeout
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
 from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run

@@ -11,12 +11,12 @@ import time
 import dynamixel_sdk as sdk
 import pytest
 
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 from servoid.drivers.dynamixel.protocol import Instruction
-from servoid.ident.plant import Plant
+from servoid.ident.models.plant import Plant
 
 from .dxl_helpers import TEST_LATENCY_MS, clock, emulator  # noqa: F401 - fixtures
 

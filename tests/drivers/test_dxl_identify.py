@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, EmulatorProcess

@@ -18,7 +18,7 @@ import pytest
 import serial
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import BENCH_PLANT
 from servoid.drivers.serial import build
 from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
 from servoid.drivers.serial.protocol import FrameSplitter, check, crc16, encode, parse_reply

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers import Driver, driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
 from servoid.errors import DeviceFault, DriverError, DriverTimeout
 from servoid.recording import read_recording

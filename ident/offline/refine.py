@@ -18,10 +18,10 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
-from servoid.ident.backlash import schur_stable, simulate_kernel
+from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
+from servoid.ident.models.kernels import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
@@ -114,7 +114,7 @@ class _OutputError:
 def output_error_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:
     """Covariance and standard errors ``s^2 (J^T J)^+`` of a least-squares fit.
 
-    See :func:`servoid.ident._oefit.covariance_from_jacobian` (kept here for
+    See :func:`servoid.ident.offline._oefit.covariance_from_jacobian` (kept here for
     callers of this module).
     """
     return covariance_from_jacobian(residual, jac, n_params)
@@ -222,7 +222,7 @@ def arx_start(
     backlash as a disturbance (the offset absorbs ``c1 != c2``); it is
     biased, but lands close enough for the output-error search where the
     MRGIA does not converge (see
-    :func:`servoid.ident.mrgia.convergence_margin`). An unstable fit is
+    :func:`servoid.ident.online.mrgia.convergence_margin`). An unstable fit is
     pulled inside the unit circle. The backlash starts with ``m2 = 1`` and
     dead zones of 5 % of ``std(y)``.
 

@@ -5,9 +5,9 @@
 1. identifies the base model on the training record (:func:`servoid.ident.identify`:
    MRGIA, then output-error refinement);
 2. simulates it on the validation input (free run) and breaks the residual
-   down by regime (:mod:`servoid.ident.residuals`);
-3. fits every candidate effect of :mod:`servoid.ident.effects` jointly with
-   all base parameters on the training record (:func:`~servoid.ident.extended.fit_extended`,
+   down by regime (:mod:`servoid.ident.diagnosis.residuals`);
+3. fits every candidate effect of :mod:`servoid.ident.models.effects` jointly with
+   all base parameters on the training record (:func:`~servoid.ident.models.extended.fit_extended`,
    a few starts per effect, the best *training* fit kept), and scores each on
    the validation record;
 4. accepts the best candidate only if it pays (see *Selection* below), and
@@ -40,12 +40,12 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
-from servoid.ident.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
-from servoid.ident.extended import AppliedEffect, ExtendedModel, ExtendedSimulation, fit_extended, simulate_extended
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
+from servoid.ident.models.extended import AppliedEffect, ExtendedModel, ExtendedSimulation, fit_extended, simulate_extended
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
-from servoid.ident.mrgia import MRGIAConfig
-from servoid.ident.residuals import RegimeBreakdown, ResidualTests, regime_breakdown, residual_tests, where_text
+from servoid.ident.online.mrgia import MRGIAConfig
+from servoid.ident.diagnosis.residuals import RegimeBreakdown, ResidualTests, regime_breakdown, residual_tests, where_text
 
 __all__ = ["DiagnoseConfig", "Candidate", "Round", "Diagnosis", "diagnose", "select"]
 

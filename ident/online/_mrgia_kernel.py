@@ -2,7 +2,7 @@
 
 The estimator's whole state lives in one float64 array so that a compiled
 step costs one call with three arguments (:class:`StateLayout` names the
-slices; :class:`servoid.ident.mrgia.MRGIA` exposes them as properties). The
+slices; :class:`servoid.ident.online.mrgia.MRGIA` exposes them as properties). The
 readings of the paper's misprints follow ``shared/PAPER-NOTES.md`` and are
 marked where they are used.
 """
@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid.ident._jit import jit
-from servoid.ident.backlash import schur_stable
+from servoid.ident.models.kernels import schur_stable
 
 __all__ = [
     "StateLayout",

@@ -2,7 +2,7 @@
 
 :class:`Plant` is what the simulated driver and the emulators (serial
 firmware, CAN drives, Dynamixel) put behind their protocols. It gives the same
-numbers as :func:`servoid.ident.simulate` (tested), and its model can be
+numbers as :func:`servoid.ident.models.simulate` (tested), and its model can be
 swapped while it runs without losing the state, to simulate wear.
 """
 
@@ -12,8 +12,8 @@ from collections import deque
 
 from servoid import validation
 from servoid.errors import ModelError
-from servoid.ident.backlash import backlash_step
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.kernels import backlash_step
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Plant"]
 

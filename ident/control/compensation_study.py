@@ -1,8 +1,8 @@
 """Proof by simulation: does the backlash inverse help, and how wrong may the model be?
 
 :func:`compensation_study` drives the simulated servo (the true model) along
-the paths of :func:`~servoid.ident.references.reference_suite` with three
-arms of the same :class:`~servoid.ident.tracking.TrackingController` (same
+the paths of :func:`~servoid.ident.control.references.reference_suite` with three
+arms of the same :class:`~servoid.ident.control.tracking.TrackingController` (same
 model, feedforward and integral gain):
 
 ``uncompensated``  the backlash ignored
@@ -28,10 +28,10 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ModelError
-from servoid.ident.compensate import InverseParams
-from servoid.ident.model import BacklashModel
-from servoid.ident.references import Reference, reference_suite
-from servoid.ident.tracking import LoopDiverged, Sensor, TrackingController, TrackingRun, simulate_tracking
+from servoid.ident.control.compensate import InverseParams
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.control.references import Reference, reference_suite
+from servoid.ident.control.tracking import LoopDiverged, Sensor, TrackingController, TrackingRun, simulate_tracking
 
 __all__ = [
     "ARMS",
@@ -327,11 +327,11 @@ def compensation_study(
         Smoothing band of the compensated arm, ``>= 0`` (output unit).
     integral_gain : float, optional
         ``k_i`` per sample (default
-        :func:`~servoid.ident.tracking.default_integral_gain`).
+        :func:`~servoid.ident.control.tracking.default_integral_gain`).
     sensor : Sensor
         Encoder resolution and noise of the simulated measurement.
     references : sequence of Reference, optional
-        Default :func:`~servoid.ident.references.reference_suite` of ``plant``.
+        Default :func:`~servoid.ident.control.references.reference_suite` of ``plant``.
     changes : sequence of float
         Relative perturbations of the model (``0.1`` is +10 %).
     families : sequence of {"dead zones", "all parameters"}

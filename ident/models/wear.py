@@ -30,9 +30,9 @@ from typing import Any
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.plant import Plant
+from servoid.ident.models.plant import Plant
 
 __all__ = ["Wear", "WearingPlant", "GEAR_PLANT", "WEAR_RESOLUTION"]
 

@@ -1,6 +1,6 @@
 """The smoothed backlash inverse: the position the backlash's input must take for a wanted output.
 
-For the backlash of :mod:`servoid.ident.model` (up line ``y = x - c1``, down
+For the backlash of :mod:`servoid.ident.models.pseudo_wiener` (up line ``y = x - c1``, down
 line ``y = m2 (x + c2)``, memory zone between), the inverse of Tao &
 Kokotović maps a wanted output ``y_d`` to the input that produces it::
 
@@ -49,7 +49,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, ModelError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["InverseParams", "BacklashInverse", "backlash_inverse", "default_band"]
 

@@ -16,9 +16,9 @@ from typing import Any
 import numpy as np
 
 from servoid.extendedfile import save_extended_model
-from servoid.ident.diagnose import Candidate, Diagnosis
-from servoid.ident.effects import EFFECTS
-from servoid.ident.residuals import RegimeBreakdown, ResidualTests
+from servoid.ident.diagnosis.diagnose import Candidate, Diagnosis
+from servoid.ident.models.effects import EFFECTS
+from servoid.ident.diagnosis.residuals import RegimeBreakdown, ResidualTests
 from servoid.recording import Recording
 
 __all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows"]

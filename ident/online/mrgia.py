@@ -4,7 +4,7 @@
 constant memory, explicit state (``theta``, ``P``, ``S``, ``K``, ``Sigma``, the
 ``x-hat`` and input histories). :func:`run_mrgia` is its batch twin over whole
 arrays, with a compiled inner loop; both run the same kernel
-(:mod:`servoid.ident._mrgia_kernel`, where each line cites its equation).
+(:mod:`servoid.ident.online._mrgia_kernel`, where each line cites its equation).
 
 Two additions to the paper, both on by default and both switchable off
 (``project=False, recover=False`` is the paper's algorithm as printed):
@@ -37,8 +37,8 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
-from servoid.ident import _mrgia_kernel as _k
-from servoid.ident.model import BacklashModel
+from servoid.ident.online import _mrgia_kernel as _k
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_P0, PAPER_RHO_EXPONENT, PAPER_SIGMA0, paper_theta0
 
 __all__ = [
@@ -193,7 +193,7 @@ class MRGIAConfig:
 
         Notes
         -----
-        Chosen by measurement (benchmarks/tracking.py): on a drift of
+        Chosen by measurement (benchmarks/random_walk.py): on a drift of
         ``c1 + c2`` from 1.0 to 1.5 over 200 000 samples at SNR 40, a floor on
         ``rho`` (exponential forgetting) and a random walk track equally well
         (RMS error 0.006, lag ~500 samples, steady scatter 0.005 for a
@@ -204,7 +204,7 @@ class MRGIAConfig:
         direction by ``1/lambda`` per update, the random walk by ``q``. ``q``
         sets the trade-off: larger follows faster and is noisier. It is in
         squared parameter units per update, so scale it with the units of the
-        record (:class:`servoid.ident.monitor.Tracker` normalises the signals
+        record (:class:`servoid.ident.monitoring.wear_estimator.Tracker` normalises the signals
         by ``c1 + c2`` so that one ``q`` fits every unit).
         """
         return cls(

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid import validation
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Reference", "reference_suite", "amplitude_limit"]
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, ModelError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["LinearInverse", "CANCELLABLE_ZERO_RADIUS"]
 

@@ -12,12 +12,12 @@ a known start
 one set of settings for every unit
     The estimator runs on ``u / s`` and ``y / s`` with ``s = c1 + c2`` of that
     model. The tracking settings were measured where ``c1 + c2 = 1``
-    (``benchmarks/tracking.py``); normalising keeps them right whether the
+    (``benchmarks/random_walk.py``); normalising keeps them right whether the
     servo reports rad or encoder counts. A single ``q`` on unnormalised
     signals is wrong for one of the two kinds of parameter: sized for dead
     zones of 0.05 rad it freezes the linear block, and a wrong linear block
     biases the dead zones (the bench servo, noise-free, after its dead zones
-    grew by half: 0.8 % low for good, against exact; benchmarks/tracking.py).
+    grew by half: 0.8 % low for good, against exact; benchmarks/random_walk.py).
 uncertainty
     In tracking mode the MRGIA is a Kalman filter (``mu = 1``, ``S = h'Ph +
     Sigma``, ``K = Ph / S``), so ``P`` is the covariance of the estimate:
@@ -33,7 +33,7 @@ fit
     window of ``fit_window`` samples: the same measure as ``servoid
     identify``'s free-run NRMSE, but recent.
 
-Recovery from a stuck zone classification (see :mod:`servoid.ident.mrgia`)
+Recovery from a stuck zone classification (see :mod:`servoid.ident.online.mrgia`)
 stays on: it returns the backlash parameters to the servo's model and ``P``
 to ``p0``, which is where a monitor would restart anyway; each is counted and
 reported. Memory is constant: a few arrays of the size of ``theta``.
@@ -51,14 +51,14 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.backlash import backlash_step
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIA, MRGIAConfig, RecoveryEvent, Step, noise_epsilon
+from servoid.ident.models.kernels import backlash_step
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, RecoveryEvent, Step, noise_epsilon
 
 __all__ = ["TrackerConfig", "TrackerEstimate", "Tracker"]
 
 #: Default random-walk variance per update, relative to (c1 + c2)^2 of the
-#: servo's model: the trade-off measured in benchmarks/tracking.py (RMS
+#: servo's model: the trade-off measured in benchmarks/random_walk.py (RMS
 #: error 0.006 and a lag of ~400 samples on a ramp of c1 + c2 from 1.0 to 1.5
 #: over 200 000 samples at SNR 40, steady-state scatter 0.005).
 DEFAULT_PROCESS_NOISE = 1e-7
@@ -92,7 +92,7 @@ class TrackerConfig:
     fit_window : int
         Samples in the exponential window of the fit.
     recover : bool
-        Recover from a stuck zone classification (see :mod:`servoid.ident.mrgia`).
+        Recover from a stuck zone classification (see :mod:`servoid.ident.online.mrgia`).
     """
 
     reference: BacklashModel

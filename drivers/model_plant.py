@@ -17,7 +17,7 @@ the online estimate converges on every transport, and the refinement has
 something to refine.
 """
 
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["BENCH_PLANT", "BENCH_UNIT", "BENCH_AMPLITUDE"]
 

@@ -1,4 +1,4 @@
-"""Output-error least squares, shared by :func:`servoid.ident.refine` and the extended-model fit.
+"""Output-error least squares, shared by :func:`servoid.ident.offline.refine` and the extended-model fit.
 
 Both minimise ``sum (y_hat(p) - y)^2`` of a free-run simulation over a
 parameter vector with :func:`scipy.optimize.least_squares` and report

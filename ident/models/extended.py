@@ -1,10 +1,10 @@
 """The pseudo-Wiener model extended by effects of the library: a first-class model.
 
-An :class:`ExtendedModel` is a :class:`~servoid.ident.model.BacklashModel`
-(the *base*) plus zero or more effects of :mod:`servoid.ident.effects`, each
+An :class:`ExtendedModel` is a :class:`~servoid.ident.models.pseudo_wiener.BacklashModel`
+(the *base*) plus zero or more effects of :mod:`servoid.ident.models.effects`, each
 with its parameters. It simulates (:func:`simulate_extended`, compiled), it
 fits all its parameters jointly to a record (:func:`fit_extended`, the
-output-error least squares of :func:`servoid.ident.refine` generalised), and
+output-error least squares of :func:`servoid.ident.offline.refine` generalised), and
 it serialises to the ``"effects"`` key of ``model.json``
 (:meth:`ExtendedModel.effects_json`, :meth:`ExtendedModel.from_json`).
 
@@ -20,11 +20,11 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ModelError
-from servoid.ident._oefit import failure_residual, fit_output_error, fit_record
-from servoid.ident.backlash import extended_kernel, schur_stable
-from servoid.ident.effects import EFFECTS, KernelArgs, get_effect
+from servoid.ident.offline._oefit import failure_residual, fit_output_error, fit_record
+from servoid.ident.models.kernels import extended_kernel, schur_stable
+from servoid.ident.models.effects import EFFECTS, KernelArgs, get_effect
 from servoid.ident.metrics import nrmse
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = [
     "AppliedEffect",
@@ -47,7 +47,7 @@ class AppliedEffect:
     Attributes
     ----------
     name : str
-        A name of :data:`servoid.ident.effects.CANDIDATE_NAMES`.
+        A name of :data:`servoid.ident.models.effects.CANDIDATE_NAMES`.
     values : tuple of float
         Its parameters, in the order of ``EFFECTS[name].parameters``.
     """
@@ -355,10 +355,10 @@ def fit_extended(
 
     Notes
     -----
-    The same simulation-error least squares as :func:`servoid.ident.refine`
-    (shared in :mod:`servoid.ident._oefit`): bounds keep ``m2``, ``c1``,
+    The same simulation-error least squares as :func:`servoid.ident.offline.refine`
+    (shared in :mod:`servoid.ident.offline._oefit`): bounds keep ``m2``, ``c1``,
     ``c2`` positive and each effect parameter in its physical range
-    (:attr:`servoid.ident.effects.Effect.bounds`); an unstable linear block
+    (:attr:`servoid.ident.models.effects.Effect.bounds`); an unstable linear block
     gets a large constant residual.
     """
     u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)

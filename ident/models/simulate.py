@@ -9,8 +9,8 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.backlash import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, simulate_kernel
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, simulate_kernel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Simulation", "simulate", "free_run", "noise_std_for_snr"]
 
@@ -63,7 +63,7 @@ class Simulation:
         """Number of samples whose ``x`` lies beyond the crossing of the up and down lines.
 
         There the paper's model is ambiguous and servoid's direction rule
-        applies (see :mod:`servoid.ident.model`); 0 when ``m2 == 1``.
+        applies (see :mod:`servoid.ident.models.pseudo_wiener`); 0 when ``m2 == 1``.
         """
         cross = self.model.lines_cross_at
         if cross is None:

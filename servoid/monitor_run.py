@@ -2,9 +2,9 @@
 
 :func:`run_monitor` runs an input through a driver with the sampling session
 (:func:`servoid.session.run_session`, keeping no samples), feeds each
-measured sample to a :class:`~servoid.ident.monitor.Tracker` and, every
+measured sample to a :class:`~servoid.ident.monitoring.wear_estimator.Tracker` and, every
 ``check_every`` samples, applies the alarm rule
-(:class:`~servoid.ident.alarms.Alarms`) to the dead zone ``c1 + c2``, the
+(:class:`~servoid.ident.monitoring.alarms.Alarms`) to the dead zone ``c1 + c2``, the
 down-line slope ``m2`` and the fit. It writes, in ``out``:
 
 ``estimates.csv``
@@ -50,10 +50,10 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.base import Driver
 from servoid.errors import ConfigError, DataError, DriverError, EstimatorDiverged, ModelError
-from servoid.ident.alarms import AlarmEvent, AlarmRule, Alarms, Bound
-from servoid.ident.compensate import default_band
-from servoid.ident.model import BacklashModel
-from servoid.ident.monitor import Tracker, TrackerConfig, TrackerEstimate
+from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
+from servoid.ident.control.compensate import default_band
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.monitoring.wear_estimator import Tracker, TrackerConfig, TrackerEstimate
 from servoid.modelfile import ModelFile
 from servoid.files import read_text
 from servoid.recording import RecordingWriter, split_metadata
@@ -73,7 +73,7 @@ __all__ = [
     "EXIT_ALARM",
 ]
 
-log = logging.getLogger("servoid.monitor")
+log = logging.getLogger("servoid.monitor_run")
 
 #: ``method`` of the model files the monitor writes.
 METHOD = "mrgia-tracking"

@@ -1,7 +1,7 @@
 """The library of candidate physical effects: the one place their names are defined.
 
 Each effect is a small parametric block added to the pseudo-Wiener model
-(linear block, then backlash) of :mod:`servoid.ident.model`. Input-side effects
+(linear block, then backlash) of :mod:`servoid.ident.models.pseudo_wiener`. Input-side effects
 act on ``u`` before the linear block, the friction acts on the linear block's
 input without the transport delay, the structural effects change the linear
 block itself::

@@ -1,6 +1,6 @@
 """The backlash operator and the simulation loop of the pseudo-Wiener model.
 
-These are the compiled kernels behind :func:`servoid.ident.simulate`; they
+These are the compiled kernels behind :func:`servoid.ident.models.simulate`; they
 take plain arrays so that the estimator, the refinement and the drivers'
 simulated plant all run the very same arithmetic.
 """
@@ -75,7 +75,7 @@ def extended_kernel(
     y_out: np.ndarray,
     zone_out: np.ndarray,
 ) -> None:
-    """Free-run simulation of the extended model (the blocks of :mod:`servoid.ident.effects`).
+    """Free-run simulation of the extended model (the blocks of :mod:`servoid.ident.models.effects`).
 
     Per sample: the input blocks turn ``u`` into ``w`` (saturation, then dead
     band); the linear block computes

@@ -1,9 +1,9 @@
 """Why the MRGIA's tracking mode is a random walk, not forgetting: the measurement behind MRGIAConfig.tracking.
 
-Run: ``.venv/bin/python benchmarks/tracking.py`` (about ten seconds). Prints two tables.
+Run: ``.venv/bin/python benchmarks/random_walk.py`` (about ten seconds). Prints two tables.
 
 1. Tracking a worn gear. The plant of the wear scenarios
-   (:data:`servoid.ident.wear.GEAR_PLANT`: the paper's linear block and m2,
+   (:data:`servoid.ident.models.wear.GEAR_PLANT`: the paper's linear block and m2,
    c1 0.4, c2 0.6) driven by the paper's uniform input (|u| <= 2.406), output
    noise at SNR 40; c1 + c2 ramps from 1.0 to 1.5 over 200 000 samples
    (after 20 000 samples at 1.0, followed by 50 000 at 1.5). Every estimator
@@ -21,7 +21,7 @@ Run: ``.venv/bin/python benchmarks/tracking.py`` (about ten seconds). Prints two
    uniform input +/-0.2 rad, noise-free, its dead zones x 1.5 at sample
    10 000: ``q = 1e-7 (c1 + c2)^2`` on the signals in rad (sized for the dead
    zones, hence tiny for the linear block), against ``q = 1e-7`` on the
-   signals divided by ``c1 + c2`` (what :class:`servoid.ident.monitor.Tracker`
+   signals divided by ``c1 + c2`` (what :class:`servoid.ident.monitoring.wear_estimator.Tracker`
    does). Reported: c1 + c2 over its true value 140 000 samples later.
 """
 
@@ -32,7 +32,7 @@ import numpy as np
 from servoid.drivers.sim import SIM_PLANTS, reference_output_std
 from servoid.ident import MRGIA, MRGIAConfig, noise_epsilon, run_mrgia
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
-from servoid.ident.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
 
 SNR = 40.0
 BEFORE, RAMP, AFTER = 20_000, 200_000, 100_000
@@ -129,7 +129,7 @@ def windup_table() -> None:
 
 
 def units_table() -> None:
-    from servoid.drivers.bench import BENCH_PLANT
+    from servoid.drivers.model_plant import BENCH_PLANT
 
     n, s = 150_000, BENCH_PLANT.dead_zone
     u = np.random.default_rng(1).uniform(-0.2, 0.2, n)

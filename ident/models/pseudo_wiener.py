@@ -23,7 +23,7 @@ Beyond ``x*`` the memory zone of eq. (6)-(7) is empty and both switching
 functions can be 1 at once: the paper's eq. (8) does not say which line holds.
 servoid lets the direction of motion choose: rising ``x`` follows the up line,
 falling ``x`` the down line, standing ``x`` holds (see
-:func:`servoid.ident.backlash.backlash_step`). This is the classic play
+:func:`servoid.ident.models.kernels.backlash_step`). This is the classic play
 operator wherever the lines do not cross, and it stays single-valued and
 causal beyond ``x*``, where a reversal then jumps between the lines.
 """

@@ -2,7 +2,7 @@
 
 The plant is the pseudo-Wiener model: the command ``u`` drives the linear
 block ``x = q^-d B/A u`` and ``x`` drives the backlash, whose output ``y`` is
-measured. The backlash inverse (:mod:`servoid.ident.compensate`) says which
+measured. The backlash inverse (:mod:`servoid.ident.control.compensate`) says which
 ``x`` gives a wanted ``y``; the command must then move ``x`` there through
 the linear block. :class:`TrackingController` is a two-degree-of-freedom
 controller a control engineer will recognise::
@@ -13,7 +13,7 @@ controller a control engineer will recognise::
             = y_d                   (uncompensated)      the backlash ignored
     u(k)    = ZPETC(x_d)                                 feedforward through the linear block
 
-The feedforward (:class:`~servoid.ident.feedforward.LinearInverse`, preview
+The feedforward (:class:`~servoid.ident.control.feedforward.LinearInverse`, preview
 ``P = d`` for a minimum-phase block) takes a known reference ``P`` samples
 ahead, as a trajectory planner provides it; on a real servo the motor's own
 position loop usually plays this part and the inverse alone turns the load
@@ -37,10 +37,10 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.compensate import BacklashInverse, InverseParams
-from servoid.ident.feedforward import LinearInverse
-from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
+from servoid.ident.control.compensate import BacklashInverse, InverseParams
+from servoid.ident.control.feedforward import LinearInverse
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.plant import Plant
 
 __all__ = [
     "LoopDiverged",

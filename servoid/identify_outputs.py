@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from servoid.ident.identify import Identification
-from servoid.ident.model import BacklashModel
-from servoid.ident.simulate import free_run, simulate
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import free_run, simulate
 from servoid.modelfile import ModelFile, save_model
 from servoid.recording import write_recording
 
