@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.dynamixel.emulator import EmulatorProcess
 from servoid.session import SessionConfig, run_session
 
@@ -39,7 +39,7 @@ LOOP_LATENCY_MS = 1.0
 
 
 def run(poll: str, rate: float, seconds: float) -> list[str]:
-    u = np.random.default_rng(0).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, int(rate * seconds))
+    u = np.random.default_rng(0).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, int(rate * seconds))
     with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate) as emu:
         with driver_from_url(emu.url(1, latency_ms=LOOP_LATENCY_MS)) as servo:
             servo._port.poll = poll  # the SDK's own busy-polling, or the driver's select() wait

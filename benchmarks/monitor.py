@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python benchmarks/monitor.py`` (about two minutes on one core). Everything
 runs through the real path: the simulated servo (``sim://``, virtual clock,
 so no real-time waiting), the sampling session keeping no samples, the
-tracker, the alarm rule and the files (:func:`servoid.monitor_run.run_monitor`),
+wear estimator, the alarm rule and the files (:func:`servoid.monitor_run.run_monitor`),
 at 1 kHz, checking every 100 samples and writing a row at every check.
 
 The servo is ``sim://?plant=gear&snr=40``: the paper's linear block and
@@ -28,7 +28,7 @@ default (beyond a bound by more than 2 std at 5 checks in a row).
    runs' detection delay for each rule.
 4. Memory: resident set size over the 1 000 000-sample run, and Python's
    traced allocations (tracemalloc) over a 300 000-sample run.
-5. Cost per sample: the whole monitor, the session with the simulated servo alone, the tracker alone.
+5. Cost per sample: the whole monitor, the session with the simulated servo alone, the wear estimator alone.
 6. Other servos and inputs: the bench servo (rad, c1 + c2 = 0.05 rad) under
    its uniform input, and under a slow operating trajectory with a small
    excitation on top; the same ramp by 1.5 (the lag is left out: with a
@@ -49,10 +49,10 @@ from typing import Any, Callable
 import numpy as np
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.excitation import UniformSpec, parse_spec, stream
 from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
-from servoid.ident.monitoring.wear_estimator import Tracker, TrackerConfig
+from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
 from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile
@@ -89,7 +89,7 @@ def monitor(
     """One monitoring run; returns the result, the rows of estimates.csv and the wall time per sample (s)."""
     with driver_from_url(url) as servo:
         config = MonitorConfig(
-            tracker=TrackerConfig(reference=model, noise_std=servo.noise_std), bounds=bounds_for(model, unit=unit),
+            estimator=WearEstimatorConfig(reference=model, noise_std=servo.noise_std), bounds=bounds_for(model, unit=unit),
             check_every=CHECK, row_every=CHECK, stop_on_alarm=stop_on_alarm,
         )  # fmt: skip
         if inputs is None:
@@ -232,18 +232,18 @@ def cost_table(monitor_wall: float) -> None:
         started = time.perf_counter()
         run_session(servo, u, SessionConfig(period_s=1.0 / RATE), keep_samples=False)
         session = (time.perf_counter() - started) / n
-    tracker = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=0.0337))
+    estimator = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=0.0337))
     rng = np.random.default_rng(0)
     uu, yy = rng.uniform(-2.4, 2.4, n), rng.normal(0.0, 1.0, n)
-    tracker.update(0.0, 0.0)
+    estimator.update(0.0, 0.0)
     started = time.perf_counter()
     for a, b in zip(uu, yy):
-        tracker.update(a, b)
+        estimator.update(a, b)
     alone = (time.perf_counter() - started) / n
     print("5. cost per sample (wall time, this machine)")
     print(f"   the whole monitor (1 000 000-sample run)      {monitor_wall * 1e6:6.1f} us")
     print(f"   the session with the simulated servo alone     {session * 1e6:6.1f} us")
-    print(f"   the tracker alone (MRGIA step + fit)           {alone * 1e6:6.1f} us")
+    print(f"   the wear estimator alone (MRGIA step + fit)      {alone * 1e6:6.1f} us")
     print()
 
 
@@ -263,7 +263,7 @@ def other_servos(tmp: Path) -> None:
             op = stream(parse_spec(operating), seed=2, n=n)
             inputs = (a + b for a, b in zip(op, stream(UniformSpec(amplitude=0.05), seed=1, n=n)))
         _, rows, _ = monitor(url, n, tmp / label.split(",")[0].replace(" ", "_") / str(operating is None),
-                             model=BENCH_PLANT, inputs=inputs, unit="rad")  # fmt: skip
+                             model=MODEL_PLANT, inputs=inputs, unit="rad")  # fmt: skip
         f = figures(rows, n)
         print(f"   {label:62s} {f['rms']:7.4f} {f['std']:7.4f} {f['bias']:+8.4f}")
     print()

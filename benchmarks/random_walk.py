@@ -1,4 +1,4 @@
-"""Why the MRGIA's tracking mode is a random walk, not forgetting: the measurement behind MRGIAConfig.tracking.
+"""Why the MRGIA follows wear with random-walk parameters, not forgetting: the measurement behind MRGIAConfig.random_walk.
 
 Run: ``.venv/bin/python benchmarks/random_walk.py`` (about ten seconds). Prints two tables.
 
@@ -21,7 +21,7 @@ Run: ``.venv/bin/python benchmarks/random_walk.py`` (about ten seconds). Prints 
    uniform input +/-0.2 rad, noise-free, its dead zones x 1.5 at sample
    10 000: ``q = 1e-7 (c1 + c2)^2`` on the signals in rad (sized for the dead
    zones, hence tiny for the linear block), against ``q = 1e-7`` on the
-   signals divided by ``c1 + c2`` (what :class:`servoid.ident.monitoring.wear_estimator.Tracker`
+   signals divided by ``c1 + c2`` (what :class:`servoid.ident.monitoring.wear_estimator.WearEstimator`
    does). Reported: c1 + c2 over its true value 140 000 samples later.
 """
 
@@ -44,7 +44,7 @@ def _config(kind: str, value: float, epsilon: float, **extra: object) -> MRGIACo
     start = dict(theta0=tuple(GEAR_PLANT.theta), p0=1e-2, epsilon=epsilon)
     if kind == "floor":
         return MRGIAConfig(rho_exponent=1.0, rho_floor=value, **start, **extra)  # type: ignore[arg-type]
-    return MRGIAConfig.tracking(process_noise=value, **start, **extra)
+    return MRGIAConfig.random_walk(process_noise=value, **start, **extra)
 
 
 def ramp_figures(k: np.ndarray, estimate: np.ndarray, truth: np.ndarray, *, total: int) -> dict[str, float]:
@@ -129,19 +129,19 @@ def windup_table() -> None:
 
 
 def units_table() -> None:
-    from servoid.drivers.model_plant import BENCH_PLANT
+    from servoid.drivers.model_plant import MODEL_PLANT
 
-    n, s = 150_000, BENCH_PLANT.dead_zone
+    n, s = 150_000, MODEL_PLANT.dead_zone
     u = np.random.default_rng(1).uniform(-0.2, 0.2, n)
-    plant = WearingPlant(BENCH_PLANT, Wear(swap_at=10_000, swap_factor=1.5))
+    plant = WearingPlant(MODEL_PLANT, Wear(swap_at=10_000, swap_factor=1.5))
     y = np.array([plant.step(v) for v in u])
     print("3. bench servo (rad), noise-free, c1 + c2 x 1.5 at sample 10 000: estimate / truth after 140 000 samples")
-    theta = BENCH_PLANT.theta
-    raw = MRGIAConfig.tracking(process_noise=1e-7 * s * s, p_max=s * s, p0=1e-2 * s * s, theta0=tuple(theta))
+    theta = MODEL_PLANT.theta
+    raw = MRGIAConfig.random_walk(process_noise=1e-7 * s * s, p_max=s * s, p0=1e-2 * s * s, theta0=tuple(theta))
     normal = theta.copy()
     normal[-2:] /= s
-    scaled = MRGIAConfig.tracking(process_noise=1e-7, p0=1e-2, theta0=tuple(normal))
-    for label, cfg, scale in (("q 1e-7 s^2 on rad", raw, 1.0), ("q 1e-7 on y / s (Tracker)", scaled, s)):
+    scaled = MRGIAConfig.random_walk(process_noise=1e-7, p0=1e-2, theta0=tuple(normal))
+    for label, cfg, scale in (("q 1e-7 s^2 on rad", raw, 1.0), ("q 1e-7 on y / s (WearEstimator)", scaled, s)):
         res = run_mrgia(u / scale, y / scale, cfg)
         print(f"   {label:28s} {(res.theta[-2] + res.theta[-1]) * scale / (1.5 * s):.4f}")
     print()

@@ -22,7 +22,7 @@ Table 2: ``servoid identify --driver URL --rate 500 --json`` on each
 transport and on the simulated servo (``sim://?clock=virtual``, the same
 plant in simulated time), with the same seeded excitation: the largest
 relative error of the online MRGIA's and of the refined parameters against
-BENCH_PLANT, and the share of samples used.
+MODEL_PLANT, and the share of samples used.
 
 The machine's load is printed before and after: on a shared 2-core machine the
 late and missed shares are the scheduler's as much as the link's.
@@ -49,7 +49,7 @@ import numpy as np
 
 from servoid.cli import main as servoid_main
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.session import SessionConfig, run_session
 
@@ -107,7 +107,7 @@ TRANSPORTS: dict[str, Callable[[float], contextlib.AbstractContextManager[str]]]
 
 # ---- measurements ---------------------------------------------------------------------------------
 def session_row(name: str, rate: float, seconds: float, seed: int) -> list[str]:
-    u = np.random.default_rng(seed).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, int(rate * seconds))
+    u = np.random.default_rng(seed).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, int(rate * seconds))
     with TRANSPORTS[name](rate) as url, driver_from_url(url) as servo:
         result = run_session(servo, u, SessionConfig(period_s=1 / rate))
     n = len(result)
@@ -130,8 +130,8 @@ def identify_json(url: str, samples: int, out: Path) -> dict:
 
 def identification_row(name: str, url: str, samples: int, out: Path) -> list[str]:
     result = identify_json(url, samples, out)
-    refined = BacklashModel.from_dict(result["model"]).max_relative_error(BENCH_PLANT)
-    mrgia = BacklashModel.from_dict(result["mrgia"]["model"]).max_relative_error(BENCH_PLANT)
+    refined = BacklashModel.from_dict(result["model"]).max_relative_error(MODEL_PLANT)
+    mrgia = BacklashModel.from_dict(result["mrgia"]["model"]).max_relative_error(MODEL_PLANT)
     counts = result["acquisition"]["counts"]
     return [name, f"{IDENTIFY_RATE_HZ:g}", f"{counts['ok']}/{samples}", f"{mrgia:.2e}", f"{refined:.2e}",
             f"{result['fit_nrmse']:.2e}"]  # fmt: skip
@@ -159,7 +159,7 @@ def main() -> int:
             with transport(IDENTIFY_RATE_HZ) as url:
                 ident.append(identification_row(name, url, args.samples, Path(tmp) / name.replace(" / ", "-")))
     table(
-        f"2. servoid identify --driver URL --rate {IDENTIFY_RATE_HZ:g}: BENCH_PLANT from {args.samples} samples "
+        f"2. servoid identify --driver URL --rate {IDENTIFY_RATE_HZ:g}: MODEL_PLANT from {args.samples} samples "
         "(max relative parameter error)",
         ["transport", "Hz", "ok samples", "MRGIA", "refined", "fit NRMSE"],
         ident,

@@ -1,8 +1,9 @@
-"""The simulated bench servo: the plant behind the simulated driver and every emulator.
+"""The estimator's own plant: a servo that is exactly the pseudo-Wiener model, for exact-recovery tests.
 
-One place for this fact, so that the simulated driver, the serial firmware
-emulator, the CAN drives and the Dynamixel emulator all move the same way and
-their identification results can be compared.
+The simulated servo (``sim://``, ``plant=bench``) and, until the physical
+servo twins take their place, the serial firmware emulator, the CAN drives and
+the Dynamixel emulator all run this plant, so that they move the same way and
+their identification results can be compared with its true parameters.
 
 A position-controlled servo with gear backlash, in radians, at the sample
 rate of the session: the closed position loop is a linear block with DC gain
@@ -19,14 +20,14 @@ something to refine.
 
 from servoid.ident.models.pseudo_wiener import BacklashModel
 
-__all__ = ["BENCH_PLANT", "BENCH_UNIT", "BENCH_AMPLITUDE"]
+__all__ = ["MODEL_PLANT", "MODEL_UNIT", "MODEL_AMPLITUDE"]
 
 #: The bench servo: x(k) = 0.8 x(k-1) - 0.15 x(k-2) + 0.35 u(k-1), backlash 0.02 / 0.03 rad.
-BENCH_PLANT = BacklashModel(a=(-0.8, 0.15), b=(0.35,), delay=1, m2=1.0, c1=0.02, c2=0.03)
+MODEL_PLANT = BacklashModel(a=(-0.8, 0.15), b=(0.35,), delay=1, m2=1.0, c1=0.02, c2=0.03)
 
 #: Unit of the bench servo's command and position.
-BENCH_UNIT = "rad"
+MODEL_UNIT = "rad"
 
-#: Half-width (rad) of a uniform input that visits every zone of BENCH_PLANT
+#: Half-width (rad) of a uniform input that visits every zone of MODEL_PLANT
 #: (about 31 % of samples on each line, 38 % in the play).
-BENCH_AMPLITUDE = 0.2
+MODEL_AMPLITUDE = 0.2

@@ -2,7 +2,7 @@
 
 A real servo moves continuously; the model servoid identifies is its
 discrete-time behaviour at the session's sample period ``T``
-(:data:`servoid.drivers.model_plant.BENCH_PLANT` is "the servo at the session's
+(:data:`servoid.drivers.model_plant.MODEL_PLANT` is "the servo at the session's
 rate"). :class:`SampledPlant` makes a :class:`~servoid.ident.Plant` behave
 like a bench controller whose position loop is triggered by the host's set
 points and keeps running on its own when the host falls silent:

@@ -27,7 +27,7 @@ import numpy as np
 from servoid import validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
-from servoid.drivers.model_plant import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
@@ -61,7 +61,7 @@ class SimPlant:
 
 #: ``plant=`` choices of the URL.
 SIM_PLANTS: dict[str, SimPlant] = {
-    "bench": SimPlant(BENCH_PLANT, BENCH_UNIT, BENCH_AMPLITUDE),
+    "bench": SimPlant(MODEL_PLANT, MODEL_UNIT, MODEL_AMPLITUDE),
     "paper": SimPlant(PAPER_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
     "gear": SimPlant(GEAR_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
 }
@@ -152,7 +152,7 @@ class SimDriver(Driver):
     Parameters
     ----------
     plant : {"bench", "paper", "gear"}
-        ``bench``: :data:`~servoid.drivers.model_plant.BENCH_PLANT` in rad;
+        ``bench``: :data:`~servoid.drivers.model_plant.MODEL_PLANT` in rad;
         ``paper``: the paper's Section 4 plant, unitless; ``gear``: the paper's
         plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.models.wear.GEAR_PLANT`).
     snr : float, optional

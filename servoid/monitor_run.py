@@ -2,7 +2,7 @@
 
 :func:`run_monitor` runs an input through a driver with the sampling session
 (:func:`servoid.session.run_session`, keeping no samples), feeds each
-measured sample to a :class:`~servoid.ident.monitoring.wear_estimator.Tracker` and, every
+measured sample to a :class:`~servoid.ident.monitoring.wear_estimator.WearEstimator` and, every
 ``check_every`` samples, applies the alarm rule
 (:class:`~servoid.ident.monitoring.alarms.Alarms`) to the dead zone ``c1 + c2``, the
 down-line slope ``m2`` and the fit. It writes, in ``out``:
@@ -53,7 +53,7 @@ from servoid.errors import ConfigError, DataError, DriverError, EstimatorDiverge
 from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
 from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.monitoring.wear_estimator import Tracker, TrackerConfig, TrackerEstimate
+from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig, WearEstimate
 from servoid.modelfile import ModelFile
 from servoid.files import read_text
 from servoid.recording import RecordingWriter, split_metadata
@@ -81,7 +81,7 @@ METHOD = "mrgia-tracking"
 #: Exit status of ``servoid monitor --fail-on-alarm`` when an alarm was raised.
 EXIT_ALARM = 3
 
-#: Quantities the alarm rule watches, as the tracker reports them.
+#: Quantities the alarm rule watches, as the wear estimator reports them.
 QUANTITIES = ("dead_zone", "m2", "fit")
 
 
@@ -91,8 +91,8 @@ class MonitorConfig:
 
     Parameters
     ----------
-    tracker : TrackerConfig
-        The servo's model, noise and tracking settings.
+    estimator : WearEstimatorConfig
+        The servo's model, noise and random-walk settings.
     bounds : tuple of Bound
         Bounds on ``dead_zone`` (``c1 + c2``, output unit), ``m2`` and ``fit``
         (free-run NRMSE); a quantity without a bound is not checked.
@@ -111,7 +111,7 @@ class MonitorConfig:
         Wall-clock seconds between refreshes of the live plot.
     """
 
-    tracker: TrackerConfig
+    estimator: WearEstimatorConfig
     bounds: tuple[Bound, ...] = ()
     rule: AlarmRule = AlarmRule()
     check_every: int = 100
@@ -147,7 +147,7 @@ class MonitorProgress:
         Session time since slot 0, seconds.
     late_share : float
         Share of slots not exchanged on time.
-    estimate : TrackerEstimate or None
+    estimate : WearEstimate or None
         The latest checked estimate.
     active : tuple of str
         Labels of the alarms active now.
@@ -157,7 +157,7 @@ class MonitorProgress:
     total: int | None
     elapsed_s: float
     late_share: float
-    estimate: TrackerEstimate | None
+    estimate: WearEstimate | None
     active: tuple[str, ...]
 
 
@@ -262,7 +262,7 @@ class MonitorResult:
         Slots run.
     counts : dict
         Slots per status (ok, late, missed, timeout).
-    estimate : TrackerEstimate
+    estimate : WearEstimate
         The final estimate.
     events : tuple of AlarmEvent
         Every alarm raised or cleared, in order.
@@ -286,7 +286,7 @@ class MonitorResult:
 
     samples: int
     counts: dict[str, int]
-    estimate: TrackerEstimate
+    estimate: WearEstimate
     events: tuple[AlarmEvent, ...]
     active: tuple[AlarmEvent, ...]
     recoveries: int
@@ -381,9 +381,9 @@ def run_monitor(
     inputs : iterable of float
         The command per slot (may be endless), driver's unit.
     session : SessionConfig
-        Sample period and policies (``use_late`` also applies to the tracker).
+        Sample period and policies (``use_late`` also applies to the wear estimator).
     config : MonitorConfig
-        Tracker, bounds, rule, cadences.
+        WearEstimator, bounds, rule, cadences.
     model_file : ModelFile
         The servo's model file: units, compensation band, identity carried over.
     out : path
@@ -423,7 +423,7 @@ def run_monitor(
             f"the model is in {model_file.output_unit!r} and {driver.describe()} reports {unit!r}: "
             "monitor with a model identified in the servo's unit"
         )
-    Tracker.warm_up(config.tracker.reference)
+    WearEstimator.warm_up(config.estimator.reference)
     loop = _Loop(driver, session, config, model_file, Path(out), truth_at, on_event, plot, total)
     loop.start(metadata or {})
     try:
@@ -459,17 +459,17 @@ class _Loop:
         self.out, self.truth_at, self.on_event, self.total = out, truth_at, on_event, total
         self.plot_path = None if plot is None else Path(plot)
         self.unit = driver.position_unit.unit
-        self.tracker = Tracker(config.tracker)
+        self.estimator = WearEstimator(config.estimator)
         self.alarms = Alarms(config.bounds, config.rule)
         self.history = MonitorHistory()
-        self.names = self.tracker.estimate().names
+        self.names = self.estimator.estimate().names
         self.usable = session.resolved(driver).usable_rule()  # the session's own rule, in step with it
         self.n = 0
         self.last: Sample | None = None
         self.stop = False
         self.stopped_on_alarm = False
         self.events: list[AlarmEvent] = []
-        self.latest: TrackerEstimate | None = None
+        self.latest: WearEstimate | None = None
         self.restarts = 0
         self.recoveries_seen = 0
         self.compensation_updates = -1  # the first line is the starting model
@@ -489,7 +489,7 @@ class _Loop:
     def start(self, metadata: Mapping[str, Any]) -> None:
         self.out.mkdir(parents=True, exist_ok=True)
         cfg = self.config
-        ref = cfg.tracker.reference
+        ref = cfg.estimator.reference
         meta = {
             "servoid monitor": "estimates",
             "source": self.source,
@@ -499,7 +499,7 @@ class _Loop:
             "bounds": "; ".join(f"{b.label} {b.describe()}" for b in cfg.bounds) or "none",
             "rule": f"persist={cfg.rule.persist} checks of {cfg.check_every} samples, z={cfg.rule.z:g}, "
                     f"hysteresis={cfg.rule.hysteresis:g}",  # fmt: skip
-            "process_noise": f"{cfg.tracker.process_noise:g} (c1 + c2)^2 per update",
+            "process_noise": f"{cfg.estimator.process_noise:g} (c1 + c2)^2 per update",
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             **metadata,
         }
@@ -553,11 +553,11 @@ class _Loop:
         if self.usable(sample.status):
             self.on_time += 1
             try:
-                self.tracker.update(sample.u, sample.y)
+                self.estimator.update(sample.u, sample.y)
             except EstimatorDiverged as exc:
                 self._restart(sample, exc)
         else:
-            self.tracker.skip(sample.u)
+            self.estimator.skip(sample.u)
         self.n += 1
         self.last = sample
         if self.n % self.config.check_every == 0:
@@ -566,13 +566,13 @@ class _Loop:
 
     def _restart(self, sample: Sample, exc: EstimatorDiverged) -> None:
         self.restarts += 1
-        self.tracker.restart()
+        self.estimator.restart()
         self.recoveries_seen = 0
         self._event("restart", sample.k, reason=str(exc))
         self._announce("restart", f"the estimator diverged at sample {sample.k}; restarted from the servo's model")
 
     def _check(self, k: int) -> None:
-        est = self.tracker.estimate()
+        est = self.estimator.estimate()
         self.latest = est
         readings = {"dead_zone": (est.dead_zone, est.dead_zone_std), "m2": (est.m2, est.m2_std), "fit": (est.fit, 0.0)}
         for event in self.alarms.check(k, readings):
@@ -585,7 +585,7 @@ class _Loop:
             if event.raised and self.config.stop_on_alarm:
                 self.stop = self.stopped_on_alarm = True
         if est.recoveries > self.recoveries_seen:
-            for rec in self.tracker.recoveries[self.recoveries_seen :]:
+            for rec in self.estimator.recoveries[self.recoveries_seen :]:
                 self._event("recovery", rec.sample, coverage_up=rec.coverage_up, coverage_down=rec.coverage_down)
                 self._announce("recovery", f"the estimator recovered from a stuck zone classification at sample "
                                            f"{rec.sample} (backlash restarted from the servo's model)")  # fmt: skip
@@ -597,7 +597,7 @@ class _Loop:
             self._next_plot = time.monotonic() + self.config.plot_every_s
             self._live.submit(self._snapshot())
 
-    def _maybe_compensation(self, k: int, est: TrackerEstimate) -> None:
+    def _maybe_compensation(self, k: int, est: WearEstimate) -> None:
         assert self.written is not None
         step = self.config.compensation_step
         dz, m2 = self.written
@@ -610,7 +610,7 @@ class _Loop:
         if self.moved < self.config.rule.persist:
             return
         try:
-            model = self.tracker.model
+            model = self.estimator.model
         except ModelError:  # an estimate on the edge of validity (a dead zone at 0) is not a compensator
             return
         self.moved = 0
@@ -618,7 +618,7 @@ class _Loop:
         self._announce("compensation", f"compensation at sample {k}: c1 {model.c1:.4g}, c2 {model.c2:.4g} "
                                        f"{self.unit}, m2 {model.m2:.4g}")  # fmt: skip
 
-    def _write_compensation(self, k: int, model: BacklashModel, est: TrackerEstimate | None) -> None:
+    def _write_compensation(self, k: int, model: BacklashModel, est: WearEstimate | None) -> None:
         band = compensation_band(self.model_file, model)
         entry: dict[str, Any] = {"k": k, "t": round(self.t, 9), "c1": model.c1, "c2": model.c2, "m2": model.m2,
                                  "dead_zone": model.c1 + model.c2, "band": band, "unit": self.unit}  # fmt: skip
@@ -633,7 +633,7 @@ class _Loop:
         self.compensation_updates += 1
         self._save_model(k, model, est)
 
-    def _save_model(self, k: int, model: BacklashModel, est: TrackerEstimate | None) -> None:
+    def _save_model(self, k: int, model: BacklashModel, est: WearEstimate | None) -> None:
         stderr = None if est is None else {n: float(s) for n, s in zip(est.names, est.std)}
         fit = None if est is None or math.isnan(est.fit) else est.fit
         content = replace(
@@ -647,7 +647,7 @@ class _Loop:
         tmp.write_text(content.to_json(), encoding="utf-8")
         os.replace(tmp, path)
 
-    def _row(self, k: int, est: TrackerEstimate) -> None:
+    def _row(self, k: int, est: WearEstimate) -> None:
         samples, updates, on_time = self.row_mark
         span = max(self.n - samples, 1)
         excited = (est.updates - updates) / span
@@ -689,9 +689,9 @@ class _Loop:
         if self.last is not None:
             self.t = self.last.t_scheduled
             if self.n % self.config.row_every:
-                self._row(k, self.tracker.estimate())
+                self._row(k, self.estimator.estimate())
         try:
-            self._save_model(max(k, 0), self.tracker.model, self.tracker.estimate())
+            self._save_model(max(k, 0), self.estimator.model, self.estimator.estimate())
         except ModelError as exc:
             log.warning("the final estimate is not a valid model, model.json keeps the last one: %s", exc)
         self._event("stop", k, samples=self.n, reason=reason)
@@ -704,7 +704,7 @@ class _Loop:
             self.files["plot"] = plot_monitor(self._snapshot(), self.plot_path)
 
     def result(self, session: SessionResult) -> MonitorResult:
-        est = self.tracker.estimate()
+        est = self.estimator.estimate()
         return MonitorResult(
             samples=len(session), counts=session.counts, estimate=est, events=tuple(self.events),
             active=tuple(self.alarms.active.values()), recoveries=est.recoveries, restarts=self.restarts,

@@ -205,7 +205,7 @@ def test_tracking_mode_follows_a_growing_dead_zone_that_the_paper_settings_miss(
     n = 60_000
     c_sum = np.r_[np.ones(10_000), np.linspace(1.0, 1.3, 50_000)]
     u, y, sd = _drifting_record(n, c_sum, seed=3)
-    track = run_mrgia(u, y, MRGIAConfig.tracking(epsilon=noise_epsilon(sd)), record_every=1000)
+    track = run_mrgia(u, y, MRGIAConfig.random_walk(epsilon=noise_epsilon(sd)), record_every=1000)
     static = run_mrgia(u, y, MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(sd)), record_every=1000)
     dead = lambda r: r.values_history()[:, 4] + r.values_history()[:, 5]  # noqa: E731
     assert abs(dead(track)[-1] - 1.3) < 0.03
@@ -219,7 +219,7 @@ def test_tracking_mode_keeps_P_bounded_and_positive_under_one_sided_excitation()
     saw = (np.arange(n) % 400) / 400 * 4.8 - 2.4 + rng.uniform(-0.05, 0.05, n)
     u = np.r_[rng.uniform(-2.406, 2.406, 10_000), saw]
     u, y, sd = _drifting_record(u.size, np.ones(u.size), seed=1, u=u)
-    est = MRGIA(MRGIAConfig.tracking(epsilon=noise_epsilon(sd), p_max=np.inf))
+    est = MRGIA(MRGIAConfig.random_walk(epsilon=noise_epsilon(sd), p_max=np.inf))
     # a floor that binds: with rho exponent 0.75, (t+1)^-0.75 reaches 3e-3 after ~2300 samples
     forgetting = MRGIA(MRGIAConfig(epsilon=noise_epsilon(sd), rho_exponent=0.75, rho_floor=3e-3))
     worst = {"tracking": 0.0, "forgetting": 0.0}
@@ -233,7 +233,7 @@ def test_tracking_mode_keeps_P_bounded_and_positive_under_one_sided_excitation()
             worst["forgetting"] = max(worst["forgetting"], float(np.max(np.diag(forgetting.P))))
     assert not est.recoveries, "a one-sided stretch is not a stuck run"
     assert worst["tracking"] < 1e-3
-    # measured: 3.9e-4 against 6.9e-3; why tracking mode is a random walk, not forgetting
+    # measured: 3.9e-4 against 6.9e-3; why random-walk mode is a random walk, not forgetting
     assert worst["forgetting"] > 5 * worst["tracking"]
 
 

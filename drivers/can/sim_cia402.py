@@ -49,7 +49,7 @@ import time
 from typing import Any
 
 from servoid import validation
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
@@ -142,7 +142,7 @@ class SimCia402Drive(SimDrive):
         *,
         node: int = DEFAULT_NODES["cia402"],
         bus: BusAddress | None = None,
-        model: BacklashModel = BENCH_PLANT,
+        model: BacklashModel = MODEL_PLANT,
         counts_per_rev: int = SIM_COUNTS_PER_REV,
         rated_torque_mnm: int = SIM_RATED_TORQUE_MNM,
         torque_gain: float = TORQUE_GAIN,

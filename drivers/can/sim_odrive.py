@@ -43,7 +43,7 @@ import time
 from typing import Any, Callable
 
 from servoid import validation
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
@@ -91,7 +91,7 @@ class SimOdriveAxis(SimDrive):
         *,
         node: int = DEFAULT_NODES["odrive"],
         bus: BusAddress | None = None,
-        model: BacklashModel = BENCH_PLANT,
+        model: BacklashModel = MODEL_PLANT,
         torque_gain: float = TORQUE_GAIN,
         heartbeat_ms: float = 100.0,
         period_s: float | None = None,

@@ -11,7 +11,7 @@ What the emulated servo does
   its initial values; read-only entries, partial writes of an entry, values out
   of range and the EEPROM lock while the torque is on are refused with the
   e-manual's error numbers (Access, Data Length, Data Range, Data Limit).
-* **The plant, sampled**: the plant (:data:`servoid.drivers.model_plant.BENCH_PLANT`
+* **The plant, sampled**: the plant (:data:`servoid.drivers.model_plant.MODEL_PLANT`
   unless another is given) is a :class:`~servoid.drivers.sampled.SampledPlant`;
   each write of the goal of the active operating mode with the torque on is
   one sample of it. Protocol 2.0 carries no sample number, and a real servo's
@@ -62,7 +62,7 @@ from typing import Callable
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.drivers.dynamixel import control_table as ct
@@ -128,7 +128,7 @@ class EmulatedServo:
         self,
         servo_id: int = 1,
         *,
-        plant: BacklashModel = BENCH_PLANT,
+        plant: BacklashModel = MODEL_PLANT,
         model_number: int = ct.MODEL_NUMBER.initial,
         firmware: int = ct.FIRMWARE_VERSION.initial,
         return_delay_us: int = 500,

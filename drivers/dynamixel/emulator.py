@@ -52,7 +52,7 @@ from typing import IO, Any, Callable, Iterable
 import numpy as np
 
 from servoid import validation
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
@@ -351,7 +351,7 @@ class DynamixelEmulator:
         self,
         ids: Iterable[int] = (1,),
         *,
-        plant: BacklashModel = BENCH_PLANT,
+        plant: BacklashModel = MODEL_PLANT,
         model_number: int = 1020,
         firmware: int = 48,
         return_delay_us: int = 500,

@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 
 from servoid import validation
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial.build import firmware_binary
 from servoid.errors import ConfigError, DriverError
 from servoid.ident.models.pseudo_wiener import BacklashModel
@@ -43,7 +43,7 @@ class FirmwareOptions:
     Parameters
     ----------
     model : BacklashModel
-        The simulated motor + gear, in rad (default BENCH_PLANT).
+        The simulated motor + gear, in rad (default MODEL_PLANT).
     counts_per_rev : int
         Encoder resolution.
     noise : float
@@ -70,7 +70,7 @@ class FirmwareOptions:
         A symlink to the pseudo-terminal at a stable name.
     """
 
-    model: BacklashModel = BENCH_PLANT
+    model: BacklashModel = MODEL_PLANT
     counts_per_rev: int = 65536
     noise: float = 0.0
     seed: int = 0

@@ -1,7 +1,7 @@
-"""Following a servo's backlash while it works: the MRGIA in tracking mode, with uncertainty and fit.
+"""Following a servo's backlash while it works: the MRGIA in random-walk mode, with uncertainty and fit.
 
-:class:`Tracker` is the estimator of ``servoid monitor``. It wraps the MRGIA
-in tracking mode (:meth:`MRGIAConfig.tracking`: parameters as a random walk,
+:class:`WearEstimator` is the estimator of ``servoid monitor``. It wraps the MRGIA
+in random-walk mode (:meth:`MRGIAConfig.random_walk`: parameters as a random walk,
 so the gain never vanishes; ``P`` capped and positive definite; updates only
 where eq. (42) gives ``Phi = 1``) and adds what watching a servo for months
 needs:
@@ -11,7 +11,7 @@ a known start
     estimates are sensible from the first sample and alarms need no warm-up.
 one set of settings for every unit
     The estimator runs on ``u / s`` and ``y / s`` with ``s = c1 + c2`` of that
-    model. The tracking settings were measured where ``c1 + c2 = 1``
+    model. The random-walk settings were measured where ``c1 + c2 = 1``
     (``benchmarks/random_walk.py``); normalising keeps them right whether the
     servo reports rad or encoder counts. A single ``q`` on unnormalised
     signals is wrong for one of the two kinds of parameter: sized for dead
@@ -19,9 +19,9 @@ one set of settings for every unit
     biases the dead zones (the bench servo, noise-free, after its dead zones
     grew by half: 0.8 % low for good, against exact; benchmarks/random_walk.py).
 uncertainty
-    In tracking mode the MRGIA is a Kalman filter (``mu = 1``, ``S = h'Ph +
+    In random-walk mode the MRGIA is a Kalman filter (``mu = 1``, ``S = h'Ph +
     Sigma``, ``K = Ph / S``), so ``P`` is the covariance of the estimate:
-    :meth:`Tracker.estimate` reports ``sqrt(diag P)`` (and the standard
+    :meth:`WearEstimator.estimate` reports ``sqrt(diag P)`` (and the standard
     deviation of ``c1 + c2`` with the covariance of ``c1`` and ``c2``) in the
     servo's units. It assumes the parameters wander by ``q`` per update, so it
     is larger than the scatter of an estimate that holds still (measured
@@ -55,7 +55,7 @@ from servoid.ident.models.kernels import backlash_step
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, RecoveryEvent, Step, noise_epsilon
 
-__all__ = ["TrackerConfig", "TrackerEstimate", "Tracker"]
+__all__ = ["WearEstimatorConfig", "WearEstimate", "WearEstimator"]
 
 #: Default random-walk variance per update, relative to (c1 + c2)^2 of the
 #: servo's model: the trade-off measured in benchmarks/random_walk.py (RMS
@@ -69,8 +69,8 @@ DEFAULT_P0 = 1e-2
 
 
 @dataclass(frozen=True, kw_only=True)
-class TrackerConfig:
-    """What :class:`Tracker` starts from and how fast it follows.
+class WearEstimatorConfig:
+    """What :class:`WearEstimator` starts from and how fast it follows.
 
     Parameters
     ----------
@@ -126,15 +126,15 @@ class TrackerConfig:
         eps = self.epsilon if self.epsilon is not None else noise_epsilon(self.noise_std)
         theta0 = ref.theta
         theta0[-2:] /= s
-        return MRGIAConfig.tracking(
+        return MRGIAConfig.random_walk(
             na=ref.na, nb=ref.nb, delay=ref.delay, epsilon=eps / s, process_noise=self.process_noise,
             p_max=self.p_max, p0=self.p0, theta0=tuple(theta0), recover=self.recover,
         )  # fmt: skip
 
 
 @dataclass(frozen=True)
-class TrackerEstimate:
-    """The tracker's estimate at one moment, in the servo's units.
+class WearEstimate:
+    """The wear estimator's estimate at one moment, in the servo's units.
 
     Attributes
     ----------
@@ -198,23 +198,23 @@ class TrackerEstimate:
         return self.std_of("m2")
 
 
-class Tracker:
-    """The MRGIA in tracking mode on normalised signals, with a running fit (see the module docstring).
+class WearEstimator:
+    """The MRGIA in random-walk mode on normalised signals, with a running fit (see the module docstring).
 
     Parameters
     ----------
-    config : TrackerConfig
-        Start, noise and tracking settings.
+    config : WearEstimatorConfig
+        Start, noise and random-walk settings.
 
     Examples
     --------
-    >>> tracker = Tracker(TrackerConfig(reference=model, noise_std=0.03))   # doctest: +SKIP
+    >>> estimator = WearEstimator(WearEstimatorConfig(reference=model, noise_std=0.03))   # doctest: +SKIP
     >>> for u_k, y_k in zip(u, y):                                            # doctest: +SKIP
-    ...     tracker.update(u_k, y_k)
-    >>> tracker.estimate().dead_zone                                           # doctest: +SKIP
+    ...     estimator.update(u_k, y_k)
+    >>> estimator.estimate().dead_zone                                           # doctest: +SKIP
     """
 
-    def __init__(self, config: TrackerConfig) -> None:
+    def __init__(self, config: WearEstimatorConfig) -> None:
         self.config = config
         self._inv_scale = 1.0 / config.scale
         self.estimator = MRGIA(config.mrgia_config())
@@ -276,7 +276,7 @@ class Tracker:
     @classmethod
     def warm_up(cls, reference: BacklashModel) -> None:
         """Compile the kernels now: a first compile inside a sampling loop stalls it for seconds."""
-        scratch = cls(TrackerConfig(reference=reference))
+        scratch = cls(WearEstimatorConfig(reference=reference))
         for u, y in ((0.1, 0.0), (-0.1, 0.05), (0.2, -0.02)):
             scratch.update(u, y)
         scratch.skip(0.0)
@@ -301,7 +301,7 @@ class Tracker:
         var = self._y_sq - self._y_mean * self._y_mean
         return math.sqrt(self._err2 / var) if var > 0.0 else math.nan
 
-    def estimate(self) -> TrackerEstimate:
+    def estimate(self) -> WearEstimate:
         """The current estimate with standard deviations, in the servo's units."""
         est, s = self.estimator, self.config.scale
         cfg = est.config
@@ -313,7 +313,7 @@ class Tracker:
         cov = P * np.outer(unit, unit)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         dz_var = cov[-2, -2] + cov[-1, -1] + 2.0 * cov[-2, -1]
-        return TrackerEstimate(
+        return WearEstimate(
             sample=est.samples, updates=est.updates, names=BacklashModel.parameter_names(cfg.na, cfg.nb),
             values=values, std=std, dead_zone=float(values[-2] + values[-1]),
             dead_zone_std=math.sqrt(max(dz_var, 0.0)), fit=self.fit, coverage=est.coverage,

@@ -106,16 +106,16 @@ class MRGIAConfig:
     max_recoveries : int
         After this many recoveries the run is left alone and reported unsettled.
     rho_floor : float
-        Tracking mode: ``rho(k)`` never falls below this, so the estimator
+        Random-walk mode: ``rho(k)`` never falls below this, so the estimator
         keeps forgetting old data at the rate ``1 - rho_floor`` per update and
         follows slowly drifting parameters (0: the paper's ``rho``, which
         decays to zero, so the estimator eventually stops learning).
     process_noise : float
-        Tracking mode: ``q`` added to the diagonal of ``P`` at each update,
+        Random-walk mode: ``q`` added to the diagonal of ``P`` at each update,
         i.e. the parameters are modelled as a random walk of variance ``q``
         per update (the Kalman-filter view of tracking).
     p_max : float
-        Tracking mode: cap on the diagonal of ``P``, so that directions the
+        Random-walk mode: cap on the diagonal of ``P``, so that directions the
         data do not excite for a long time cannot wind up (inf: no cap).
     """
 
@@ -172,7 +172,7 @@ class MRGIAConfig:
         return cls(na=na, nb=nb, delay=delay, epsilon=epsilon, project=False, recover=False)
 
     @classmethod
-    def tracking(
+    def random_walk(
         cls,
         *,
         na: int = 2,
@@ -186,7 +186,7 @@ class MRGIAConfig:
         """Settings for following slowly changing parameters (wear) for as long as the servo runs.
 
         The paper's ``rho(k)`` decays to zero, so the estimator eventually
-        stops learning. Tracking mode keeps the gain alive by modelling the
+        stops learning. Random-walk mode keeps the gain alive by modelling the
         parameters as a random walk: ``q`` (``process_noise``) is added to
         ``P``'s diagonal at each update, with ``rho_exponent = 1`` (no
         forgetting otherwise) and ``P``'s diagonal capped at ``p_max``.
@@ -204,7 +204,7 @@ class MRGIAConfig:
         direction by ``1/lambda`` per update, the random walk by ``q``. ``q``
         sets the trade-off: larger follows faster and is noisier. It is in
         squared parameter units per update, so scale it with the units of the
-        record (:class:`servoid.ident.monitoring.wear_estimator.Tracker` normalises the signals
+        record (:class:`servoid.ident.monitoring.wear_estimator.WearEstimator` normalises the signals
         by ``c1 + c2`` so that one ``q`` fits every unit).
         """
         return cls(

@@ -20,7 +20,7 @@ import numpy as np
 
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, noise_epsilon
@@ -44,7 +44,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                       help=f"sample rate of the live run in Hz (default {DEFAULT_RATE_HZ:g})")  # fmt: skip
     live.add_argument("--amplitude", type=float, metavar="A",
                       help="half-width of the uniform excitation, in the driver's unit "
-                           f"(default: the simulated servo's reference, else {BENCH_AMPLITUDE} for the bench servo)")  # fmt: skip
+                           f"(default: the simulated servo's reference, else {MODEL_AMPLITUDE} for the bench servo)")  # fmt: skip
     live.add_argument("--guard", type=int, metavar="N",
                       help="samples left out after each one that could not be used (late, missed, timed out): "
                           "a device on its own clock applies a late command in a later sample and the next "
@@ -99,7 +99,7 @@ def live_record(
             epsilon = args.epsilon
         else:
             epsilon = noise_epsilon(noise) if isinstance(noise, (int, float)) else 0.0
-        amplitude = args.amplitude if args.amplitude is not None else getattr(driver, "reference_amplitude", BENCH_AMPLITUDE)
+        amplitude = args.amplitude if args.amplitude is not None else getattr(driver, "reference_amplitude", MODEL_AMPLITUDE)
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
         u = excitation(args, amplitude, driver.limits.centre)

@@ -12,11 +12,11 @@ from typing import Any, Callable, Iterator
 from servoid.cli import _live, _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.base import Driver
-from servoid.drivers.model_plant import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
 from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
-from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, TrackerConfig
+from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, WearEstimatorConfig
 from servoid.modelfile import ModelFile, load_model
 from servoid.monitor_run import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
 from servoid.session import SessionConfig
@@ -29,7 +29,7 @@ DESCRIPTION = f"""\
 Watch a servo's backlash while it runs, for as long as it runs: gears wear, the
 dead zone grows, and a compensator tuned once drifts out of tune.
 
-The servo follows an input (below) at --rate Hz. The MRGIA in tracking mode
+The servo follows an input (below) at --rate Hz. The MRGIA in random-walk mode
 estimates the model online, starting from --model (the servo's model.json from
 `servoid identify`), with a gain that never vanishes: the parameters are taken
 as a random walk of variance --process-noise x (c1 + c2)^2 per update, and the
@@ -49,7 +49,7 @@ The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
 (--excitation SPEC), or both; the spec grammar is that of `servoid excite`.
 Without either, uniform white noise of the simulated servo's reference
-amplitude (else {BENCH_AMPLITUDE}). The MRGIA sees the backlash only where the
+amplitude (else {MODEL_AMPLITUDE}). The MRGIA sees the backlash only where the
 output moves by more than the noise from one sample to the next: a slow
 trajectory alone says little about the dead zone (docs/monitor.md).
 
@@ -202,7 +202,7 @@ def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec |
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
     elif operating is None:
-        excitation = UniformSpec(amplitude=getattr(driver, "reference_amplitude", BENCH_AMPLITUDE))
+        excitation = UniformSpec(amplitude=getattr(driver, "reference_amplitude", MODEL_AMPLITUDE))
     else:
         excitation = None
     return operating, excitation
@@ -219,7 +219,7 @@ def commands(centre: float, operating: SignalSpec | None, excitation: SignalSpec
 
 
 def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, Any]) -> tuple[float, float | None]:
-    """``(noise_std, epsilon)`` for the tracker."""
+    """``(noise_std, epsilon)`` for the wear estimator."""
     if args.epsilon is not None:
         if not (math.isfinite(args.epsilon) and args.epsilon >= 0):
             raise ConfigError(f"--epsilon (={args.epsilon:g}) must be >= 0 (servo's unit)")
@@ -253,7 +253,7 @@ def run(args: argparse.Namespace) -> int:
         unit = driver.position_unit.unit
         noise_std, epsilon = _noise(args, model_file, driver.identity)
         config = MonitorConfig(
-            tracker=TrackerConfig(reference=model_file.model, noise_std=noise_std, epsilon=epsilon,
+            estimator=WearEstimatorConfig(reference=model_file.model, noise_std=noise_std, epsilon=epsilon,
                                   process_noise=args.process_noise),
             bounds=_bounds(args, model_file, unit), rule=rule, check_every=args.check_every, row_every=row_every,
             compensation_step=args.compensation_step, stop_on_alarm=args.fail_on_alarm, plot_every_s=args.plot_every,

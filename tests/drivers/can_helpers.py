@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers.base import Driver
-from servoid.drivers.model_plant import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.can._bus import BusAddress
 from servoid.recording import RecordingWriter
 
@@ -27,7 +27,7 @@ def private_bus() -> BusAddress:
 
 def bench_input(n: int, seed: int) -> np.ndarray:
     """Seeded uniform input over the bench plant's range."""
-    return np.random.default_rng(seed).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, n)
+    return np.random.default_rng(seed).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, n)
 
 
 def free_udp_port() -> int:

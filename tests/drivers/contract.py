@@ -34,7 +34,7 @@ from pathlib import Path
 from typing import Callable, ContextManager, Iterator
 
 from servoid.drivers import Driver, Limits, driver_from_url
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import VirtualClock
 from servoid.drivers.sim import SimDriver
 from servoid.ident.models.pseudo_wiener import BacklashModel
@@ -104,7 +104,7 @@ class Transport:
     name: str
     servo: Callable[[Faults, Limits | None], ContextManager[Driver]]
     faults: frozenset[str] = field(default_factory=frozenset)
-    plant: BacklashModel = BENCH_PLANT
+    plant: BacklashModel = MODEL_PLANT
     resolution: float = 0.0
     virtual_time: bool = False
     bad_url: str = ""
@@ -254,16 +254,16 @@ _CAN_CRC = (
 #: Every driver the contract tests run over.
 TRANSPORTS = [
     Transport(
-        "sim", _sim, frozenset({"mute_after", "restart_after", "drop"}), BENCH_PLANT, 0.0, True,
+        "sim", _sim, frozenset({"mute_after", "restart_after", "drop"}), MODEL_PLANT, 0.0, True,
         "sim://?bogus=1",
         cannot={"flip": "the simulated servo has no byte stream to corrupt"},
     ),
     Transport(
-        "serial", _serial, frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}), BENCH_PLANT,
+        "serial", _serial, frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}), MODEL_PLANT,
         2 * math.pi / 65536, False, "serial:///dev/ttyUSB0?bogus=1", _serial_sent,
     ),
     Transport(
-        "dxl", _dxl, frozenset({"mute_after", "drop", "flip", "trace"}), BENCH_PLANT, 2 * math.pi / 4096, False,
+        "dxl", _dxl, frozenset({"mute_after", "drop", "flip", "trace"}), MODEL_PLANT, 2 * math.pi / 4096, False,
         "dxl:///dev/ttyUSB0?id=1&bogus=1", _dxl_sent,
         cannot={
             "restart_after": "an X-series servo has no boot id or restart counter to read per sample: after a "
@@ -272,11 +272,11 @@ TRANSPORTS = [
         },
     ),
     Transport(
-        "cia402", _cia402, frozenset({"mute_after", "restart_after", "drop"}), BENCH_PLANT, 2 * math.pi / 2**17,
+        "cia402", _cia402, frozenset({"mute_after", "restart_after", "drop"}), MODEL_PLANT, 2 * math.pi / 2**17,
         False, "can://virtual/ch0?protocol=cia402&bogus=1", cannot={"flip": _CAN_CRC},
     ),
     Transport(
-        "odrive", _odrive, frozenset({"mute_after", "drop"}), BENCH_PLANT, 2 * math.pi * 2.0**-23, False,
+        "odrive", _odrive, frozenset({"mute_after", "drop"}), MODEL_PLANT, 2 * math.pi * 2.0**-23, False,
         "can://virtual/ch0?protocol=odrive&bogus=1",
         cannot={
             "flip": _CAN_CRC,

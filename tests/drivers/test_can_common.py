@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can._bus import NO_KERNEL_CAN, BusAddress, kernel_has_can
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.odrive import OdriveDriver
@@ -91,7 +91,7 @@ def test_socketcan_vcan(protocol):
         with driver_from_url(drive.url()) as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
-    assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 1e-4
+    assert np.max(np.abs(y - simulate(MODEL_PLANT, u).y)) < 1e-4
 
 
 @pytest.mark.timeout(60)
@@ -109,7 +109,7 @@ def test_the_emulator_in_another_process_over_udp_multicast(protocol):
         with driver_from_url(f"{url}&timeout={PATIENT_S}") as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
-        assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 1e-4
+        assert np.max(np.abs(y - simulate(MODEL_PLANT, u).y)) < 1e-4
     finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=10) == 0
@@ -143,7 +143,7 @@ def test_a_drive_that_stops_answering_times_out_keeps_the_recording_and_ends_swi
 @pytest.mark.parametrize("protocol", ["cia402", "odrive"])
 def test_a_reply_that_comes_after_the_timeout_is_not_taken_for_the_next_one(protocol):
     u = bench_input(40, seed=24)
-    expected = simulate(BENCH_PLANT, u).y
+    expected = simulate(MODEL_PLANT, u).y
     late = 22
     assert abs(expected[late + 1] - expected[late]) > 0.01  # a stale reply would show
     y = np.full(u.size, np.nan)

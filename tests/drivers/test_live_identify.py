@@ -6,7 +6,7 @@ process of its own, the CiA 402 drive and the ODrive axis on python-can's
 ``virtual`` bus in this process (a virtual bus reaches only its own process).
 Each runs the same excitation (seed, rate, length) through the sampling
 session and the identification, as ``servoid identify --driver sim://`` does
-on the same plant, :data:`~servoid.drivers.model_plant.BENCH_PLANT`.
+on the same plant, :data:`~servoid.drivers.model_plant.MODEL_PLANT`.
 
 Known truth. The simulated driver identifies the plant to rounding error;
 what each emulator adds is its device's resolution and, for a device that
@@ -50,7 +50,7 @@ import numpy as np
 import pytest
 
 from servoid.cli import main
-from servoid.drivers.model_plant import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.modelfile import load_model
 
@@ -71,7 +71,7 @@ def identify(capsys: pytest.CaptureFixture[str], url: str, out) -> dict:  # type
 
 
 def max_relative_error(result: dict) -> float:
-    return BacklashModel.from_dict(result["model"]).max_relative_error(BENCH_PLANT)
+    return BacklashModel.from_dict(result["model"]).max_relative_error(MODEL_PLANT)
 
 
 @contextlib.contextmanager

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from servoid.drivers import Driver, driver_from_url
-from servoid.drivers.model_plant import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
 from servoid.errors import DeviceFault, DriverError, DriverTimeout
 from servoid.recording import read_recording
@@ -128,7 +128,7 @@ def inject_before_exchange(n: int, inject: Callable[[], None]) -> Callable[[floa
 @pytest.mark.parametrize("fault", FAULTS, ids=lambda f: f.name)
 def test_a_fault_stops_the_session_with_a_clear_error_the_recording_kept_and_torque_off(fault, tmp_path, caplog):
     path = tmp_path / "recording.csv"
-    u = np.random.default_rng(7).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 400)
+    u = np.random.default_rng(7).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 400)
     with caplog.at_level(logging.WARNING), fault.device() as (servo, device):
         with pytest.raises(fault.error, match=fault.message) as info:
             run_session(servo, u, SessionConfig(period_s=1 / RATE_HZ, give_up_after_s=0.1), recording=path,
@@ -152,7 +152,7 @@ def test_a_fault_stops_the_session_with_a_clear_error_the_recording_kept_and_tor
 
 
 def test_one_crc_error_costs_one_sample_and_the_session_goes_on(tmp_path):
-    u = np.random.default_rng(8).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 200)
+    u = np.random.default_rng(8).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 200)
     with dxl() as (servo, emu):
         inject = inject_before_exchange(FAULT_AT, lambda: setattr(emu.faults(1), "corrupt_replies", 1))
         result = run_session(servo, u, SessionConfig(period_s=1 / RATE_HZ), recording=tmp_path / "r.csv",
