@@ -291,11 +291,11 @@ class SimDriver(Driver):
         self._device().plant.set_period(int(round(period_s * NS_PER_S)))
         self._last_slot = None
 
-    def _exchange(self, command: float) -> Reading:
-        return self._request(command)
+    def _exchange(self, command: float, slot: int | None) -> Reading:
+        return self._request(command, slot)
 
     def _read(self) -> Reading:
-        return self._request(None)
+        return self._request(None, None)
 
     def _identity(self) -> dict[str, Any]:
         return {
@@ -314,12 +314,11 @@ class SimDriver(Driver):
             raise DriverError(f"{self.describe()} is not open")
         return self.device
 
-    def _request(self, command: float | None) -> Reading:
+    def _request(self, command: float | None, slot: int | None) -> Reading:
         device = self._device()
         if command is not None and not device.plant.enabled and device.boot_id == self._boot_id:
             raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
         periods = None
-        slot = self.exchange_slot
         if command is not None and slot is not None:
             if self._last_slot is not None:
                 periods = slot - self._last_slot

@@ -529,7 +529,6 @@ class _Sampler:
         self._shut = False
         self._next_progress = 0
         self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
-        self.held: float | None = None  # the command the servo holds (the last one sent)
         self.on_sample: Callable[[Sample], None] | None = None
         self.keep_samples = True
         self.slots = 0
@@ -562,8 +561,7 @@ class _Sampler:
             command = self.command_filter(reference) if self.command_filter is not None else reference
             start = clock.now_ns()  # after the filter: a slow filter makes the exchange late, and that shows
             try:
-                driver.exchange_slot = k
-                m = driver.exchange(command)
+                m = driver.exchange(command, slot=k)
             except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
                 end = clock.now_ns()
                 self._timeout(k, scheduled, start, end, reference, command)
@@ -580,21 +578,22 @@ class _Sampler:
         self._progress(clock.now_ns())
 
     def _missed(self, k: int, scheduled: int, reference: float) -> None:
-        u = self.held if self.held is not None else 0.0  # before any command the servo holds where it was enabled
+        held = self.driver.last_command
+        u = held if held is not None else 0.0  # before any command the servo holds where it was enabled
         self.usable(Status.MISSED)  # arms the guard window
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, Status.MISSED))
 
     def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
-        # whether the servo applied the command is unknown (a lost reply or a lost
-        # request); a lost reply is taken as the likelier, so the servo holds it from now
-        limited = self.driver.limits.clamp(command, self.driver.last_command)
-        u = self.driver.quantise(limited)  # what the servo got, as the driver would have reported it
-        self.held = u
+        # whether the servo applied the command is unknown (a lost reply or a lost request); the
+        # driver takes a lost reply as the likelier (its last command) and keeps the next command
+        # within reach of both
+        u = self.driver.last_command
+        assert u is not None  # the exchange got as far as sending
         self.usable(Status.TIMEOUT)  # arms the guard window
         self._estimate_skip(u)
         self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, Status.TIMEOUT,
-                         exchange_s=(end - start) / NS_PER_S, clamped=limited != command))  # fmt: skip
+                         exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
         # started late, or answered after the next slot began: a device without a clock of its own to
@@ -611,7 +610,6 @@ class _Sampler:
                 late = late or abs((device_time - prev_t) - expected) >= slack
             self._last_device = (k, device_time)
         status = Status.LATE if late else Status.OK
-        self.held = m.command
         if self.usable(status):
             self._estimate_update(m.command, m.position)
         else:
@@ -675,7 +673,6 @@ class _Sampler:
         if self._shut:
             return
         self._shut = True
-        self.driver.exchange_slot = None  # outside the session, exchanges have no slot
         try:
             if self.driver.is_open:
                 self.driver.disable()

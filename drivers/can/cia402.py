@@ -296,10 +296,9 @@ class Cia402Driver(CanDriver):
             f"stuck in {profile.state_of(statusword)} (statusword 0x{statusword:04X})"
         )
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:
         self._raise_emcy()
         periods = 1
-        slot = self.exchange_slot
         if slot is not None:
             if self._last_slot is not None:
                 periods = slot - self._last_slot

@@ -121,7 +121,7 @@ class OdriveDriver(CanDriver):
             self._send_command(self._position if self.mode == "position" else 0.0)
         self._request_state(proto.CLOSED_LOOP_CONTROL if enabled else proto.IDLE)
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:  # noqa: ARG002 - runs on its own clock
         if self._outstanding:
             # the last exchange timed out: let its estimates arrive now rather than answer this one
             self._await(proto.GET_ENCODER_ESTIMATES, self.timeout)

@@ -22,7 +22,7 @@ business, as on a real ODrive, whose loop runs on its own clock:
 * no period: each input is one sample, whatever the time between them (the
   inputs are the clock; a slot the host skips is not seen).
 * ``slot_source`` (in-process tests only): a callable that returns the host's
-  slot number of the input being handled (``lambda: driver.exchange_slot``),
+  slot number of the input being handled (the slot each command was sent with),
   told out of band because the protocol has no room for it; the axis then
   follows the host's slots exactly, as the CiA 402 drive does from its SYNC
   counter.

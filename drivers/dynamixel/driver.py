@@ -368,7 +368,7 @@ class DynamixelDriver(Driver):
         # switching off matters most when the line is bad: retried (SETUP_ATTEMPTS) before giving up
         self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:  # noqa: ARG002 - runs on its own clock
         self._require_owner()
         if not self.torque_enabled:
             # a Dynamixel stores a goal written with the torque off and does nothing: refuse it here

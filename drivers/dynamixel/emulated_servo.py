@@ -29,8 +29,8 @@ What the emulated servo does
     goals are the clock: any rate sees the same plant, but a slot the host
     skips is not seen);
   - ``slot_source`` (in-process tests only): a callable that returns the
-    host's slot number of the goal being handled (``lambda:
-    driver.exchange_slot``), told out of band because the protocol has no
+    host's slot number of the goal being handled (the slot each
+    command was sent with), told out of band because the protocol has no
     room for it; the servo then follows the host's slots exactly.
 
   Present Position, Velocity, Current and PWM change only when the plant does.

@@ -155,9 +155,8 @@ class SerialDriver(Driver):
             raise ConfigError(f"period_s (={period_s!r}) must lie in [1e-6, 1] s for the firmware")
         self._config("C", period_us, "K")
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:
         counts = int(round(command))  # whole already (command_step): the base rounded it inside the limits
-        slot = self.exchange_slot
         if slot is None:
             return self._position(self._transact("S", counts, "P"))
         # the slot number tells the firmware how many periods passed since the last set point

@@ -172,10 +172,10 @@ def _slots_out_of_band(driver: Driver) -> Callable[[], int | None]:
     slots: deque[int | None] = deque()
     send = driver._exchange
 
-    def exchange(command: float):  # type: ignore[no-untyped-def]
+    def exchange(command: float, slot: int | None):  # type: ignore[no-untyped-def]
         if driver.torque_enabled:  # with the torque off nothing is sent (the driver refuses)
-            slots.append(driver.exchange_slot)
-        return send(command)
+            slots.append(slot)
+        return send(command, slot)
 
     driver._exchange = exchange  # type: ignore[method-assign]
     return lambda: slots.popleft() if slots else None

@@ -144,8 +144,7 @@ def test_the_sync_counter_tells_the_drive_how_many_cycles_passed(drive):
         for slot, value in zip(slots, u):
             if slot == 304:
                 time.sleep(0.299)  # 299 cycles of 1 ms since slot 5, give or take the host's timing
-            servo.exchange_slot = slot
-            y.append(servo.exchange(value).position)
+            y.append(servo.exchange(value, slot=slot).position)
     held = np.repeat(u, np.diff(slots, append=slots[-1] + 1))  # the target each cycle had
     expected = simulate(MODEL_PLANT, held).y[np.array(slots) - slots[0]]
     assert np.max(np.abs(np.array(y) - expected)) < 2 * COUNT
