@@ -280,11 +280,12 @@ def _feasible_start(theta: np.ndarray, config: MRGIAConfig) -> BacklashModel:
     """
     th = np.array(theta, dtype=np.float64)
     na, nb = config.na, config.nb
-    th[na + nb + 1] = max(th[na + nb + 1], 0.05 - 1.0)
-    th[na + nb + 2] = max(th[na + nb + 2], 1e-3)
-    th[na + nb + 3] = max(th[na + nb + 3], 1e-3)
-    if not any(th[na : na + nb + 1]):
-        th[na] = 1.0
+    lay = config.theta_layout
+    th[lay.m2] = max(th[lay.m2], 0.05 - 1.0)
+    th[lay.c1] = max(th[lay.c1], 1e-3)
+    th[lay.c2] = max(th[lay.c2], 1e-3)
+    if not any(th[lay.b]):
+        th[lay.b.start] = 1.0
     for _ in range(200):
         try:
             return BacklashModel.from_theta(th, na=na, nb=nb, delay=config.delay)

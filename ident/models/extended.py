@@ -24,7 +24,7 @@ from servoid.ident.offline._oefit import failure_residual, fit_output_error, fit
 from servoid.ident.models.kernels import extended_kernel, schur_stable
 from servoid.ident.models.effects import EFFECTS, KernelArgs, get_effect
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 
 __all__ = [
     "AppliedEffect",
@@ -276,10 +276,10 @@ class _Layout:
         return np.concatenate(parts)
 
     def args(self, p: np.ndarray) -> KernelArgs:
-        na, nb = self.na, self.nb
-        args = KernelArgs(a=p[:na], b=p[na : na + nb + 1], delay=self.delay,
-                          m2=float(p[na + nb + 1]), c1=float(p[na + nb + 2]), c2=float(p[na + nb + 3]))  # fmt: skip
-        i = na + nb + 4
+        lay = ThetaLayout(self.na, self.nb)  # the base's values lead p, with m2 itself
+        args = KernelArgs(a=p[lay.a], b=p[lay.b], delay=self.delay,
+                          m2=float(p[lay.m2]), c1=float(p[lay.c1]), c2=float(p[lay.c2]))  # fmt: skip
+        i = lay.n
         for e, free in zip(self.template.effects, self.free):
             spec = EFFECTS[e.name]
             if free:
@@ -291,11 +291,11 @@ class _Layout:
         return args
 
     def model(self, p: np.ndarray) -> ExtendedModel:
-        na, nb = self.na, self.nb
-        base = BacklashModel(a=p[:na], b=p[na : na + nb + 1], delay=self.delay,
-                             m2=float(p[na + nb + 1]), c1=float(p[na + nb + 2]), c2=float(p[na + nb + 3]))  # fmt: skip
+        lay = ThetaLayout(self.na, self.nb)
+        base = BacklashModel(a=p[lay.a], b=p[lay.b], delay=self.delay,
+                             m2=float(p[lay.m2]), c1=float(p[lay.c1]), c2=float(p[lay.c2]))  # fmt: skip
         effects = []
-        i = na + nb + 4
+        i = lay.n
         for e, free in zip(self.template.effects, self.free):
             n = EFFECTS[e.name].n_params
             if free:

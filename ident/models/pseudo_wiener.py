@@ -39,13 +39,90 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ModelError
 
-__all__ = ["BacklashModel", "M1"]
+__all__ = ["BacklashModel", "M1", "ThetaLayout", "backlash_offset"]
 
 #: Slope of the up line; fixed to one to normalise the model (text after eq. 11).
 M1 = 1.0
 
 #: A linear block whose largest pole magnitude reaches this bound is rejected as unstable.
 _STABILITY_MARGIN = 1.0 - 1e-9
+
+
+def backlash_offset(na: int, nb: int) -> int:
+    """Index of ``m2 - 1`` in theta (eq. 15); ``c1`` and ``c2`` follow it.
+
+    Plain integer arithmetic, so that the compiled kernels use this very function.
+    """
+    return na + nb + 1
+
+
+@dataclass(frozen=True)
+class ThetaLayout:
+    """Where each parameter sits in ``theta = [a_1..a_na, b_0..b_nb, m2 - 1, c1, c2]`` (eq. 15).
+
+    The one place for this layout: the estimator's state, its results, the
+    refinement and the reports all index theta through it.
+
+    Parameters
+    ----------
+    na, nb : int
+        Orders of the linear block.
+    """
+
+    na: int
+    nb: int
+
+    @property
+    def n(self) -> int:
+        """Length of theta, ``na + nb + 4``."""
+        return self.na + self.nb + 4
+
+    @property
+    def a(self) -> slice:
+        """``a_1 .. a_na``."""
+        return slice(0, self.na)
+
+    @property
+    def b(self) -> slice:
+        """``b_0 .. b_nb``."""
+        return slice(self.na, self.na + self.nb + 1)
+
+    @property
+    def m2(self) -> int:
+        """Index of ``m2 - 1`` (in theta) or ``m2`` (in :meth:`values`)."""
+        return backlash_offset(self.na, self.nb)
+
+    @property
+    def c1(self) -> int:
+        """Index of ``c1``."""
+        return self.m2 + 1
+
+    @property
+    def c2(self) -> int:
+        """Index of ``c2``."""
+        return self.m2 + 2
+
+    @property
+    def backlash(self) -> slice:
+        """``m2 - 1, c1, c2``."""
+        return slice(self.m2, self.n)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """``a1.., b0.., m2, c1, c2`` (the entry for ``m2 - 1`` is named ``m2``: reports show ``m2`` itself)."""
+        return (*(f"a{i + 1}" for i in range(self.na)), *(f"b{j}" for j in range(self.nb + 1)), "m2", "c1", "c2")
+
+    def values(self, theta: np.ndarray) -> np.ndarray:
+        """Theta (or rows of thetas, last axis) with ``m2 - 1`` turned into ``m2``; a copy."""
+        out = np.array(theta, dtype=np.float64)
+        out[..., self.m2] += M1
+        return out
+
+    def theta(self, values: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`values`; a copy."""
+        out = np.array(values, dtype=np.float64)
+        out[..., self.m2] -= M1
+        return out
 
 
 def _coefficients(name: str, values: Sequence[float] | np.ndarray, *, minimum: int) -> tuple[float, ...]:
@@ -175,9 +252,14 @@ class BacklashModel:
 
     # -- parameter vector (eq. 15) ------------------------------------------------
     @property
+    def layout(self) -> ThetaLayout:
+        """Where each parameter sits in :attr:`theta`."""
+        return ThetaLayout(self.na, self.nb)
+
+    @property
     def theta(self) -> np.ndarray:
         """Parameter vector ``[a_1..a_na, b_0..b_nb, m2 - 1, c1, c2]`` of eq. (15)."""
-        return np.array([*self.a, *self.b, self.m2 - M1, self.c1, self.c2], dtype=np.float64)
+        return self.layout.theta(self.values())
 
     @classmethod
     def from_theta(cls, theta: Sequence[float] | np.ndarray, *, na: int, nb: int, delay: int) -> BacklashModel:
@@ -189,16 +271,16 @@ class BacklashModel:
             If ``theta`` has the wrong length or gives an invalid model.
         """
         th = np.asarray(theta, dtype=np.float64).ravel()
-        expected = na + nb + 4
-        if th.size != expected:
-            raise ModelError(f"theta has {th.size} entries, na={na} and nb={nb} need {expected}")
+        lay = ThetaLayout(na, nb)
+        if th.size != lay.n:
+            raise ModelError(f"theta has {th.size} entries, na={na} and nb={nb} need {lay.n}")
         return cls(
-            a=th[:na],
-            b=th[na : na + nb + 1],
+            a=th[lay.a],
+            b=th[lay.b],
             delay=delay,
-            m2=float(th[na + nb + 1]) + M1,
-            c1=float(th[na + nb + 2]),
-            c2=float(th[na + nb + 3]),
+            m2=float(th[lay.m2]) + M1,
+            c1=float(th[lay.c1]),
+            c2=float(th[lay.c2]),
         )
 
     @staticmethod
@@ -207,7 +289,7 @@ class BacklashModel:
 
         The entry for ``m2 - 1`` is named ``m2`` because reports show ``m2`` itself.
         """
-        return (*(f"a{i + 1}" for i in range(na)), *(f"b{j}" for j in range(nb + 1)), "m2", "c1", "c2")
+        return ThetaLayout(na, nb).names
 
     @property
     def names(self) -> tuple[str, ...]:

@@ -125,7 +125,7 @@ class WearEstimatorConfig:
         ref, s = self.reference, self.scale
         eps = self.epsilon if self.epsilon is not None else noise_epsilon(self.noise_std)
         theta0 = ref.theta
-        theta0[-2:] /= s
+        theta0[ref.layout.c1 : ref.layout.c2 + 1] /= s
         return MRGIAConfig.random_walk(
             na=ref.na, nb=ref.nb, delay=ref.delay, epsilon=eps / s, process_noise=self.process_noise,
             p_max=self.p_max, p0=self.p0, theta0=tuple(theta0), recover=self.recover,
@@ -220,7 +220,8 @@ class WearEstimator:
         self.estimator = MRGIA(config.mrgia_config())
         lay = self.estimator.config.layout
         self._x_at = lay.x_history.start  # x-hat(k), newest first, in the estimator's public state
-        self._i_m2 = lay.na + lay.nb + 1
+        self._theta = self.estimator.config.theta_layout
+        self._i_m2 = self._theta.m2
         self._alpha = 1.0 / config.fit_window
         self._reset_fit()
 
@@ -307,15 +308,16 @@ class WearEstimator:
         cfg = est.config
         theta, P = est.theta, est.P
         unit = np.ones(cfg.n_params)
-        unit[-2:] = s  # c1, c2 were estimated in units of s
-        values = theta * unit
-        values[self._i_m2] += 1.0  # theta holds m2 - 1
+        lay = self._theta
+        unit[lay.c1 : lay.c2 + 1] = s  # c1, c2 were estimated in units of s
+        values = lay.values(theta * unit)
         cov = P * np.outer(unit, unit)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-        dz_var = cov[-2, -2] + cov[-1, -1] + 2.0 * cov[-2, -1]
+        c1, c2 = lay.c1, lay.c2
+        dz_var = cov[c1, c1] + cov[c2, c2] + 2.0 * cov[c1, c2]
         return WearEstimate(
             sample=est.samples, updates=est.updates, names=BacklashModel.parameter_names(cfg.na, cfg.nb),
-            values=values, std=std, dead_zone=float(values[-2] + values[-1]),
+            values=values, std=std, dead_zone=float(values[c1] + values[c2]),
             dead_zone_std=math.sqrt(max(dz_var, 0.0)), fit=self.fit, coverage=est.coverage,
             recoveries=len(est.recoveries),
         )  # fmt: skip
@@ -325,6 +327,4 @@ class WearEstimator:
         """The current estimate as a validated model in the servo's units (raises :class:`ModelError`)."""
         e = self.estimate()
         cfg = self.estimator.config
-        return BacklashModel.from_theta(
-            np.r_[e.values[: self._i_m2], e.m2 - 1.0, e.values[-2:]], na=cfg.na, nb=cfg.nb, delay=cfg.delay
-        )
+        return BacklashModel.from_theta(self._theta.theta(e.values), na=cfg.na, nb=cfg.nb, delay=cfg.delay)

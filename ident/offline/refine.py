@@ -21,7 +21,7 @@ from servoid.errors import ConfigError
 from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 from servoid.ident.models.kernels import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
@@ -90,8 +90,8 @@ class _OutputError:
         self.penalty = failure_residual(self.y_used)
 
     def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
-        na, nb = self.na, self.nb
-        return p[:na], p[na : na + nb + 1], float(p[-3]), float(p[-2]), float(p[-1])
+        lay = ThetaLayout(self.na, self.nb)  # p holds the model's values (m2 itself)
+        return p[lay.a], p[lay.b], float(p[lay.m2]), float(p[lay.c1]), float(p[lay.c2])
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         a, b, m2, c1, c2 = self.split(p)
@@ -168,7 +168,7 @@ def refine(
     p0 = initial.values()
     lower = np.full(p0.size, -np.inf)
     floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
-    lower[-3:] = floor
+    lower[initial.layout.backlash] = floor
     p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
 
     fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)

@@ -16,6 +16,9 @@ import numpy as np
 
 from servoid.ident._jit import jit
 from servoid.ident.models.kernels import schur_stable
+from servoid.ident.models.pseudo_wiener import backlash_offset
+
+_backlash_at = jit(backlash_offset)
 
 __all__ = [
     "StateLayout",
@@ -106,47 +109,60 @@ class StateLayout:
     nb: int
     delay: int
 
+    def _at(self) -> tuple[int, int, int, int, int, int]:
+        return offsets(self.na, self.nb, self.delay)
+
     @property
     def n(self) -> int:
         """Number of parameters, ``na + nb + 4`` (eq. 15)."""
-        return self.na + self.nb + 4
+        return self._at()[0]
 
     @property
     def theta(self) -> slice:
+        """``theta-hat(k)`` (eq. 24), in the layout of :class:`~servoid.ident.models.pseudo_wiener.ThetaLayout`."""
         return slice(0, self.n)
 
     @property
     def P(self) -> slice:
-        return slice(self.n, self.n + self.n * self.n)
+        """``P(k)`` row by row (eq. 21)."""
+        n, op = self._at()[:2]
+        return slice(op, op + n * n)
 
     @property
     def K(self) -> slice:
-        start = self.n + self.n * self.n
-        return slice(start, start + self.n)
+        """``K(k)`` (eq. 20)."""
+        n, _, ok = self._at()[:3]
+        return slice(ok, ok + n)
 
     @property
     def x_history(self) -> slice:
         """``x-hat(k-1) .. x-hat(k-na)``, newest first."""
-        start = self.K.stop
-        return slice(start, start + self.na)
+        oxh = self._at()[3]
+        return slice(oxh, oxh + self.na)
 
     @property
     def u_history(self) -> slice:
         """``u(k-1) .. u(k-d-nb)``, newest first."""
-        start = self.x_history.stop
-        return slice(start, start + self.delay + self.nb)
+        ouh = self._at()[4]
+        return slice(ouh, ouh + self.delay + self.nb)
 
     @property
     def scalars(self) -> int:
-        return self.u_history.stop
+        """Offset of the scalar slots ``SC_*``."""
+        return self._at()[5]
 
     @property
     def size(self) -> int:
+        """Length of the whole state vector."""
         return self.scalars + N_SCALARS
 
 
-@jit
-def _offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
+def offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
+    """``(n, P, K, x history, u history, scalars)``: the length of theta and where each part starts.
+
+    The one place for the layout: the compiled kernels call it (as ``_offsets``)
+    and :class:`StateLayout` names its slices for Python.
+    """
     n = na + nb + 4
     p = n
     kk = p + n * n
@@ -154,6 +170,9 @@ def _offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
     uh = xh + na
     sc = uh + d + nb
     return n, p, kk, xh, uh, sc
+
+
+_offsets = jit(offsets)
 
 
 @jit
@@ -169,9 +188,68 @@ def _feasible(theta: np.ndarray, na: int, nb: int) -> bool:
     Refusing such an update (a projection in the sense of Goodwin and Sin)
     keeps the estimate inside the set the model is defined on.
     """
-    if not (1.0 + theta[na + nb + 1] > 0.0 and theta[na + nb + 2] >= 0.0 and theta[na + nb + 3] >= 0.0):
+    im2 = _backlash_at(na, nb)
+    if not (1.0 + theta[im2] > 0.0 and theta[im2 + 1] >= 0.0 and theta[im2 + 2] >= 0.0):
         return False
     return schur_stable(theta[:na])
+
+
+@jit
+def _predict_x(state: np.ndarray, na: int, nb: int, d: int, oxh: int, ouh: int) -> float:
+    """Eq. (27): ``x-hat(k) = -sum a-hat_i x-hat(k-i) + sum b-hat_j u(k-d-j)`` with ``theta-hat(k-1)``."""
+    xk = 0.0
+    for i in range(na):
+        xk -= state[i] * state[oxh + i]
+    for j in range(nb + 1):
+        xk += state[na + j] * state[ouh + d - 1 + j]  # the u history starts at u(k-1)
+    return xk
+
+
+@jit
+def switching(
+    state: np.ndarray, na: int, nb: int, osc: int, xk: float, y: float, eps: float
+) -> tuple[float, float, float, float, float]:
+    """The switching functions for the sample ``y(k)``: ``(g1 g4, g2 g5, g4, g5, dy)``.
+
+    Eqs (32), (33) with ``theta-hat(k-1)`` and the measured ``y(k-1)`` (eq. 32
+    read as ``y(k-1)/m1 + c1`` with ``m1 = 1``); eqs (35)-(38) from the
+    measured change ``dy`` of ``y`` with the threshold ``epsilon``
+    (``epsilon = 0`` gives 35, 36). ``Phi(k) = 1`` (eq. 42) iff one of the two
+    products is 1.
+    """
+    im2 = _backlash_at(na, nb)
+    m2h = 1.0 + state[im2]
+    y_prev = state[osc + SC_Y_PREV]
+    g1 = 1.0 if y_prev + state[im2 + 1] < xk else 0.0  # eq. (32), m1 = 1
+    g2 = 1.0 if y_prev / m2h - state[im2 + 2] > xk else 0.0  # eq. (33)
+    dy = y - y_prev
+    g4 = 1.0 if (dy > 0.0 and dy >= eps) else 0.0  # eqs (35), (37)
+    g5 = 1.0 if (-dy > 0.0 and -dy >= eps) else 0.0  # eqs (36), (38)
+    return g1 * g4, g2 * g5, g4, g5, dy
+
+
+@jit
+def regressor(
+    state: np.ndarray, na: int, nb: int, d: int, oxh: int, ouh: int, xk: float, up: float, down: float, h: np.ndarray
+) -> None:
+    """Fill ``h`` with the regressor ``h-hat(k)`` of eq. (25), for a sample with ``Phi(k) = 1``.
+
+    Read with ``-x-hat(k-i)`` entries as in (14), with ``u(k-d-nb)`` and
+    ``g3-hat x-hat(k)`` as two entries, and with the ``g4``/``g5`` products of
+    eqs (39)-(41) in the dead-zone entries; ``g3`` and ``m`` by eqs (34), (26).
+    """
+    dx = xk - state[oxh]
+    g3 = 1.0 if dx < 0.0 else 0.0  # eq. (34)
+    im2 = _backlash_at(na, nb)
+    mk = 1.0 + ((1.0 + state[im2]) - 1.0) * g3  # eq. (26) with m2-hat = 1 + theta (kept as printed: bit for bit)
+    sg = 1.0 if dx > 0.0 else (-1.0 if dx < 0.0 else 0.0)
+    for i in range(na):
+        h[i] = -state[oxh + i]  # eq. (25), read with the sign of (14)
+    for j in range(nb + 1):
+        h[na + j] = state[ouh + d - 1 + j]
+    h[im2] = g3 * xk
+    h[im2 + 1] = -0.5 * mk * (sg + 1.0) * up  # eqs (25), (39)
+    h[im2 + 2] = 0.5 * mk * (-sg + 1.0) * down
 
 
 @jit
@@ -210,16 +288,11 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
     Implements, in this order:
 
     * eq. (27): ``x-hat(k)`` from the stored ``x-hat`` history and the inputs
-      ``u(k-d-j)``, with ``theta-hat(k-1)``;
-    * eqs (34), (26): ``g3-hat(k)`` and ``m-hat(k)``;
-    * eqs (32), (33): ``g1-hat``, ``g2-hat`` from the measured ``y(k-1)``
-      (eq. 32 read as ``y(k-1)/m1 + c1`` with ``m1 = 1``);
-    * eqs (35)-(38): ``g4``, ``g5`` from the measured change of ``y``, with the
-      threshold ``epsilon`` on ``|y(k) - y(k-1)|`` (``epsilon = 0`` gives 35, 36);
+      ``u(k-d-j)``, with ``theta-hat(k-1)`` (:func:`_predict_x`);
+    * eqs (32)-(38): the switching functions (:func:`switching`);
     * eq. (42): ``Phi(k) = 1`` iff ``g1 g4 = 1`` or ``g2 g5 = 1``;
-    * eq. (25) with the ``g4``/``g5`` products of eqs (39)-(41): the regressor
-      ``h-hat(k)``, read with ``-x-hat(k-i)`` entries as in (14) and with
-      ``u(k-d-nb)`` and ``g3-hat x-hat(k)`` as two entries;
+    * eqs (34), (26), (25) with the ``g4``/``g5`` products of eqs (39)-(41): the
+      regressor ``h-hat(k)`` (:func:`regressor`);
     * eq. (41): when ``Phi = 1`` the switching product is zero, so
       ``y_c-hat(k) = y(k)`` (eq. 28's ``y1-hat`` only matters when ``Phi = 0``,
       when nothing is updated);
@@ -239,44 +312,19 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
     r = cfg[CFG_RHO_EXPONENT]
     eps = cfg[CFG_EPSILON]
 
-    # eq. (27): x-hat(k) with theta-hat(k-1)
-    xk = 0.0
-    for i in range(na):
-        xk -= state[i] * state[oxh + i]
-    for j in range(nb + 1):
-        xk += state[na + j] * state[ouh + d - 1 + j]
-    dx = xk - state[oxh]
-    g3 = 1.0 if dx < 0.0 else 0.0  # eq. (34)
-    m2h = 1.0 + state[na + nb + 1]
-    c1h = state[na + nb + 2]
-    c2h = state[na + nb + 3]
-    mk = 1.0 + (m2h - 1.0) * g3  # eq. (26)
+    xk = _predict_x(state, na, nb, d, oxh, ouh)  # eq. (27)
 
     t = state[osc + SC_T] + 1.0  # this is sample k = t - 1
     code = STEP_PRIMED
     if state[osc + SC_PRIMED] != 0.0:
-        y_prev = state[osc + SC_Y_PREV]
-        g1 = 1.0 if y_prev + c1h < xk else 0.0  # eq. (32), m1 = 1
-        g2 = 1.0 if y_prev / m2h - c2h > xk else 0.0  # eq. (33)
-        dy = y - y_prev
-        g4 = 1.0 if (dy > 0.0 and dy >= eps) else 0.0  # eqs (35), (37)
-        g5 = 1.0 if (-dy > 0.0 and -dy >= eps) else 0.0  # eqs (36), (38)
-        up = g1 * g4
-        down = g2 * g5
+        up, down, g4, g5, dy = switching(state, na, nb, osc, xk, y, eps)  # eqs (32)-(38)
         phi = 1.0 if (up == 1.0 or down == 1.0) else 0.0  # eq. (42)
 
         code = STEP_HELD
 
         if phi == 1.0:
-            sg = 1.0 if dx > 0.0 else (-1.0 if dx < 0.0 else 0.0)
             h = np.empty(n)
-            for i in range(na):
-                h[i] = -state[oxh + i]  # eq. (25), read with the sign of (14)
-            for j in range(nb + 1):
-                h[na + j] = state[ouh + d - 1 + j]
-            h[na + nb + 1] = g3 * xk
-            h[na + nb + 2] = -0.5 * mk * (sg + 1.0) * up  # eqs (25), (39)
-            h[na + nb + 3] = 0.5 * mk * (-sg + 1.0) * down
+            regressor(state, na, nb, d, oxh, ouh, xk, up, down, h)  # eq. (25)
 
             e = y  # eq. (41): y_c-hat(k) = y(k) when Phi = 1
             for i in range(n):
@@ -390,11 +438,7 @@ def mrgia_skip(state: np.ndarray, na: int, nb: int, d: int, u: float) -> None:
     change and must not drive ``g4``/``g5``.
     """
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
-    xk = 0.0
-    for i in range(na):
-        xk -= state[i] * state[oxh + i]
-    for j in range(nb + 1):
-        xk += state[na + j] * state[ouh + d - 1 + j]
+    xk = _predict_x(state, na, nb, d, oxh, ouh)  # eq. (27)
     _shift(state, oxh, na, xk)
     _shift(state, ouh, d + nb, u)
     state[osc + SC_X] = xk
@@ -414,7 +458,7 @@ def mrgia_recover(state: np.ndarray, na: int, nb: int, d: int, theta0: np.ndarra
     line without discarding what was learned.
     """
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
-    for i in range(na + nb + 1, n):
+    for i in range(_backlash_at(na, nb), n):
         state[i] = theta0[i]
     for i in range(n):
         for j in range(n):

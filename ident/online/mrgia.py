@@ -38,7 +38,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
 from servoid.ident.online import _mrgia_kernel as _k
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 from servoid.ident.paper import PAPER_P0, PAPER_RHO_EXPONENT, PAPER_SIGMA0, paper_theta0
 
 __all__ = [
@@ -219,7 +219,13 @@ class MRGIAConfig:
 
     @property
     def layout(self) -> _k.StateLayout:
+        """Where each part of the estimator's state sits in its flat state vector."""
         return _k.StateLayout(self.na, self.nb, self.delay)
+
+    @property
+    def theta_layout(self) -> ThetaLayout:
+        """Where each parameter sits in theta (eq. 15)."""
+        return ThetaLayout(self.na, self.nb)
 
     def kernel_config(self) -> np.ndarray:
         """The configuration vector the compiled kernel reads."""
@@ -373,8 +379,14 @@ class MRGIA:
         _k.mrgia_skip(self.state, self._na, self._nb, self._d, float(u))
 
     def reset(self) -> None:
-        """Return to ``k = 0`` with the configured initial values."""
+        """Return to ``k = 0`` with the configured initial values and settings.
+
+        The kernel's configuration vector is rebuilt too: reaching
+        ``max_recoveries`` switches recovery off for the rest of a run, not for
+        good.
+        """
         self.state = self.config.initial_state()
+        self._cfg = self.config.kernel_config()
         self._recoveries.clear()
 
     def _recover(self, sample: int) -> None:
@@ -536,15 +548,11 @@ class MRGIAResult:
 
     def values(self) -> np.ndarray:
         """Final estimate in the order of :attr:`names`, with ``m2`` itself (not ``m2 - 1``)."""
-        vals = self.theta.copy()
-        vals[self.config.na + self.config.nb + 1] += 1.0
-        return vals
+        return self.config.theta_layout.values(self.theta)
 
     def values_history(self) -> np.ndarray:
         """:attr:`theta_history` with the ``m2 - 1`` column shifted to ``m2``."""
-        vals = self.theta_history.copy()
-        vals[:, self.config.na + self.config.nb + 1] += 1.0
-        return vals
+        return self.config.theta_layout.values(self.theta_history)
 
     @property
     def model(self) -> BacklashModel:
