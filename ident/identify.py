@@ -122,6 +122,7 @@ def identify(
     record_every: int = 1,
     progress: Callable[[int, int], None] | None = None,
     valid: Sequence[bool] | np.ndarray | None = None,
+    online: MRGIAResult | None = None,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -142,6 +143,11 @@ def identify(
         trusted (a live session's late, missed and timed-out samples): their
         ``y`` may be NaN; the MRGIA skips them (:meth:`MRGIA.skip`) and the
         refinement and the fit leave them out, simulating through them.
+    online : MRGIAResult, optional
+        The MRGIA's result over this record, already computed (a live
+        session ran it sample by sample: :meth:`servoid.session.listeners.EstimatorFeed.mrgia_result`);
+        it is used as it is, and only the offline stage runs here. Its
+        configuration must have ``config``'s orders and delay.
 
     Returns
     -------
@@ -160,7 +166,14 @@ def identify(
     warnings: list[str] = []
     if keep is not None and not keep.all():
         warnings.append(f"{int(keep.size - keep.sum())} of {keep.size} samples were lost or late and left out")
-    online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
+    if online is None:
+        online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
+    elif (online.config.na, online.config.nb, online.config.delay) != (config.na, config.nb, config.delay):
+        c = online.config
+        raise ConfigError(
+            f"the online result is for na={c.na}, nb={c.nb}, delay={c.delay}; "
+            f"config asks for na={config.na}, nb={config.nb}, delay={config.delay}"
+        )
     if online.recoveries:
         at = ", ".join(str(r.sample) for r in online.recoveries[:5])
         warnings.append(

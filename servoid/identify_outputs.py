@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from servoid.ident.identify import Identification
+from servoid.ident.online.mrgia import MRGIAResult
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run, simulate
 from servoid.modelfile import ModelFile, save_model
@@ -59,6 +60,10 @@ class Record:
     acquisition : dict or None
         How a live record was sampled (rate, counts per status, driver
         counters), for the ``--json`` output.
+    online : MRGIAResult or None
+        The MRGIA's result of a live run over this record (the session ran it
+        as the samples came); identification refines it rather than running
+        the MRGIA again.
     """
 
     u: np.ndarray
@@ -73,6 +78,7 @@ class Record:
     written_to: Path | None = None
     valid: np.ndarray | None = None
     acquisition: dict[str, Any] | None = None
+    online: MRGIAResult | None = None
 
     @property
     def y_used(self) -> np.ndarray:

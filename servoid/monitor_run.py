@@ -423,12 +423,12 @@ def run_monitor(
             f"the model is in {model_file.output_unit!r} and {driver.describe()} reports {unit!r}: "
             "monitor with a model identified in the servo's unit"
         )
-    WearEstimator.warm_up(config.estimator.reference)
     loop = _Loop(driver, session, config, model_file, Path(out), truth_at, on_event, plot, total)
+    loop.estimator.warm_up()
     loop.start(metadata or {})
     try:
         result = run_session(
-            driver, loop.commands(inputs), session, on_sample=loop.on_sample, keep_samples=False,
+            driver, loop.commands(inputs), session, listeners=[loop], keep_samples=False,
             on_progress=loop.progress(on_progress),
         )  # fmt: skip
         loop.finish("alarm" if loop.stopped_on_alarm else (result.stopped or "end of input"))
@@ -463,7 +463,6 @@ class _Loop:
         self.alarms = Alarms(config.bounds, config.rule)
         self.history = MonitorHistory()
         self.names = self.estimator.estimate().names
-        self.usable = session.resolved(driver).usable_rule()  # the session's own rule, in step with it
         self.n = 0
         self.last: Sample | None = None
         self.stop = False
@@ -549,8 +548,9 @@ class _Loop:
                 return
             yield value
 
-    def on_sample(self, sample: Sample) -> None:
-        if self.usable(sample.status):
+    def on_sample(self, sample: Sample, usable: bool) -> None:
+        """A session listener: the wear estimator takes the usable samples and skips the others."""
+        if usable:
             self.on_time += 1
             try:
                 self.estimator.update(sample.u, sample.y)

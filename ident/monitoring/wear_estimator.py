@@ -274,14 +274,18 @@ class WearEstimator:
         self.estimator.reset()
         self._reset_fit()
 
-    @classmethod
-    def warm_up(cls, reference: BacklashModel) -> None:
-        """Compile the kernels now: a first compile inside a sampling loop stalls it for seconds."""
-        scratch = cls(WearEstimatorConfig(reference=reference))
+    def warm_up(self) -> None:
+        """Compile the kernels now, on a scratch estimator: a first compile inside a sampling loop stalls it for seconds."""
+        scratch = WearEstimator(self.config)
         for u, y in ((0.1, 0.0), (-0.1, 0.05), (0.2, -0.02)):
             scratch.update(u, y)
         scratch.skip(0.0)
         scratch.estimate()
+
+    def current(self) -> dict[str, float]:
+        """The current estimate by name, servo units (for progress lines)."""
+        e = self.estimate()
+        return dict(zip(e.names, (float(v) for v in e.values)))
 
     # -- state --------------------------------------------------------------------
     @property

@@ -389,6 +389,33 @@ class MRGIA:
         self._cfg = self.config.kernel_config()
         self._recoveries.clear()
 
+    def warm_up(self) -> None:
+        """Compile the kernels now, on a scratch estimator: a first compile inside a sampling loop stalls it for seconds."""
+        scratch = MRGIA(self.config)
+        for u, y in ((0.1, 0.0), (-0.1, 0.05), (0.2, -0.02)):
+            scratch.update(u, y)
+        scratch.skip(0.0)
+        _ = scratch.coverage
+
+    def current(self) -> dict[str, float]:
+        """The current estimate by name, ``m2`` itself (for progress lines)."""
+        lay = self.config.theta_layout
+        return dict(zip(lay.names, (float(v) for v in lay.values(self.theta))))
+
+    def result(self, theta_history: np.ndarray, coverage_history: np.ndarray, record_every: int) -> MRGIAResult:
+        """This estimator's state as an :class:`MRGIAResult`, with histories a recorder kept.
+
+        Parameters
+        ----------
+        theta_history : ndarray, shape (n_rows, n_params)
+            Theta after samples ``record_every - 1``, ``2 record_every - 1``, ...
+        coverage_history : ndarray, shape (n_rows, 2)
+            Line coverage (up, down) at the same samples.
+        record_every : int
+            Sampling of the histories.
+        """
+        return _result(self, theta_history, coverage_history, record_every)
+
     def _recover(self, sample: int) -> None:
         up, down = self.coverage
         if len(self._recoveries) >= self.config.max_recoveries:

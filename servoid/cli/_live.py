@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -23,10 +25,13 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, noise_epsilon
+from servoid.drivers.simulated import SimulatedServo
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
 from servoid.recording import Recording
 from servoid.identify_outputs import Record
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
+from servoid.session.listeners import EstimatorFeed
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
 
@@ -76,10 +81,12 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
 
 def live_record(
     args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]
-) -> tuple[Record, float]:
-    """Run the excitation through ``args.driver``; return the record and the epsilon to use.
+) -> tuple[Record, MRGIAConfig]:
+    """Run the excitation through ``args.driver`` with the MRGIA online; return the record and the settings.
 
-    ``make_config(epsilon)`` builds the estimator's settings from the command line.
+    ``make_config(epsilon)`` builds the estimator's settings from the command
+    line, once: the record carries the online run's result
+    (:attr:`Record.online`), which identification refines rather than runs again.
     """
     if args.data is not None:
         raise ConfigError("give --driver or --data, not both")
@@ -99,10 +106,14 @@ def live_record(
             epsilon = args.epsilon
         else:
             epsilon = noise_epsilon(noise) if isinstance(noise, (int, float)) else 0.0
-        amplitude = args.amplitude if args.amplitude is not None else getattr(driver, "reference_amplitude", MODEL_AMPLITUDE)
+        simulated = driver if isinstance(driver, SimulatedServo) else None
+        amplitude = args.amplitude if args.amplitude is not None else (
+            simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
         u = excitation(args, amplitude, driver.limits.centre)
+        estimator_config = make_config(epsilon)
+        online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         path = args.out / "recording.csv"
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
@@ -113,7 +124,7 @@ def live_record(
         with _term.live_progress("live", args.samples) as bar:
             update: Callable[[SessionProgress], None] = lambda p: bar(p.done, _status_text(p, driver.position_unit.unit))
             result = run_session(
-                driver, u, config, recording=path, metadata=meta, estimator=MRGIA(make_config(epsilon)),
+                driver, u, config, recording=path, metadata=meta, listeners=[online],
                 on_progress=None if quiet else update,
             )  # fmt: skip
     if not quiet:
@@ -125,21 +136,31 @@ def live_record(
         raise KeyboardInterrupt
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
-    record = _record(result, driver.describe(), identity, getattr(driver, "truth", None), path)
-    return record, epsilon
+    truth = simulated.truth if simulated is not None else None
+    record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result())
+    return record, estimator_config
 
 
-def _record(result: SessionResult, source: str, identity: dict[str, Any], truth: Any, path: Any) -> Record:
+def history_every(samples: int) -> int:
+    """Every how many samples the MRGIA's history is kept: at most 20 000 rows for the convergence plot."""
+    return max(1, samples // 20_000)
+
+
+def _record(
+    result: SessionResult, source: str, identity: dict[str, Any], truth: BacklashModel | None, path: Path,
+    online: MRGIAResult | None,
+) -> Record:
     valid = result.valid
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
-    # the free-run simulation starts at the first measured sample
+    # the free-run simulation starts at the first measured sample; the online run, which began
+    # before it, then no longer matches the record, and identification runs the MRGIA itself
     first = int(np.argmax(valid))
     unit = result.unit
     return Record(
         u=result.u[first:], y=result.y[first:], t=result.t[first:], source=source, input_unit=unit,
         output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
-        acquisition=acquisition(result),
+        acquisition=acquisition(result), online=online if first == 0 else None,
     )  # fmt: skip
 
 

@@ -115,7 +115,7 @@ def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
     )  # fmt: skip
 
 
-def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
+def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     if args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
@@ -137,10 +137,10 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
         input_unit="unit", extra={"y_clean": sim.y_clean},
     )  # fmt: skip
     eps = args.epsilon if args.epsilon is not None else noise_epsilon(sim.noise_std)
-    return record, eps
+    return record, _config(args, eps)
 
 
-def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
+def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     rec = read_recording(args.data)
     for note in rec.notes:
         _term.warn(f"{args.data}: {note}")
@@ -149,11 +149,11 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
         input_unit=rec.metadata.get("input_unit", "unit"), valid=_live.recording_valid(rec),
     )  # fmt: skip
-    return record, args.epsilon if args.epsilon is not None else 0.0
+    return record, _config(args, args.epsilon if args.epsilon is not None else 0.0)
 
 
-def get_record(args: argparse.Namespace) -> tuple[Record, float]:
-    """The record to identify and the epsilon to use, from the command line."""
+def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
+    """The record to identify and the estimator's settings (built once), from the command line."""
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
@@ -164,12 +164,12 @@ def get_record(args: argparse.Namespace) -> tuple[Record, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    record, epsilon = get_record(args)
-    config = _config(args, epsilon)
+    record, config = get_record(args)
     started = time.perf_counter()
-    with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM) as bar:
+    with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None) as bar:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
-                          record_every=max(1, record.u.size // 20_000), progress=bar, valid=record.valid)  # fmt: skip
+                          record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
+                          online=record.online)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)

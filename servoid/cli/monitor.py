@@ -13,6 +13,7 @@ from servoid.cli import _live, _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.base import Driver
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
@@ -202,7 +203,7 @@ def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec |
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
     elif operating is None:
-        excitation = UniformSpec(amplitude=getattr(driver, "reference_amplitude", MODEL_AMPLITUDE))
+        excitation = UniformSpec(amplitude=driver.reference_amplitude if isinstance(driver, SimulatedServo) else MODEL_AMPLITUDE)
     else:
         excitation = None
     return operating, excitation
@@ -269,7 +270,7 @@ def run(args: argparse.Namespace) -> int:
         with _term.live_progress("monitor", total) as bar:
             result = run_monitor(
                 driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard), config,
-                model_file=model_file, out=args.out, total=total, truth_at=getattr(driver, "truth_at", None),
+                model_file=model_file, out=args.out, total=total, truth_at=driver.truth_at if isinstance(driver, SimulatedServo) else None,
                 on_event=_print_event, on_progress=_progress(bar, unit), plot=args.plot, metadata=meta,
             )  # fmt: skip
     elapsed = time.perf_counter() - started

@@ -1,20 +1,13 @@
 """The sampling session: an excitation through a driver at a fixed period; listeners consume the samples.
 
-``sampler``    the loop: one command per slot, each sample stamped and classified, handed to the listeners
+``samples``    what one slot is (Sample, Status) and the one rule for which samples an estimator may use
+``sampler``    the loop: one command per slot, each sample stamped, classified and handed to the listeners
+``listeners``  who consumes the samples: the recording, an online estimator (any ``Estimator``), callbacks
 """
 
-from servoid.session.sampler import (
-    COLUMNS,
-    DEFAULT_GUARD_SAMPLES,
-    Sample,
-    SessionConfig,
-    SessionProgress,
-    SessionResult,
-    Status,
-    UsableRule,
-    run_session,
-    usable,
-)
+from servoid.session.listeners import CallbackListener, EstimatorFeed, RecordingListener, SampleListener
+from servoid.session.sampler import SessionConfig, SessionProgress, SessionResult, run_session
+from servoid.session.samples import COLUMNS, DEFAULT_GUARD_SAMPLES, Sample, Status, UsableRule, usable
 
 __all__ = [
     "Status",
@@ -27,4 +20,8 @@ __all__ = [
     "UsableRule",
     "DEFAULT_GUARD_SAMPLES",
     "COLUMNS",
+    "SampleListener",
+    "RecordingListener",
+    "EstimatorFeed",
+    "CallbackListener",
 ]

@@ -1,9 +1,12 @@
-"""The sampling session: an excitation through a driver at a fixed period, recorded as it runs.
+"""The sampling loop: one command per slot, each sample stamped, classified and handed to the listeners.
 
 :func:`run_session` sends one command per slot ``t0 + k T`` (sleeping, then
-spinning to the deadline), reads the position that answers it, feeds the
-online MRGIA and appends a row to the recording. Per sample it keeps the
-scheduled and actual times, the command, the position and a status:
+spinning to the deadline), reads the position that answers it, decides once
+whether an estimator may use the sample (:class:`~servoid.session.samples.UsableRule`)
+and hands the sample with that verdict to every listener
+(:mod:`servoid.session.listeners`: the recording, the online estimator, the
+monitor, callbacks). Per sample it keeps the scheduled and actual times, the
+command, the position and a status:
 
 ``ok``
     Exchanged on time.
@@ -28,15 +31,16 @@ scheduled and actual times, the command, the position and a status:
     unknown; the session assumes it did (a lost reply) and holds it in the
     slots that follow.
 
-The estimator treats every sample it does not use as lost: ``MRGIA.skip(u)``
+An estimator treats every sample it may not use as lost: ``skip(u)``
 propagates its model with the command the servo had, and the next used
-sample re-primes. The offline stage uses the same samples (:meth:`SessionResult.valid`).
+sample re-primes. The offline stage uses the same samples (:attr:`SessionResult.valid`,
+the verdicts the listeners were given).
 
 The recording is written as samples arrive, one flushed row each (see
 :data:`COLUMNS`), so a crash, a kill or Ctrl-C keeps every sample measured.
-For a run of indefinite length (``servoid monitor``) the session can hand
-each sample to a callback (``on_sample``) and keep none (``keep_samples=False``):
-its memory then stays constant however long it runs.
+For a run of indefinite length (``servoid monitor``) the session can keep no
+samples (``keep_samples=False``) and leave them to its listeners: its memory
+then stays constant however long it runs.
 On Ctrl-C the session stops, switches the torque off and returns what it has
 (``result.stopped == "interrupted"``); on a driver error (a servo that stopped
 answering, restarted, or left its range) it switches the torque off and
@@ -49,151 +53,41 @@ Presentation stays out of here: progress goes to a callback.
 from __future__ import annotations
 
 import dataclasses
-import enum
 import logging
 import math
 import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.errors import ConfigError, DriverError, DriverTimeout, EstimatorDiverged, ProtocolError, ServoidError
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.online.mrgia import MRGIA
+from servoid.drivers.simulated import SimulatedServo
+from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError, ServoidError
+from servoid.ident.online.estimator import Estimator
 from servoid.recording import RecordingWriter
+from servoid.session.listeners import CallbackListener, EstimatorFeed, RecordingListener, SampleListener
+from servoid.session.samples import (
+    COLUMNS,
+    DEFAULT_GUARD_SAMPLES,
+    LATE,
+    MISSED,
+    OK,
+    STATUSES,
+    TIMEOUT,
+    Sample,
+    Status,
+    UsableRule,
+    usable,
+)
 
-__all__ = [
-    "Status",
-    "Sample",
-    "SessionConfig",
-    "SessionProgress",
-    "SessionResult",
-    "run_session",
-    "usable",
-    "UsableRule",
-    "DEFAULT_GUARD_SAMPLES",
-    "COLUMNS",
-]
+__all__ = ["SessionConfig", "SessionProgress", "SessionResult", "run_session"]
 
 log = logging.getLogger("servoid.session")
-
-
-class Status(str, enum.Enum):
-    """What happened to one slot (see the module docstring)."""
-
-    OK = "ok"
-    LATE = "late"
-    MISSED = "missed"
-    TIMEOUT = "timeout"
-
-    def __str__(self) -> str:
-        return self.value
-
-
-#: Columns of a live recording, in order. Times in seconds from the first slot;
-#: ``t`` is the scheduled time (what the offline reader uses), ``t_actual`` when
-#: the exchange started, ``device_time`` the servo's own clock (unwrapped) when
-#: it has one, ``exchange_s`` how long the exchange took. ``reference`` is the
-#: excitation, ``u`` the command the servo had (after the command filter and the
-#: safety limits), ``y`` the measured position (``nan`` when not measured).
-COLUMNS = ("k", "t", "t_actual", "reference", "u", "y", "status", "device_time", "exchange_s", "clamped")
-
-
-@dataclass(frozen=True)
-class Sample:
-    """One slot of a session.
-
-    Attributes
-    ----------
-    k : int
-        Slot index; scheduled at ``k * period_s``.
-    t_scheduled, t_actual : float
-        Scheduled and actual start of the exchange, seconds from slot 0
-        (``t_actual`` is NaN for a missed slot).
-    reference : float
-        The excitation's value for this slot.
-    u : float
-        The command the servo had during the slot, user unit.
-    y : float
-        Measured position, user unit; NaN when not measured.
-    status : Status
-        ok, late, missed or timeout.
-    device_time : float
-        The device's clock at the reading, seconds (NaN when unknown).
-    exchange_s : float
-        Duration of the exchange, seconds (NaN for a missed slot).
-    clamped : bool
-        Whether the safety limits changed the command.
-    """
-
-    k: int
-    t_scheduled: float
-    t_actual: float
-    reference: float
-    u: float
-    y: float
-    status: Status
-    device_time: float = math.nan
-    exchange_s: float = math.nan
-    clamped: bool = False
-
-    def row(self) -> tuple[Any, ...]:
-        """The recording row, in the order of :data:`COLUMNS`."""
-        return (self.k, self.t_scheduled, self.t_actual, self.reference, self.u, self.y, self.status.value,
-                self.device_time, self.exchange_s, int(self.clamped))  # fmt: skip
-
-
-#: Guard window, in samples, after a sample that could not be used, for drivers
-#: whose device runs on its own clock (``Driver.carries_slots`` False). Measured
-#: on the emulated ODrive at 500 Hz, 2000 samples, six runs: a run with 5 late
-#: and 6 missed slots identified to 1.3e-2 with no guard, 1.4e-4 with 5,
-#: 1.3e-5 with 10 and 1.9e-8 with 20 samples; runs without late slots were
-#: unaffected (1e-8 throughout).
-DEFAULT_GUARD_SAMPLES = 10
-
-
-class UsableRule:
-    """Which samples an estimator may use; one place for the rule, applied in order.
-
-    A sample is usable when its status is ``ok`` (or ``late`` with
-    ``use_late``) and it is not within ``guard`` samples after one that was
-    not. The guard is for devices on their own clock: a command that reached
-    such a device late was applied in another sample than the recording says,
-    and the following samples carry that error until the plant forgets it.
-
-    Parameters
-    ----------
-    use_late : bool
-        Count late samples as usable.
-    guard : int
-        Samples to leave out after every unusable one (0: none).
-    """
-
-    def __init__(self, *, use_late: bool = False, guard: int = 0) -> None:
-        self.use_late = use_late
-        self.guard = validation.integer("guard", guard, minimum=0)
-        self._left = 0
-
-    def __call__(self, status: str) -> bool:
-        """Whether the next sample, of this status, is usable."""
-        if not (status == Status.OK or (self.use_late and status == Status.LATE)):
-            self._left = self.guard
-            return False
-        if self._left > 0:
-            self._left -= 1
-            return False
-        return True
-
-
-def usable(status: Iterable[str], *, use_late: bool = False, guard: int = 0) -> np.ndarray:
-    """Mask of the samples an estimator may use, by :class:`UsableRule`."""
-    rule = UsableRule(use_late=use_late, guard=guard)
-    return np.array([rule(str(s)) for s in status], dtype=np.bool_)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -304,8 +198,8 @@ class SessionResult:
         User unit of ``u`` and ``y``.
     recording : Path or None
         Where the recording was written.
-    estimator : MRGIA or None
-        The online estimator after the last sample.
+    estimator : Estimator or None
+        The online estimator after the last sample (None after a divergence).
     estimator_error : str or None
         Why online estimation stopped early (a divergence), if it did.
     driver_stats : DriverStats
@@ -315,17 +209,21 @@ class SessionResult:
     slot_counts : mapping or None
         Slots per status, counted as they came; set by :func:`run_session`,
         so that a session that kept no samples still reports them.
+    usable_flags : ndarray of bool or None
+        The usable-sample rule's verdict on each kept sample, as the listeners
+        got it; set by :func:`run_session`.
     """
 
     samples: tuple[Sample, ...]
     config: SessionConfig
     unit: str
     recording: Path | None
-    estimator: MRGIA | None
+    estimator: Estimator | None
     estimator_error: str | None
     driver_stats: DriverStats
     stopped: str | None = None
     slot_counts: Mapping[str, int] | None = None
+    usable_flags: np.ndarray | None = None
     _arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     def __len__(self) -> int:
@@ -364,11 +262,13 @@ class SessionResult:
 
     @property
     def status(self) -> np.ndarray:
-        return np.array([s.status.value for s in self.samples])
+        return np.array([s.status for s in self.samples])
 
     @property
     def valid(self) -> np.ndarray:
-        """The samples the estimator used (:class:`UsableRule` of the session's configuration)."""
+        """The samples an estimator may use: the verdicts the listeners got (:class:`UsableRule`)."""
+        if self.usable_flags is not None:
+            return self.usable_flags
         return usable(self.status, use_late=self.config.use_late, guard=self.config.guard_samples or 0)
 
     @property
@@ -376,9 +276,9 @@ class SessionResult:
         """Slots per status."""
         if self.slot_counts is not None:
             return dict(self.slot_counts)
-        out = {s.value: 0 for s in Status}
+        out = dict.fromkeys(STATUSES, 0)
         for s in self.samples:
-            out[s.status.value] += 1
+            out[s.status] += 1
         return out
 
     @property
@@ -391,7 +291,7 @@ class SessionResult:
         """Exchanges answered per second of the run."""
         if len(self.samples) < 2:
             return math.nan
-        answered = sum(s.status in (Status.OK, Status.LATE) for s in self.samples)
+        answered = sum(s.status in (OK, LATE) for s in self.samples)
         return answered / (self.samples[-1].t_scheduled + self.config.period_s)
 
 
@@ -402,12 +302,13 @@ def run_session(
     *,
     recording: str | Path | None = None,
     metadata: Mapping[str, Any] | None = None,
-    estimator: MRGIA | None = None,
+    estimator: Estimator | None = None,
     command_filter: Callable[[float], float] | None = None,
     on_progress: Callable[[SessionProgress], None] | None = None,
     clock: Clock | None = None,
     on_sample: Callable[[Sample], None] | None = None,
     keep_samples: bool = True,
+    listeners: Sequence[SampleListener] = (),
 ) -> SessionResult:
     """Run ``excitation`` through an open driver, one value per slot.
 
@@ -423,8 +324,9 @@ def run_session(
         CSV file to write as samples arrive (:data:`COLUMNS`).
     metadata : mapping, optional
         Extra ``# key: value`` lines for the recording.
-    estimator : MRGIA, optional
-        Online estimator fed with ``(u, y)`` of the used samples.
+    estimator : Estimator, optional
+        Online estimator fed with ``(u, y)`` of the usable samples, skipped
+        over the others (an :class:`~servoid.session.listeners.EstimatorFeed`).
     command_filter : callable, optional
         ``command = command_filter(reference)`` per slot (a backlash
         compensator's ``step``); default the reference itself.
@@ -442,6 +344,11 @@ def run_session(
         Keep every sample in the result (default). ``False`` keeps none, for
         runs of indefinite length: the result then has the counts but empty
         :attr:`SessionResult.samples` (and no per-sample arrays).
+    listeners : sequence of SampleListener
+        Further consumers of every sample and its usable verdict, called in
+        order after the recording and the estimator (an
+        :class:`~servoid.session.listeners.EstimatorFeed` among them also
+        feeds the progress line).
 
     Returns
     -------
@@ -459,11 +366,10 @@ def run_session(
     if not driver.is_open:
         raise DriverError(f"{driver.describe()} is not open: use it as a context manager (with driver: ...)")
     config = config.resolved(driver)
-    use_clock = clock if clock is not None else getattr(driver, "clock", None)
-    if not isinstance(use_clock, Clock):
-        use_clock = MonotonicClock()
-    sampler = _Sampler(driver, config, use_clock, estimator, command_filter, on_progress, excitation)
-    sampler.on_sample, sampler.keep_samples = on_sample, keep_samples
+    use_clock = clock
+    if use_clock is None:
+        use_clock = driver.clock if isinstance(driver, SimulatedServo) else MonotonicClock()
+    chain: list[SampleListener] = []
     writer = None
     if recording is not None:
         meta = {
@@ -479,6 +385,13 @@ def run_session(
             **(metadata or {}),
         }
         writer = RecordingWriter(recording, COLUMNS, metadata=meta)
+        chain.append(RecordingListener(writer))
+    if estimator is not None:
+        chain.append(EstimatorFeed(estimator))
+    chain.extend(listeners)
+    if on_sample is not None:
+        chain.append(CallbackListener(on_sample))
+    sampler = _Sampler(driver, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
     sampler.writer = writer
     try:
         sampler.run(excitation)
@@ -508,18 +421,22 @@ class _Sampler:
         driver: Driver,
         config: SessionConfig,
         clock: Clock,
-        estimator: MRGIA | None,
+        listeners: list[SampleListener],
         command_filter: Callable[[float], float] | None,
         on_progress: Callable[[SessionProgress], None] | None,
         excitation: Iterable[float],
+        keep_samples: bool,
     ) -> None:
         self.driver, self.config, self.clock = driver, config, clock
-        self.estimator = estimator
-        self.estimator_error: str | None = None
+        self.listeners = listeners
+        self.notify = tuple(listener.on_sample for listener in listeners)
+        # the estimator whose state the result and the progress line report
+        self.feed = next((x for x in listeners if isinstance(x, EstimatorFeed)), None)
         self.command_filter, self.on_progress = command_filter, on_progress
-        self.total = len(excitation) if hasattr(excitation, "__len__") else None  # type: ignore[arg-type]
+        self.total = len(excitation) if isinstance(excitation, Sequence | np.ndarray) else None
         self.samples: list[Sample] = []
-        self.counts = {s.value: 0 for s in Status}
+        self.flags: list[bool] = []
+        self.counts = dict.fromkeys(STATUSES, 0)
         self.usable = config.usable_rule()
         self.writer: RecordingWriter | None = None
         self.stopped: str | None = None
@@ -529,15 +446,14 @@ class _Sampler:
         self._shut = False
         self._next_progress = 0
         self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
-        self.on_sample: Callable[[Sample], None] | None = None
-        self.keep_samples = True
+        self.keep_samples = keep_samples
         self.slots = 0
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
         driver, clock, period = self.driver, self.clock, self.period_ns
-        if self.estimator is not None:
-            _warm_up(self.estimator)
+        if self.feed is not None and self.feed.estimator is not None:
+            self.feed.estimator.warm_up()
         driver.set_sample_period(self.config.period_s)
         driver.enable()
         give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
@@ -580,9 +496,7 @@ class _Sampler:
     def _missed(self, k: int, scheduled: int, reference: float) -> None:
         held = self.driver.last_command
         u = held if held is not None else 0.0  # before any command the servo holds where it was enabled
-        self.usable(Status.MISSED)  # arms the guard window
-        self._estimate_skip(u)
-        self._add(Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, Status.MISSED))
+        self._add(Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, MISSED))
 
     def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
         # whether the servo applied the command is unknown (a lost reply or a lost request); the
@@ -590,9 +504,7 @@ class _Sampler:
         # within reach of both
         u = self.driver.last_command
         assert u is not None  # the exchange got as far as sending
-        self.usable(Status.TIMEOUT)  # arms the guard window
-        self._estimate_skip(u)
-        self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, Status.TIMEOUT,
+        self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, TIMEOUT,
                          exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
@@ -609,46 +521,23 @@ class _Sampler:
                 slack = self.config.period_s / 2 + self.driver.clock_resolution_s
                 late = late or abs((device_time - prev_t) - expected) >= slack
             self._last_device = (k, device_time)
-        status = Status.LATE if late else Status.OK
-        if self.usable(status):
-            self._estimate_update(m.command, m.position)
-        else:
-            self._estimate_skip(m.command)
+        status = LATE if late else OK
         self._add(Sample(k, self._s(scheduled), self._s(start), reference, m.command, m.position, status,
                          device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
-
-    # ---- estimator ------------------------------------------------------------------
-    def _estimate_update(self, u: float, y: float) -> None:
-        if self.estimator is None:
-            return
-        try:
-            self.estimator.update(u, y)
-        except EstimatorDiverged as exc:
-            self._estimator_failed(exc)
-
-    def _estimate_skip(self, u: float) -> None:
-        if self.estimator is not None:
-            self.estimator.skip(u)
-
-    def _estimator_failed(self, exc: EstimatorDiverged) -> None:
-        # sampling goes on: the recording is what matters, the offline stage re-estimates
-        self.estimator_error = str(exc)
-        self.estimator = None
-        log.warning("online estimation stopped: %s", exc)
 
     # ---- bookkeeping ----------------------------------------------------------------
     def _s(self, t_ns: int) -> float:
         return (t_ns - self.t0) / NS_PER_S
 
     def _add(self, sample: Sample) -> None:
+        ok = self.usable(sample.status)  # the one verdict every listener gets (it arms the guard window)
         if self.keep_samples:
             self.samples.append(sample)
+            self.flags.append(ok)
         self.slots += 1
-        self.counts[sample.status.value] += 1
-        if self.writer is not None:
-            self.writer.append(*sample.row())
-        if self.on_sample is not None:
-            self.on_sample(sample)
+        self.counts[sample.status] += 1
+        for notify in self.notify:
+            notify(sample, ok)
 
     def _maybe_progress(self, now: int) -> None:
         if self.on_progress is not None and now >= self._next_progress:
@@ -658,13 +547,7 @@ class _Sampler:
     def _progress(self, now: int) -> None:
         if self.on_progress is None:
             return
-        estimate = None
-        if self.estimator is not None:
-            est = self.estimator
-            names = BacklashModel.parameter_names(est.config.na, est.config.nb)
-            values = est.theta.copy()
-            values[est.config.na + est.config.nb + 1] += 1.0  # theta holds m2 - 1
-            estimate = dict(zip(names, (float(v) for v in values)))
+        estimate = None if self.feed is None else self.feed.current()
         self.on_progress(SessionProgress(self.slots, self.total, dict(self.counts),
                                          (now - self.t0) / NS_PER_S, estimate))  # fmt: skip
 
@@ -688,18 +571,11 @@ class _Sampler:
             config=self.config,
             unit=self.driver.position_unit.unit,
             recording=None if recording is None else Path(recording),
-            estimator=self.estimator,
-            estimator_error=self.estimator_error,
+            estimator=None if self.feed is None else self.feed.estimator,
+            estimator_error=None if self.feed is None else self.feed.error,
             driver_stats=DriverStats(**vars(self.driver.stats)),
             stopped=self.stopped,
             slot_counts=dict(self.counts),
+            usable_flags=np.array(self.flags, dtype=np.bool_) if self.keep_samples else None,
         )
 
-
-def _warm_up(estimator: MRGIA) -> None:
-    """Compile the estimator's kernels now: a first call inside the loop would stall it for seconds."""
-    scratch = MRGIA(estimator.config)
-    for u, y in ((0.1, 0.0), (-0.1, 0.05), (0.2, -0.02)):
-        scratch.update(u, y)
-    scratch.skip(0.0)
-    _ = scratch.coverage
