@@ -8,7 +8,7 @@ with the free-run fit of the best one.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 from collections.abc import Callable, Sequence
 
 import numpy as np
@@ -74,6 +74,21 @@ class Identification:
     def stderr(self) -> dict[str, float] | None:
         """Standard errors of :attr:`model`'s parameters, when refinement ran."""
         return None if self.refinement is None else self.refinement.stderr_dict()
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: ``model``, ``method``, ``samples``, ``fit_nrmse``, ``stderr``, ``refined_from``,
+        ``start_nrmse``, ``mrgia`` (:meth:`MRGIAResult.to_dict` with its own ``fit_nrmse``) and ``warnings``.
+
+        ``stderr`` is null without refinement; one of its entries is null where
+        the data do not determine that parameter. ``mrgia.model`` is null (with
+        ``model_error``) when the online estimate is not a valid model.
+        """
+        return {
+            "model": self.model.to_dict(), "method": self.method, "samples": self.samples,
+            "fit_nrmse": self.fit_nrmse, "stderr": self.stderr, "refined_from": self.refined_from,
+            "start_nrmse": dict(self.start_nrmse), "mrgia": {**self.mrgia.to_dict(), "fit_nrmse": self.mrgia_nrmse},
+            "warnings": list(self.warnings),
+        }  # fmt: skip
 
 
 def check_record(u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig) -> tuple[np.ndarray, np.ndarray]:

@@ -46,54 +46,9 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
     return paths
 
 
-def _candidate(c: Candidate) -> dict[str, Any]:
-    return {"effect": c.effect, "gap": c.gap, "score": c.score, "train_nrmse": c.train_nrmse,
-            "extra_parameters": c.extra_parameters, "parameters": c.parameters}  # fmt: skip
-
-
-def _breakdown(b: RegimeBreakdown) -> list[dict[str, Any]]:
-    return [{"group": r.group, "regime": r.label, "sample_share": r.sample_share, "energy_share": r.energy_share,
-             "rms": r.rms, "mean": r.mean} for r in b.regimes]  # fmt: skip
-
-
-def _tests(t: ResidualTests) -> dict[str, Any]:
-    return {
-        "confidence": t.confidence, "band": t.band, "white": t.white, "independent_of_input": t.independent_of_input,
-        "autocorrelation_outside": t.autocorrelation_outside, "cross_correlation_outside": t.cross_correlation_outside,
-        "autocorrelation": np.round(t.autocorrelation, 6).tolist(),
-        "cross_correlation": np.round(t.cross_correlation, 6).tolist(),
-    }  # fmt: skip
-
-
 def diagnosis_json(diagnosis: Diagnosis, paths: dict[str, str], *, units: dict[str, str]) -> dict[str, Any]:
-    """The ``--json`` object of ``servoid diagnose``.
-
-    The keys the issue fixes come first: ``effect``, ``effect_parameters``,
-    ``where``, ``gap_before``, ``gap_after`` (validation NRMSEs) and
-    ``candidates`` (the first round: every effect tried on the base model).
-    """
-    return {
-        "effect": diagnosis.effect,
-        "effect_parameters": diagnosis.effect_parameters,
-        "where": diagnosis.where,
-        "gap_before": diagnosis.gap_before,
-        "gap_after": diagnosis.gap_after,
-        "candidates": [_candidate(c) for c in diagnosis.candidates],
-        "effects": diagnosis.model.effects_json(),
-        "rounds": [{"chosen": r.chosen.effect, "candidates": [_candidate(c) for c in r.candidates]}
-                   for r in diagnosis.rounds],  # fmt: skip
-        "model": {**diagnosis.model.base.to_dict(), "effects": diagnosis.model.effects_json()},
-        "base_model": diagnosis.base.base.to_dict(),
-        "parameter_units": {name: dict(zip(e.parameters, e.units)) for name, e in EFFECTS.items()},
-        "units": units,
-        "penalty": diagnosis.config.penalty,
-        "regimes_before": _breakdown(diagnosis.breakdown_before),
-        "regimes_after": _breakdown(diagnosis.breakdown_after),
-        "residual_tests_before": _tests(diagnosis.resid_before),
-        "residual_tests_after": _tests(diagnosis.resid_after),
-        "warnings": list(diagnosis.identification.warnings),
-        "outputs": paths,
-    }
+    """The ``--json`` object of ``servoid diagnose``: the diagnosis's own dict, its units and outputs."""
+    return {**diagnosis.to_dict(), "units": units, "outputs": paths}
 
 
 def candidate_rows(diagnosis: Diagnosis) -> tuple[list[str], list[list[str]]]:

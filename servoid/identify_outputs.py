@@ -176,25 +176,9 @@ def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[l
 def result_json(record: Record, result: Identification, paths: dict[str, str]) -> dict[str, Any]:
     """The ``--json`` object of ``servoid identify``."""
     out: dict[str, Any] = {
-        "model": result.model.to_dict(),
-        "method": result.method,
-        "samples": result.samples,
-        "fit_nrmse": result.fit_nrmse,
-        "stderr": result.stderr,
-        "refined_from": result.refined_from,
+        **result.to_dict(),
         "source": record.source,
         "units": {"input": record.input_unit, "output": record.output_unit},
-        "mrgia": {
-            "model": None if result.mrgia_model is None else result.mrgia_model.to_dict(),
-            "fit_nrmse": result.mrgia_nrmse,
-            "updates": result.mrgia.updates,
-            "settled": result.mrgia.settled,
-            "line_coverage": {"up": result.mrgia.coverage[0], "down": result.mrgia.coverage[1]},
-            "recoveries": [r.sample for r in result.mrgia.recoveries],
-            "rho_exponent": result.mrgia.config.rho_exponent,
-            "epsilon": result.mrgia.config.epsilon,
-        },
-        "warnings": list(result.warnings),
         "outputs": paths,
     }
     if record.acquisition is not None:

@@ -47,6 +47,7 @@ from servoid.errors import ConfigError, DataError, ModelError
 from servoid.files import read_json
 from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.serialise import dumps, number
 
 __all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model"]
 
@@ -119,7 +120,7 @@ class ModelFile:
             "version": VERSION,
             "model": self.model.to_dict(),
             # JSON has no NaN: a standard error the data do not determine is null
-            "stderr": None if self.stderr is None else {k: _finite_or_none(v) for k, v in self.stderr.items()},
+            "stderr": None if self.stderr is None else {k: number(v) for k, v in self.stderr.items()},
             "units": {
                 "input": self.input_unit,
                 "output": self.output_unit,
@@ -142,11 +143,7 @@ class ModelFile:
 
     def to_json(self) -> str:
         """The file's text: :meth:`to_dict` pretty-printed, with a final newline."""
-        return json.dumps(self.to_dict(), indent=2) + "\n"
-
-
-def _finite_or_none(value: Any) -> Any:
-    return value if not isinstance(value, float) or math.isfinite(value) else None
+        return dumps(self.to_dict(), indent=2) + "\n"
 
 
 def _now() -> str:
@@ -214,7 +211,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
             if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
                 raise DataError(f"{p}: stderr.{name} (={value!r}) must be a number or null")
         # files of servoid 0.1 wrote NaN (not JSON) where the data left a parameter undetermined
-        stderr = {k: _finite_or_none(v) for k, v in stderr.items()}
+        stderr = {k: number(v) for k, v in stderr.items()}
     period = units.get("sample_period_s")
     if period is not None and not (_is_number(period) and period > 0):
         raise DataError(f"{p}: units.sample_period_s (={period!r}) must be a positive number of seconds or null")

@@ -53,6 +53,7 @@ from servoid.errors import ConfigError, DataError, DriverError, EstimatorDiverge
 from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
 from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.serialise import dumps
 from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig, WearEstimate
 from servoid.modelfile import ModelFile
 from servoid.files import read_text
@@ -297,6 +298,22 @@ class MonitorResult:
     history: HistorySnapshot
     session: SessionResult
 
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: slots, the final estimate (:meth:`WearEstimate.to_dict`), every alarm event
+        (:meth:`AlarmEvent.to_dict`), those still active, counts, why it stopped, the files."""
+        return {
+            "samples": self.samples,
+            "counts": self.counts,
+            "stopped": self.stopped,
+            "estimate": self.estimate.to_dict(),
+            "alarms": [ev.to_dict() for ev in self.events],
+            "active": [ev.bound.quantity for ev in self.active],
+            "recoveries": self.recoveries,
+            "restarts": self.restarts,
+            "compensation_updates": self.compensation_updates,
+            "files": {k: str(v) for k, v in self.files.items()},
+        }
+
     @property
     def first_alarm(self) -> AlarmEvent | None:
         """The first alarm raised, if any."""
@@ -494,7 +511,7 @@ class _Loop:
             "source": self.source,
             "unit": self.unit,
             "period_s": repr(self.session.period_s),
-            "reference": json.dumps(ref.to_dict()),
+            "reference": dumps(ref.to_dict()),
             "bounds": "; ".join(f"{b.label} {b.describe()}" for b in cfg.bounds) or "none",
             "rule": f"persist={cfg.rule.persist} checks of {cfg.check_every} samples, z={cfg.rule.z:g}, "
                     f"hysteresis={cfg.rule.hysteresis:g}",  # fmt: skip
@@ -511,8 +528,7 @@ class _Loop:
             self.files[name] = path
         self.files["model"] = self.out / "model.json"
         self._event("start", 0, source=self.source, unit=self.unit, reference=ref.to_dict(),
-                    bounds=[{"quantity": b.quantity, "low": _json_number(b.low), "high": _json_number(b.high)}
-                            for b in cfg.bounds],
+                    bounds=[b.to_dict() for b in cfg.bounds],
                     rule={"persist": cfg.rule.persist, "z": cfg.rule.z, "hysteresis": cfg.rule.hysteresis,
                           "check_every": cfg.check_every})  # fmt: skip
         self._write_compensation(0, ref, None)
@@ -532,7 +548,7 @@ class _Loop:
 
     def _event(self, kind: str, k: int, **data: Any) -> None:
         fh = self._jsonl["events"]
-        fh.write(json.dumps({"event": kind, "k": k, "t": round(self.t, 9), **data}) + "\n")
+        fh.write(dumps({"event": kind, "k": k, "t": round(self.t, 9), **data}) + "\n")
         fh.flush()
 
     def _announce(self, kind: str, line: str) -> None:
@@ -579,8 +595,7 @@ class _Loop:
             self.events.append(event)
             self.history.alarm(event)
             b = event.bound
-            self._event("alarm" if event.raised else "clear", k, quantity=b.quantity, value=event.value,
-                        std=event.std, side=event.side, limit=event.limit, since=event.since)  # fmt: skip
+            self._event("alarm" if event.raised else "clear", k, **event.to_dict())
             self._announce("alarm" if event.raised else "clear", event.message())
             if event.raised and self.config.stop_on_alarm:
                 self.stop = self.stopped_on_alarm = True
@@ -627,7 +642,7 @@ class _Loop:
         else:
             entry["from"] = "model file"
         fh = self._jsonl["compensation"]
-        fh.write(json.dumps(entry) + "\n")
+        fh.write(dumps(entry) + "\n")
         fh.flush()
         self.written = (model.c1 + model.c2, model.m2)
         self.compensation_updates += 1
@@ -713,6 +728,3 @@ class _Loop:
             history=self._snapshot(), session=session,
         )  # fmt: skip
 
-
-def _json_number(value: float) -> float | None:
-    return value if math.isfinite(value) else None

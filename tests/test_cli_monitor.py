@@ -46,7 +46,8 @@ def test_a_run_without_wear_raises_nothing_and_summarises_in_json(tmp_path, mode
     summary = json.loads(captured.out)
     assert summary["samples"] == 30_000 and summary["alarms"] == [] and summary["stopped"] is None
     assert summary["estimate"]["dead_zone"] == pytest.approx(1.0, abs=0.02)
-    assert summary["fit"] == pytest.approx(1 / 40, rel=0.3)
+    assert summary["estimate"]["fit"] == pytest.approx(1 / 40, rel=0.3)
+    assert summary["estimate"]["values"]["m2"] == pytest.approx(1.5, rel=0.02) and summary["unit"] == "unit"
     rows, meta = read_estimates(out / "estimates.csv")
     assert rows["k"].size == 60 and "m2" not in meta["bounds"] and "fit <= 0.05" in meta["bounds"]
     assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {"start", "stop"}

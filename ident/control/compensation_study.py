@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable, Literal, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any, Literal
 
 import numpy as np
 
@@ -138,6 +139,11 @@ class ArmSummary:
     dead_time: float
     motor_travel: float
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"rms_error", "peak_error", "dead_time_samples", "motor_travel"}`` (null travel: no reference travel)."""
+        return {"rms_error": self.rms_error, "peak_error": self.peak_error, "dead_time_samples": self.dead_time,
+                "motor_travel": self.motor_travel}  # fmt: skip
+
     @classmethod
     def of(cls, runs: Sequence[TrackingRun]) -> "ArmSummary":
         err = np.concatenate([r.reference - r.y for r in runs])
@@ -204,6 +210,11 @@ class Perturbation:
     summaries: dict[Arm, ArmSummary]
     note: str = ""
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"family", "change", "note", <arm>: ArmSummary.to_dict(), ...}``."""
+        return {"family": self.family, "change": self.change, "note": self.note,
+                **{arm: s.to_dict() for arm, s in self.summaries.items()}}  # fmt: skip
+
     @property
     def label(self) -> str:
         """``"c1,c2 +10%"`` or ``"all +10%"``."""
@@ -256,6 +267,33 @@ class CompensationStudy:
     def summary(self, arm: Arm) -> ArmSummary:
         """One arm over all paths, nominal model."""
         return ArmSummary.of([c.run(arm) for c in self.comparisons])
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: the settings, each path's metrics per arm, all paths per arm, the robustness rows.
+
+        ``rms_ratio`` (uncompensated over compensated) is null when the
+        compensated error is zero; ``rms_ratio_at_floor`` says whether that arm
+        reached the sensor's floor (the ratio is then a lower bound).
+        """
+        nominal = []
+        for comp in self.comparisons:
+            entry: dict[str, Any] = {"reference": comp.reference.name}
+            for arm in ARMS:
+                run = comp.run(arm)
+                m = run.metrics
+                entry[arm] = {"rms_error": m.rms_error, "peak_error": m.peak_error, "dead_time_samples": m.dead_time,
+                              "dead_time_max_samples": m.dead_time_max, "reversals": m.reversals,
+                              "motor_travel": run.motor_travel}  # fmt: skip
+            entry["rms_ratio"] = self.rms_improvement(comp.uncompensated, comp.compensated).ratio
+            nominal.append(entry)
+        overall = self.rms_improvement(self.summary("uncompensated"), self.summary("compensated"))
+        return {
+            "band": self.band, "integral_gain": self.integral_gain, "preview_samples": self.preview,
+            "resolution": self.sensor.resolution, "noise_std": self.sensor.noise_std, "rms_floor": self.rms_floor,
+            "nominal": nominal, "all_paths": {arm: self.summary(arm).to_dict() for arm in ARMS},
+            "rms_ratio": overall.ratio, "rms_ratio_at_floor": overall.at_floor,
+            "perturbations": [p.to_dict() for p in self.perturbations],
+        }  # fmt: skip
 
     def rms_improvement(self, before: ArmSummary | TrackingRun, after: ArmSummary | TrackingRun) -> Improvement:
         """RMS error ratio ``before / after``, floored at the quantisation floor."""

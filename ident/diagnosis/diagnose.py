@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -130,6 +131,11 @@ class Candidate:
         applied = self.model.effect(self.effect)
         return {} if applied is None else applied.parameters
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"effect", "gap", "score", "train_nrmse", "extra_parameters", "parameters"}``."""
+        return {"effect": self.effect, "gap": self.gap, "score": self.score, "train_nrmse": self.train_nrmse,
+                "extra_parameters": self.extra_parameters, "parameters": self.parameters}  # fmt: skip
+
 
 @dataclass(frozen=True)
 class Round:
@@ -148,6 +154,10 @@ class Round:
     start: ExtendedModel
     candidates: tuple[Candidate, ...]
     chosen: Candidate
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"chosen": effect, "candidates": [...]}``."""
+        return {"chosen": self.chosen.effect, "candidates": [c.to_dict() for c in self.candidates]}
 
 
 @dataclass(frozen=True)
@@ -211,6 +221,32 @@ class Diagnosis:
     def candidates(self) -> tuple[Candidate, ...]:
         """The first round's candidates: every effect tried on the base model."""
         return self.rounds[0].candidates
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON. The fixed keys come first: ``effect``, ``effect_parameters``, ``where``,
+        ``gap_before``, ``gap_after`` (validation NRMSEs) and ``candidates`` (the first round: every
+        effect tried on the base model); then ``effects``, ``rounds``, ``model``, ``base_model``,
+        ``parameter_units``, ``penalty``, the regimes and residual tests before and after, ``warnings``.
+        """
+        return {
+            "effect": self.effect,
+            "effect_parameters": self.effect_parameters,
+            "where": self.where,
+            "gap_before": self.gap_before,
+            "gap_after": self.gap_after,
+            "candidates": [c.to_dict() for c in self.candidates],
+            "effects": self.model.effects_json(),
+            "rounds": [r.to_dict() for r in self.rounds],
+            "model": self.model.to_dict(),
+            "base_model": self.base.base.to_dict(),
+            "parameter_units": {name: dict(zip(e.parameters, e.units)) for name, e in EFFECTS.items()},
+            "penalty": self.config.penalty,
+            "regimes_before": self.breakdown_before.to_dict()["regimes"],
+            "regimes_after": self.breakdown_after.to_dict()["regimes"],
+            "residual_tests_before": self.resid_before.to_dict(),
+            "residual_tests_after": self.resid_after.to_dict(),
+            "warnings": list(self.identification.warnings),
+        }
 
 
 def _score(gap: float, extra: int, penalty: float) -> float:

@@ -17,7 +17,8 @@ means the residual still holds structure a model could explain.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from scipy.stats import norm
@@ -74,6 +75,11 @@ class Regime:
         """``energy_share / sample_share``: 1 means the error is spread evenly, above 1 it gathers here."""
         return self.energy_share / self.sample_share if self.sample_share > 0 else 0.0
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"group", "regime", "samples", "sample_share", "energy_share", "rms", "mean"}``."""
+        return {"group": self.group, "regime": self.label, "samples": self.samples, "sample_share": self.sample_share,
+                "energy_share": self.energy_share, "rms": self.rms, "mean": self.mean}  # fmt: skip
+
 
 @dataclass(frozen=True)
 class RegimeBreakdown:
@@ -95,6 +101,11 @@ class RegimeBreakdown:
     residual_rms: float
     nrmse: float
     reversal_window: int
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"regimes": [...], "residual_rms", "nrmse", "reversal_window"}``."""
+        return {"regimes": [r.to_dict() for r in self.regimes], "residual_rms": self.residual_rms,
+                "nrmse": self.nrmse, "reversal_window": self.reversal_window}  # fmt: skip
 
     def group(self, name: str) -> tuple[Regime, ...]:
         """The regimes of one group."""
@@ -285,6 +296,17 @@ class ResidualTests:
     cross_correlation: np.ndarray
     band: float
     confidence: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """The verdicts, the band and the correlations at each lag (rounded to 1e-6)."""
+        return {
+            "confidence": self.confidence, "band": self.band, "white": self.white,
+            "independent_of_input": self.independent_of_input,
+            "autocorrelation_outside": self.autocorrelation_outside,
+            "cross_correlation_outside": self.cross_correlation_outside,
+            "autocorrelation": np.round(self.autocorrelation, 6).tolist(),
+            "cross_correlation": np.round(self.cross_correlation, 6).tolist(),
+        }  # fmt: skip
 
     @property
     def autocorrelation_outside(self) -> int:

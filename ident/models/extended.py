@@ -136,6 +136,10 @@ class ExtendedModel:
             args = EFFECTS[e.name].apply(args, np.asarray(e.values))
         return args
 
+    def to_dict(self) -> dict[str, Any]:
+        """The base model's dict with the ``"effects"`` list: ``{"a", ..., "c2", "effects": [...]}``."""
+        return {**self.base.to_dict(), "effects": self.effects_json()}
+
     def effects_json(self) -> list[dict[str, Any]]:
         """The ``"effects"`` list of model.json: ``[{"name": ..., "parameters": {...}}, ...]``."""
         return [e.to_dict() for e in self.effects]

@@ -26,7 +26,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from servoid import validation
 from servoid.errors import ConfigError
@@ -76,6 +77,10 @@ class Bound:
         if math.isfinite(self.low) and math.isfinite(self.high):
             return share * (self.high - self.low)
         return share * abs(self.high if math.isfinite(self.high) else self.low)
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"quantity", "low", "high", "label", "unit"}``; an open side (infinite) is null."""
+        return {"quantity": self.quantity, "low": self.low, "high": self.high, "label": self.label, "unit": self.unit}
 
     def describe(self) -> str:
         """``0.9 .. 1.1 rad``, ``<= 0.1``, ``>= 1.2``."""
@@ -145,6 +150,11 @@ class AlarmEvent:
     def limit(self) -> float:
         """The bound that was crossed."""
         return self.bound.high if self.side == "above" else self.bound.low
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"quantity", "raised", "sample", "since", "value", "std", "side", "limit"}``: one shape everywhere."""
+        return {"quantity": self.bound.quantity, "raised": self.raised, "sample": self.sample, "since": self.since,
+                "value": self.value, "std": self.std, "side": self.side, "limit": self.limit}  # fmt: skip
 
     def message(self) -> str:
         """One line for a human: what, how much, against which bound, since when."""

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -181,8 +182,24 @@ class WearEstimate:
             raise ConfigError(f"no parameter {name!r}; the estimate has {', '.join(self.names)}")
         return self.names.index(name)
 
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: values and standard deviations by name, the dead zone, the fit, coverage, counts.
+
+        ``fit`` is null until the fit's window is full (``fit_reason`` says so).
+        """
+        out: dict[str, Any] = {
+            "sample": self.sample, "updates": self.updates,
+            "values": dict(zip(self.names, self.values.tolist())), "std": dict(zip(self.names, self.std.tolist())),
+            "dead_zone": self.dead_zone, "dead_zone_std": self.dead_zone_std, "fit": self.fit,
+            "coverage": {"up": self.coverage[0], "down": self.coverage[1]}, "recoveries": self.recoveries,
+        }  # fmt: skip
+        if math.isnan(self.fit):
+            out["fit_reason"] = "fewer samples measured than the fit's window"
+        return out
+
     @property
     def c1(self) -> float:
+        """``c1``, output unit."""
         return self.value("c1")
 
     @property

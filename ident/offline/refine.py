@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -70,6 +71,14 @@ class Refinement:
     def stderr_dict(self) -> dict[str, float]:
         """``{name: standard error}`` for every parameter."""
         return dict(zip(self.model.names, self.stderr))
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: the model, its standard errors (null where the data do not determine one), the fit, the search."""
+        return {
+            "model": self.model.to_dict(), "stderr": self.stderr_dict(), "nrmse": self.nrmse,
+            "initial_nrmse": self.initial_nrmse, "residual_std": self.residual_std, "nfev": self.nfev,
+            "success": self.success, "message": self.message,
+        }  # fmt: skip
 
 
 class _OutputError:

@@ -32,6 +32,7 @@ import enum
 import math
 from dataclasses import dataclass, field
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -314,6 +315,10 @@ class RecoveryEvent:
     coverage_down: float
     theta_before: tuple[float, ...]
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"sample", "coverage_up", "coverage_down"}`` (the abandoned theta stays in Python)."""
+        return {"sample": self.sample, "coverage_up": self.coverage_up, "coverage_down": self.coverage_down}
+
 
 class MRGIA:
     """The online MRGIA estimator, one sample at a time.
@@ -585,6 +590,26 @@ class MRGIAResult:
     def model(self) -> BacklashModel:
         """The final estimate as a validated :class:`BacklashModel` (raises :class:`ModelError` if invalid)."""
         return _theta_model(self.theta, self.config)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The online estimate for JSON: ``model`` (null, with ``model_error``, when invalid), counts, settings.
+
+        Keys: ``model``, ``values`` (by name, ``m2`` itself), ``samples``,
+        ``updates``, ``settled``, ``line_coverage`` (``up``, ``down``),
+        ``recoveries`` (the sample of each), ``rho_exponent``, ``epsilon``.
+        """
+        out: dict[str, Any] = {}
+        try:
+            out["model"] = self.model.to_dict()
+        except ModelError as exc:
+            out.update(model=None, model_error=str(exc))
+        out.update(
+            values=dict(zip(self.names, self.values().tolist())), samples=self.samples, updates=self.updates,
+            settled=self.settled, line_coverage={"up": self.coverage[0], "down": self.coverage[1]},
+            recoveries=[r.sample for r in self.recoveries], rho_exponent=self.config.rho_exponent,
+            epsilon=self.config.epsilon,
+        )  # fmt: skip
+        return out
 
 
 def run_mrgia(

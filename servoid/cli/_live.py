@@ -165,21 +165,8 @@ def _record(
 
 
 def acquisition(result: SessionResult) -> dict[str, Any]:
-    """How a live record was sampled, for ``--json``."""
-    exchange = result.exchange_s[np.isfinite(result.exchange_s)]
-    stats = result.driver_stats
-    return {
-        "rate_hz": 1.0 / result.config.period_s,
-        "samples": len(result),
-        "counts": result.counts,
-        "late_share": result.late_share,
-        "achieved_rate_hz": result.achieved_rate_hz,
-        "exchange_median_s": float(np.median(exchange)) if exchange.size else None,
-        "exchange_p99_s": float(np.percentile(exchange, 99)) if exchange.size else None,
-        "frames_rejected": stats.rejected,
-        "replies_stale": stats.stale,
-        "commands_clamped": stats.clamped,
-    }
+    """How a live record was sampled, for ``--json`` (:meth:`SessionResult.to_dict`)."""
+    return result.to_dict()
 
 
 def session_rows(result: SessionResult) -> tuple[list[str], list[list[str]]]:

@@ -18,6 +18,8 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from servoid.ident.serialise import dumps
+
 __all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
 
 #: Width when writing to a file or a pipe (a log, CI): rich would assume 80
@@ -77,7 +79,7 @@ def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], *, 
 
 def print_json(obj: Any) -> None:
     """Write exactly one JSON object to stdout."""
-    sys.stdout.write(json.dumps(obj, indent=2) + "\n")
+    sys.stdout.write(dumps(obj, indent=2) + "\n")
     sys.stdout.flush()
 
 

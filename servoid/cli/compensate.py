@@ -146,42 +146,13 @@ def _robustness_rows(study: CompensationStudy) -> list[list[str]]:
     return rows
 
 
-def _summary_json(s: ArmSummary) -> dict[str, float]:
-    return {"rms_error": s.rms_error, "peak_error": s.peak_error, "dead_time_samples": s.dead_time,
-            "motor_travel": s.motor_travel}  # fmt: skip
-
-
 def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, paths: dict[str, str]) -> dict[str, Any]:
-    """The ``--json`` object of ``servoid compensate``."""
-    nominal = []
-    for comp in study.comparisons:
-        entry: dict[str, Any] = {"reference": comp.reference.name}
-        for arm in ARMS:
-            m = comp.run(arm).metrics
-            entry[arm] = {"rms_error": m.rms_error, "peak_error": m.peak_error, "dead_time_samples": m.dead_time,
-                          "dead_time_max_samples": m.dead_time_max, "reversals": m.reversals,
-                          "motor_travel": comp.run(arm).motor_travel}  # fmt: skip
-        entry["rms_ratio"] = study.rms_improvement(comp.uncompensated, comp.compensated).ratio
-        nominal.append(entry)
-    all_paths = {arm: _summary_json(study.summary(arm)) for arm in ARMS}
+    """The ``--json`` object of ``servoid compensate``: the study's own dict with where it ran."""
     return {
         "model": content.model.to_dict(),
         "plant": plant_name,
         "units": {"output": content.output_unit, "time": "sample", "sample_period_s": content.sample_period_s},
-        "band": study.band,
-        "integral_gain": study.integral_gain,
-        "preview_samples": study.preview,
-        "resolution": study.sensor.resolution,
-        "noise_std": study.sensor.noise_std,
-        "rms_floor": study.rms_floor,
-        "nominal": nominal,
-        "all_paths": all_paths,
-        "rms_ratio": study.rms_improvement(study.summary("uncompensated"), study.summary("compensated")).ratio,
-        "perturbations": [
-            {"family": p.family, "change": p.change, "note": p.note,
-             **{arm: _summary_json(s) for arm, s in p.summaries.items()}}
-            for p in study.perturbations
-        ],  # fmt: skip
+        **study.to_dict(),
         "outputs": paths,
     }
 

@@ -348,24 +348,5 @@ def _print_summary(result: MonitorResult, model_file: ModelFile, unit: str, elap
 
 
 def _summary_json(result: MonitorResult, model_file: ModelFile, unit: str) -> dict[str, Any]:
-    e = result.estimate
-    return {
-        "samples": result.samples,
-        "counts": result.counts,
-        "unit": unit,
-        "stopped": result.stopped,
-        "estimate": {n: e.value(n) for n in e.names} | {"dead_zone": e.dead_zone},
-        "std": {n: e.std_of(n) for n in e.names} | {"dead_zone": e.dead_zone_std},
-        "fit": None if math.isnan(e.fit) else e.fit,
-        "model": model_file.model.to_dict(),
-        "alarms": [
-            {"quantity": ev.bound.quantity, "raised": ev.raised, "sample": ev.sample, "since": ev.since,
-             "value": ev.value, "std": ev.std, "side": ev.side, "limit": ev.limit}
-            for ev in result.events
-        ],  # fmt: skip
-        "active": [ev.bound.quantity for ev in result.active],
-        "recoveries": result.recoveries,
-        "restarts": result.restarts,
-        "compensation_updates": result.compensation_updates,
-        "files": {k: str(v) for k, v in result.files.items()},
-    }
+    """The ``--json`` summary: the result's own dict, with the unit and the model the monitor started from."""
+    return {**result.to_dict(), "unit": unit, "model": model_file.model.to_dict()}

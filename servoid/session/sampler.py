@@ -286,6 +286,29 @@ class SessionResult:
         """Share of slots not exchanged on time (late, missed or timed out)."""
         return 0.0 if not len(self) else 1.0 - self.counts["ok"] / len(self)
 
+    def to_dict(self) -> dict[str, Any]:
+        """How the session sampled, for JSON: rate asked and answered, slots per status, exchange times, counters.
+
+        The exchange times are null when no exchange was kept (``keep_samples=False``,
+        or every slot missed).
+        """
+        exchange = self.exchange_s[np.isfinite(self.exchange_s)] if self.samples else np.empty(0)
+        stats = self.driver_stats
+        return {
+            "rate_hz": 1.0 / self.config.period_s,
+            "samples": len(self),
+            "counts": self.counts,
+            "late_share": self.late_share,
+            "achieved_rate_hz": self.achieved_rate_hz,
+            "exchange_median_s": float(np.median(exchange)) if exchange.size else None,
+            "exchange_p99_s": float(np.percentile(exchange, 99)) if exchange.size else None,
+            "frames_rejected": stats.rejected,
+            "replies_stale": stats.stale,
+            "commands_clamped": stats.clamped,
+            "stopped": self.stopped,
+            "estimator_error": self.estimator_error,
+        }
+
     @property
     def achieved_rate_hz(self) -> float:
         """Exchanges answered per second of the run."""
