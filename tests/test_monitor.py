@@ -20,7 +20,8 @@ from servoid.ident.control.compensate import default_band
 from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor_run import MonitorConfig, MonitorHistory, compensation_band, read_estimates, run_monitor
+from servoid.monitor_history import MonitorHistory
+from servoid.monitor_run import MonitorConfig, compensation_band, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
 
 NOISE = 0.0337  # the gear plant's noise at SNR 40

@@ -1,6 +1,6 @@
 """Figures of a monitoring run: the dead zone, the down-line slope and the fit against time, with bounds and alarms.
 
-:func:`plot_monitor` draws a :class:`~servoid.monitor_run.HistorySnapshot`.
+:func:`plot_monitor` draws a :class:`~servoid.monitor_history.HistorySnapshot`.
 :class:`LivePlot` redraws it in a separate process while the monitor runs,
 so that drawing (a tenth of a second or more) never holds up the sampling
 loop: the loop only hands over a snapshot, and drops it when the previous
@@ -17,17 +17,13 @@ import struct
 import subprocess
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 
-from servoid.monitor_run import HISTORY_COLUMNS
-
-if TYPE_CHECKING:  # pragma: no cover
-    from servoid.monitor_run import HistorySnapshot
+from servoid.monitor_history import HISTORY_COLUMNS, HistorySnapshot
 
 __all__ = ["plot_monitor", "LivePlot"]
 
