@@ -252,7 +252,7 @@ class Limits:
         return self.minimum - self.guard <= position <= self.maximum + self.guard
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Reading:
     """One measurement as a driver primitive returns it, in native units.
 
@@ -272,7 +272,7 @@ class Reading:
     current: float | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Measurement:
     """One exchange as the user sees it: in the user's units.
 

@@ -51,7 +51,7 @@ from servoid.ident.models.wear import Wear, WearingPlant
 __all__ = ["SampledPlant", "PlantSample"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class PlantSample:
     """One reading of the plant.
 

@@ -71,6 +71,10 @@ class Step(enum.IntEnum):
     """``Phi(k) = 1`` but the update would leave the feasible set (projection)."""
 
 
+#: The members by code: a dict lookup costs a fraction of ``Step(code)``, which runs once per sample.
+_STEPS: dict[int, Step] = {int(s): s for s in Step}
+
+
 @dataclass(frozen=True, kw_only=True)
 class MRGIAConfig:
     """Settings of the MRGIA; the defaults are the paper's (Section 4).
@@ -373,7 +377,7 @@ class MRGIA:
         if code >= _k.STEP_STUCK:
             code -= _k.STEP_STUCK
             self._recover(self.samples - 1)
-        return Step(code)
+        return _STEPS[code]
 
     def skip(self, u: float) -> None:
         """Advance over a sample whose measurement was lost (late, missed, timed out).
