@@ -17,8 +17,8 @@ import argparse
 import time
 
 from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
-from servoid.ident.models.effects import EFFECTS, EFFECT_NAMES, NONE
 from servoid.ident.diagnosis.hidden_effects import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, EFFECTS, NONE
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 
@@ -76,8 +76,10 @@ def main() -> None:
             print(f"{effect:17s} {truth:>6s} {seed:4d}  {shown:26s} {estimate:>9s} {rel:>8s} "
                   f"{result.gap_before:10.4f} {result.gap_after:9.4f} {ratio:6.2f} {elapsed:5.1f}s", flush=True)  # fmt: skip
     print()
-    print(f"named right: {right}/{total}; worst gap ratio after/before with an effect hidden: {worst_ratio:.2f} "
-          f"(target <= 0.6); time per run: median {sorted(times)[len(times) // 2]:.1f} s, max {max(times):.1f} s")
+    print(
+        f"named right: {right}/{total}; worst gap ratio after/before with an effect hidden: {worst_ratio:.2f} "
+        f"(target <= 0.6); time per run: median {sorted(times)[len(times) // 2]:.1f} s, max {max(times):.1f} s"
+    )
     print()
     print("confusion (rows: hidden, columns: named; counts over strengths and seeds)")
     names = list(EFFECT_NAMES)

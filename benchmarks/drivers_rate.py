@@ -23,14 +23,13 @@ import os
 import time
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.drivers.serial.emulator import FirmwareEmulator
 from servoid.ident import MRGIA, MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 
 def latency(url: str, n: int) -> np.ndarray:

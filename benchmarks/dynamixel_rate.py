@@ -26,13 +26,12 @@ import os
 import time
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.dynamixel.emulator import EmulatorProcess
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 RATES_HZ = (100.0, 500.0, 1000.0)
 LOOP_LATENCY_MS = 1.0

@@ -43,22 +43,29 @@ import statistics
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
+from random_walk import (  # benchmarks/random_walk.py: one definition of the figures
+    AFTER,
+    BEFORE,
+    PLATEAU,
+    RAMP,
+    ramp_figures,
+)
 
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.excitation import UniformSpec, parse_spec, stream
+from servoid.ident.models.wear import GEAR_PLANT
 from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
 from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
-from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile
 from servoid.monitor_run import MonitorConfig, MonitorProgress, MonitorResult, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
-from random_walk import AFTER, BEFORE, PLATEAU, RAMP, ramp_figures  # benchmarks/random_walk.py: one definition of the figures
 
 RATE = 1000.0
 CHECK = 100
@@ -122,7 +129,9 @@ def tracking(tmp: Path) -> None:
     print(f"1. tracking c1 + c2 from 1.0 to 1.5 over {RAMP} samples at SNR 40 ({url})")
     print(f"   RMS error over the ramp        {f['rms']:.4f}")
     print(f"   lag of the estimate            {f['lag']:.0f} samples ({f['lag'] / RATE:.2f} s at {RATE:g} Hz)")
-    print(f"   plateau: scatter / bias        {f['std']:.4f} / {f['bias']:+.4f} (relative)   reported std {f['reported']:.4f}")
+    print(
+        f"   plateau: scatter / bias        {f['std']:.4f} / {f['bias']:+.4f} (relative)   reported std {f['reported']:.4f}"
+    )
     if alarm is not None:
         truth = GEAR_PLANT.dead_zone * (1.0 + 0.5 * (alarm.sample - BEFORE) / RAMP)
         print(f"   alarm at c1 + c2 > {high:.3g}          truth crossed at sample {crossed:.0f}, alarm decided at "
@@ -148,8 +157,10 @@ RULES = [("raw: z 0, persist 1", AlarmRule(z=0.0, persist=1)), ("z 0, persist 5"
 
 
 def detection(tmp: Path) -> list[dict[str, np.ndarray]]:
-    print(f"2. detecting a gear swap: c1 + c2 x 1.2 at sample {SWAP_AT}, bound +10 %, stop at the alarm "
-          "(checks every 100 samples)")
+    print(
+        f"2. detecting a gear swap: c1 + c2 x 1.2 at sample {SWAP_AT}, bound +10 %, stop at the alarm "
+        "(checks every 100 samples)"
+    )
     delays, runs = [], []
     for seed in range(5):
         url = f"{GEAR}&seed={seed}&swap_at={SWAP_AT}&swap_factor=1.2"
@@ -158,13 +169,17 @@ def detection(tmp: Path) -> list[dict[str, np.ndarray]]:
         delay = math.nan if alarm is None else alarm.sample - SWAP_AT
         delays.append(delay)
         since = "-" if alarm is None else f"{alarm.since - SWAP_AT}"
-        print(f"   seed {seed}: alarm {delay:.0f} samples after the swap (out of bounds from +{since}); "
-              f"stopped: {result.stopped}")
+        print(
+            f"   seed {seed}: alarm {delay:.0f} samples after the swap (out of bounds from +{since}); "
+            f"stopped: {result.stopped}"
+        )
         # the same servo without stopping, rows at every check, for the rule table
         _, rows, _ = monitor(url, SWAP_RUN, tmp / f"swap{seed}-all", seed=seed + 10)
         runs.append(rows)
-    print(f"   median {statistics.median(delays):.0f} samples, worst {max(delays):.0f} "
-          f"({statistics.median(delays) / RATE * 1e3:.0f} / {max(delays) / RATE * 1e3:.0f} ms at {RATE:g} Hz)")
+    print(
+        f"   median {statistics.median(delays):.0f} samples, worst {max(delays):.0f} "
+        f"({statistics.median(delays) / RATE * 1e3:.0f} / {max(delays) / RATE * 1e3:.0f} ms at {RATE:g} Hz)"
+    )
     print()
     return runs
 
@@ -187,7 +202,9 @@ def false_alarms(tmp: Path, step_runs: list[dict[str, np.ndarray]]) -> tuple[lis
     print(f"   alarms raised by the run (c1 + c2 and m2 within +/- 10 %): {sum(e.raised for e in result.events)}")
     print(f"   c1 + c2 / 1.0: range {dz[settled].min():.4f} .. {dz[settled].max():.4f}, scatter "
           f"{np.std(dz[settled]):.4f}, reported std {np.median(rows['dead_zone_std'][settled]):.4f}")  # fmt: skip
-    print(f"   m2 / 1.5:      range {m2[settled].min():.4f} .. {m2[settled].max():.4f}, scatter {np.std(m2[settled]):.4f}")
+    print(
+        f"   m2 / 1.5:      range {m2[settled].min():.4f} .. {m2[settled].max():.4f}, scatter {np.std(m2[settled]):.4f}"
+    )
     print("   the same 10 000 checks replayed (false alarms on c1 + c2 per bound), and the swap's detection delay:")
     shares = (0.015, 0.02, 0.03, 0.05, 0.10)
     head = "".join(f"{'+/-' + format(s * 100, 'g') + ' %':>9s}" for s in shares)
@@ -249,7 +266,9 @@ def cost_table(monitor_wall: float) -> None:
 
 def other_servos(tmp: Path) -> None:
     n = BEFORE + RAMP + AFTER
-    print("6. other servos and inputs: c1 + c2 ramped by 1.5 over 200 000 samples, SNR 40 (errors relative to the unworn c1 + c2)")
+    print(
+        "6. other servos and inputs: c1 + c2 ramped by 1.5 over 200 000 samples, SNR 40 (errors relative to the unworn c1 + c2)"
+    )
     print(f"   {'servo and input':62s} {'RMS':>7s} {'std':>7s} {'bias':>8s}")
     cases = [
         ("bench servo (rad), uniform +/-0.2 rad", None),

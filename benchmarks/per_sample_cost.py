@@ -37,12 +37,11 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
-from servoid.ident import MRGIA, MRGIAConfig, PAPER_PLANT, noise_epsilon, simulate
+from servoid.ident import MRGIA, PAPER_PLANT, MRGIAConfig, noise_epsilon, simulate
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 URL = "sim://?clock=virtual&snr=40&seed=1"
 PERIOD_S = 1e-3
@@ -123,7 +122,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=int, default=20_000)
     parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument("--before", metavar="PYTHON", help="also measure under this interpreter (another checkout's venv)")
+    parser.add_argument(
+        "--before", metavar="PYTHON", help="also measure under this interpreter (another checkout's venv)"
+    )
     parser.add_argument("--json", action="store_true", help="print the figures as one JSON object")
     args = parser.parse_args()
     before = run_elsewhere(args.before, args.samples, args.repeat) if args.before else None

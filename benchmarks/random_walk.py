@@ -31,8 +31,8 @@ import numpy as np
 
 from servoid.drivers.sim import SIM_PLANTS, reference_output_std
 from servoid.ident import MRGIA, MRGIAConfig, noise_epsilon, run_mrgia
-from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
 from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
 
 SNR = 40.0
 BEFORE, RAMP, AFTER = 20_000, 200_000, 100_000
@@ -92,7 +92,9 @@ def tracking_table() -> None:
     eps = noise_epsilon(noise)
     n = u.size
     print(f"1. tracking c1 + c2 from 1.0 to 1.5 over {RAMP} samples, SNR {SNR:g} (noise std {noise:.4f})")
-    print(f"   {'setting':14s} {'RMS error':>10s} {'lag':>8s} {'std':>8s} {'bias':>8s}  (lag in samples, bias relative)")
+    print(
+        f"   {'setting':14s} {'RMS error':>10s} {'lag':>8s} {'std':>8s} {'bias':>8s}  (lag in samples, bias relative)"
+    )
     for kind, value in SETTINGS:
         res = run_mrgia(u, y, _config(kind, value, eps), record_every=100)
         k = res.history_samples

@@ -46,14 +46,13 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.cli import main as servoid_main
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 IDENTIFY_RATE_HZ = 500.0
 
@@ -140,7 +139,9 @@ def identification_row(name: str, url: str, samples: int, out: Path) -> list[str
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0, help="length of each session of table 1, s (default 3)")
-    parser.add_argument("--samples", type=int, default=4000, help="samples of each identification of table 2 (default 4000)")
+    parser.add_argument(
+        "--samples", type=int, default=4000, help="samples of each identification of table 2 (default 4000)"
+    )
     parser.add_argument("--rates", type=float, nargs="+", default=[100.0, 500.0, 1000.0], help="rates of table 1, Hz")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()

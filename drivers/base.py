@@ -87,9 +87,9 @@ from __future__ import annotations
 import abc
 import logging
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
-from collections.abc import Callable, Mapping
 
 from servoid import validation
 from servoid.errors import ConfigError, DriverError, DriverTimeout, PositionOutOfRange, ServoidError

@@ -44,8 +44,8 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S
 from servoid.errors import DriverError
-from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.wear import Wear, WearingPlant
 
 __all__ = ["SampledPlant", "PlantSample"]
@@ -105,7 +105,9 @@ class SampledPlant:
         slot_modulus: int | None = None,
     ) -> None:
         self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
-        self.slot_modulus = None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
+        self.slot_modulus = (
+            None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
+        )
         self._last_slot: int | None = None
         self.noise_std = validation.non_negative("noise_std", noise_std)
         if self.noise_std > 0 and rng is None:

@@ -19,22 +19,23 @@ absence) and detects the restart from the boot id.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
 from servoid import validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
-from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
 from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.wear import GEAR_PLANT, Wear
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 
 __all__ = ["SimDriver", "SimDevice", "SimPlant", "SIM_PLANTS"]
 
@@ -187,7 +188,9 @@ class SimDriver(Driver):
     carries_slots: ClassVar[bool] = True  # the simulated plant steps on the session's slots
     options: ClassVar[Mapping[str, Option]] = {
         "plant": Option(opt.choice(*SIM_PLANTS), f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
-        "snr": Option(opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"),
+        "snr": Option(
+            opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"
+        ),
         "noise": Option(opt.number(low=0), "measurement noise standard deviation (plant unit)"),
         "latency": Option(opt.number(low=0), "reply delay (s)"),
         "jitter": Option(opt.number(low=0), "mean exponential extra reply delay (s)"),
@@ -196,8 +199,13 @@ class SimDriver(Driver):
         "mute_after": Option(opt.integer(), "stop answering after this many exchanges (fault injection)"),
         "restart_after": Option(opt.integer(), "restart after this many exchanges (fault injection)"),
         "seed": Option(opt.integer(), "seed of noise, drops and jitter (default 0)"),
-        "clock": Option(opt.choice("real", "virtual"), "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
-        "drift": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"),
+        "clock": Option(
+            opt.choice("real", "virtual"),
+            "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly",
+        ),
+        "drift": Option(
+            opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"
+        ),
         "drift_samples": Option(opt.integer(minimum=1), "wear: length of the ramp (samples)"),
         "drift_start": Option(opt.integer(), "wear: sample at which the ramp begins (default 0)"),
         "swap_at": Option(opt.integer(), "wear: sample of a gear swap that multiplies c1 and c2 by swap_factor"),

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.models.effects import EFFECT_NAMES, NONE
 from servoid.ident.diagnosis.hidden_effects import hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, NONE
 from servoid.recording import write_recording
 
 
@@ -33,8 +33,11 @@ def main() -> None:
         parser.error(f"{args.effect} needs a value")
     for name, seed in (("train.csv", args.seed), ("validate.csv", args.seed + 1000)):
         rec = hidden_effect_record(args.effect, args.value, samples=args.samples, seed=seed, snr=args.snr)
-        path = write_recording(args.out / name, {"t": 0.01 * np.arange(args.samples), "u": rec.u, "y": rec.y},
-                               metadata={"source": f"paper plant + {args.effect} {args.value}", "unit": "unit"})
+        path = write_recording(
+            args.out / name,
+            {"t": 0.01 * np.arange(args.samples), "u": rec.u, "y": rec.y},
+            metadata={"source": f"paper plant + {args.effect} {args.value}", "unit": "unit"},
+        )
         print(path)
 
 

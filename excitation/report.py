@@ -24,17 +24,18 @@ paper's plant (see ``benchmarks/excitation_compare.py``) and documented in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.excitation.regressor import regressor
-from servoid.ident.serialise import number
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import Simulation, simulate
+from servoid.ident.serialise import number
 
 __all__ = [
     "Verdict",
@@ -443,7 +444,7 @@ def _model_verdicts(sig: InputStats, tm: ModelExcitation) -> list[Verdict]:
         level: Level = "insufficient" if singular or (backlash and tm.collinearity > COLLINEARITY_LIMIT) else "warning"
         out.append(Verdict(
             level, "information",
-            f"the information matrix of the regressor (eq. 25) is "
+            "the information matrix of the regressor (eq. 25) is "
             + ("singular: the input tells nothing about " if singular else
                f"poorly conditioned (collinearity {tm.collinearity:.3g} > "
                f"{COLLINEARITY_LIMIT if level == 'insufficient' else COLLINEARITY_WARN:g}): the input tells ")

@@ -11,7 +11,10 @@ time is counted in samples; ``u`` is in the unit of the command and ``y``,
 
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.plant import Plant
 from servoid.ident.models.pseudo_wiener import M1, BacklashModel
+from servoid.ident.models.simulate import Simulation, free_run, noise_std_for_snr, simulate
+from servoid.ident.offline.refine import Refinement, arx_start, refine
 from servoid.ident.online.mrgia import (
     MRGIA,
     MRGIAConfig,
@@ -23,9 +26,6 @@ from servoid.ident.online.mrgia import (
     run_mrgia,
 )
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.models.plant import Plant
-from servoid.ident.offline.refine import Refinement, arx_start, refine
-from servoid.ident.models.simulate import Simulation, free_run, noise_std_for_snr, simulate
 
 __all__ = [
     "BacklashModel",

@@ -10,8 +10,8 @@ decorator returns the function unchanged and servoid is merely slower.
 
 from __future__ import annotations
 
-from typing import Any, TypeVar
 from collections.abc import Callable
+from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 

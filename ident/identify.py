@@ -7,9 +7,9 @@ with the free-run fit of the best one.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
-from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -17,9 +17,9 @@ from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
-from servoid.ident.offline.refine import Refinement, arx_start, refine
 from servoid.ident.models.simulate import free_run
+from servoid.ident.offline.refine import Refinement, arx_start, refine
+from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 
 __all__ = ["Identification", "identify", "check_record"]
 
@@ -91,7 +91,9 @@ class Identification:
         }  # fmt: skip
 
 
-def check_record(u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig) -> tuple[np.ndarray, np.ndarray]:
+def check_record(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig
+) -> tuple[np.ndarray, np.ndarray]:
     """Validate a record for identification; return it as float arrays.
 
     Parameters
@@ -277,7 +279,9 @@ def identify(
 
 
 def _record(
-    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray | None,
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    valid: Sequence[bool] | np.ndarray | None,
     config: MRGIAConfig,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The record as arrays, checked; lost samples' ``y`` set to 0 (never used) and the mask."""

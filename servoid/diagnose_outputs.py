@@ -13,12 +13,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from servoid.extendedfile import save_extended_model
-from servoid.ident.diagnosis.diagnose import Candidate, Diagnosis
-from servoid.ident.models.effects import EFFECTS
-from servoid.ident.diagnosis.residuals import RegimeBreakdown, ResidualTests
+from servoid.ident.diagnosis.diagnose import Diagnosis
 from servoid.recording import Recording
 
 __all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows"]

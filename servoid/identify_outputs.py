@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 from servoid.ident.identify import Identification
-from servoid.ident.online.mrgia import MRGIAResult
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run, simulate
+from servoid.ident.online.mrgia import MRGIAResult
 from servoid.modelfile import ModelFile, save_model
 from servoid.recording import write_recording
 
@@ -134,13 +134,20 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
         paths["fit_plot"] = str(
-            _plots.plot_fit(record.y, simulated, out_dir / "fit.png", u=record.u, t=record.t,
-                            output_unit=record.output_unit)  # fmt: skip
+            _plots.plot_fit(
+                record.y, simulated, out_dir / "fit.png", u=record.u, t=record.t, output_unit=record.output_unit
+            )  # fmt: skip
         )
         x_hat = simulate(result.model, record.u, y0=y0).x
         paths["backlash_plot"] = str(
-            _plots.plot_backlash(result.model, x_hat, record.y, out_dir / "backlash.png",
-                                 output_unit=record.output_unit, truth=record.truth)  # fmt: skip
+            _plots.plot_backlash(
+                result.model,
+                x_hat,
+                record.y,
+                out_dir / "backlash.png",
+                output_unit=record.output_unit,
+                truth=record.truth,
+            )  # fmt: skip
         )
     return paths
 

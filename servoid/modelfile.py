@@ -34,13 +34,12 @@ among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from collections.abc import Mapping
 
 from servoid import __version__, validation
 from servoid.errors import ConfigError, DataError, ModelError
@@ -178,7 +177,9 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     if isinstance(version, bool) or not isinstance(version, int):
         raise DataError(f"{p}: schema version {version!r} is not a version number (this servoid reads {_readable()})")
     if version > VERSION:
-        raise DataError(f"{p}: schema version {version} is newer than this servoid reads ({_readable()}); upgrade servoid")
+        raise DataError(
+            f"{p}: schema version {version} is newer than this servoid reads ({_readable()}); upgrade servoid"
+        )
     if version not in READABLE_VERSIONS:
         raise DataError(f"{p}: schema version {version} is older than any this servoid reads ({_readable()})")
     required = ("model", "units", "identified") + (("compensation",) if version >= 2 else ())

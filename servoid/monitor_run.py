@@ -36,28 +36,28 @@ a sample.
 from __future__ import annotations
 
 import csv
-import json
 import logging
 import math
 import os
 import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import IO, Any, Callable, Iterable, Iterator, Mapping
+from typing import IO, Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.drivers.base import Driver
 from servoid.errors import ConfigError, DataError, DriverError, EstimatorDiverged, ModelError
-from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
+from servoid.files import read_text
 from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
+from servoid.ident.monitoring.wear_estimator import WearEstimate, WearEstimator, WearEstimatorConfig
 from servoid.ident.serialise import dumps
-from servoid.monitor_history import HistorySnapshot, MonitorHistory
-from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig, WearEstimate
 from servoid.modelfile import ModelFile
-from servoid.files import read_text
+from servoid.monitor_history import HistorySnapshot, MonitorHistory
 from servoid.recording import RecordingWriter, split_metadata
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, run_session
 
@@ -422,7 +422,7 @@ class _Loop:
             "reference": dumps(ref.to_dict()),
             "bounds": "; ".join(f"{b.label} {b.describe()}" for b in cfg.bounds) or "none",
             "rule": f"persist={cfg.rule.persist} checks of {cfg.check_every} samples, z={cfg.rule.z:g}, "
-                    f"hysteresis={cfg.rule.hysteresis:g}",  # fmt: skip
+            f"hysteresis={cfg.rule.hysteresis:g}",  # fmt: skip
             "process_noise": f"{cfg.estimator.process_noise:g} (c1 + c2)^2 per update",
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             **metadata,
@@ -635,4 +635,3 @@ class _Loop:
             stopped="alarm" if self.stopped_on_alarm else session.stopped, files=dict(self.files),
             history=self._snapshot(), session=session,
         )  # fmt: skip
-

@@ -50,7 +50,10 @@ def test_a_run_without_wear_raises_nothing_and_summarises_in_json(tmp_path, mode
     assert summary["estimate"]["values"]["m2"] == pytest.approx(1.5, rel=0.02) and summary["unit"] == "unit"
     rows, meta = read_estimates(out / "estimates.csv")
     assert rows["k"].size == 60 and "m2" not in meta["bounds"] and "fit <= 0.05" in meta["bounds"]
-    assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {"start", "stop"}
+    assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {
+        "start",
+        "stop",
+    }
 
 
 def test_a_drift_with_a_plot_raises_the_alarm_and_draws_the_figure(tmp_path, model, capsys):

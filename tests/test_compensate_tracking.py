@@ -18,7 +18,13 @@ from servoid.ident.control.compensation_study import (
 )
 from servoid.ident.control.feedforward import LinearInverse
 from servoid.ident.control.references import amplitude_limit, reference_suite
-from servoid.ident.control.tracking import Sensor, TrackingController, default_integral_gain, simulate_tracking, tracking_metrics
+from servoid.ident.control.tracking import (
+    Sensor,
+    TrackingController,
+    default_integral_gain,
+    simulate_tracking,
+    tracking_metrics,
+)
 from servoid.modelfile import ModelFile
 
 

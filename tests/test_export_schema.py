@@ -96,7 +96,10 @@ def test_version_1_nan_stderr_reads_as_null(tmp_path):
 @pytest.mark.parametrize(
     "obj, fragment",
     [
-        ({"schema": "servoid.model", "version": 3}, "schema version 3 is newer than this servoid reads (versions 1, 2); upgrade"),
+        (
+            {"schema": "servoid.model", "version": 3},
+            "schema version 3 is newer than this servoid reads (versions 1, 2); upgrade",
+        ),
         ({"schema": "servoid.model", "version": 0}, "schema version 0 is older than any this servoid reads"),
         ({"schema": "servoid.model", "version": "2"}, "schema version '2' is not a version number"),
         ({"schema": "servoid.model"}, "schema version None is not a version number"),

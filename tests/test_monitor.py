@@ -15,10 +15,10 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import DataError
 from servoid.excitation import UniformSpec, stream
-from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.control.compensate import default_band
-from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.monitoring.alarms import Bound
+from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.modelfile import ModelFile, load_model
 from servoid.monitor_history import MonitorHistory
 from servoid.monitor_run import MonitorConfig, compensation_band, read_estimates, run_monitor
@@ -232,7 +232,9 @@ def test_ctrl_c_ends_the_run_with_every_output_complete(tmp_path):
         raise KeyboardInterrupt
 
     with driver_from_url("sim://?plant=gear&snr=40&clock=virtual") as servo:
-        config = MonitorConfig(estimator=WearEstimatorConfig(reference=GEAR_PLANT, noise_std=servo.noise_std), row_every=1000)
+        config = MonitorConfig(
+            estimator=WearEstimatorConfig(reference=GEAR_PLANT, noise_std=servo.noise_std), row_every=1000
+        )
         result = run_monitor(servo, until_ctrl_c(), SessionConfig(period_s=1e-3), config,
                              model_file=ModelFile(model=GEAR_PLANT), out=tmp_path)  # fmt: skip
         assert not servo.device.plant.enabled  # the torque is off

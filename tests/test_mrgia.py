@@ -7,10 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import paper_record
+
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
-from servoid.ident import MRGIA, MRGIAConfig, PAPER_PLANT, BacklashModel, Step, noise_epsilon, run_mrgia, simulate
+from servoid.ident import MRGIA, PAPER_PLANT, BacklashModel, MRGIAConfig, Step, noise_epsilon, run_mrgia, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -34,11 +34,11 @@ from __future__ import annotations
 import math
 
 from servoid import validation
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import NS_PER_S
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
-from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimAxis", "TORQUE_GAIN"]
 

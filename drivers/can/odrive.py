@@ -102,7 +102,9 @@ class OdriveDriver(CanDriver):
             self._position = proto.ESTIMATES_FORMAT.unpack_from(reply)[0]
             self._send(proto.SET_AXIS_STATE, proto.AXIS_STATE_FORMAT.pack(proto.IDLE))
             control = proto.CONTROL_MODES[self.mode]
-            self._send(proto.SET_CONTROLLER_MODE, proto.CONTROLLER_MODE_FORMAT.pack(control, proto.INPUT_MODE_PASSTHROUGH))
+            self._send(
+                proto.SET_CONTROLLER_MODE, proto.CONTROLLER_MODE_FORMAT.pack(control, proto.INPUT_MODE_PASSTHROUGH)
+            )
             self._info = self._read_identity()
         except BaseException:
             self._bus.shutdown()

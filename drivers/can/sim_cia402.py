@@ -49,12 +49,12 @@ import time
 from typing import Any
 
 from servoid import validation
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.models.pseudo_wiener import BacklashModel
 

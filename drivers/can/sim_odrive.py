@@ -40,15 +40,16 @@ from __future__ import annotations
 import math
 import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from servoid import validation
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.models.pseudo_wiener import BacklashModel
 
@@ -254,5 +255,7 @@ class SimOdriveAxis(SimDrive):
     def _send(self, command: int, data: bytes) -> None:
         if self._muted:
             return
-        msg = self._can.Message(arbitration_id=proto.arbitration_id(self.node, command), data=data, is_extended_id=False)
+        msg = self._can.Message(
+            arbitration_id=proto.arbitration_id(self.node, command), data=data, is_extended_id=False
+        )
         self._bus.send(msg)

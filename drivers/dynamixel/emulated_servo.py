@@ -58,16 +58,16 @@ What the emulated servo does
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from servoid import validation
-from servoid.errors import ConfigError
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
+from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.drivers.sampled import PlantSample, SampledPlant
+from servoid.errors import ConfigError
 from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
@@ -367,6 +367,7 @@ class EmulatedServo:
         current_limit, pwm_limit = self.value(ct.CURRENT_LIMIT), self.value(ct.PWM_LIMIT)
         self._put(ct.PRESENT_CURRENT, max(-current_limit, min(current_limit, current)))
         self._put(ct.PRESENT_PWM, max(-pwm_limit, min(pwm_limit, pwm)))
+
 
 def _clip(field: Field, value: int) -> int:
     return max(field.minimum, min(field.maximum, value))

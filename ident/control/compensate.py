@@ -42,8 +42,8 @@ in the same order; a test compiles it and compares sample by sample.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -114,7 +114,7 @@ class InverseParams:
             raise ModelError(str(exc)) from None
 
     @classmethod
-    def from_model(cls, model: BacklashModel, *, band: float) -> "InverseParams":
+    def from_model(cls, model: BacklashModel, *, band: float) -> InverseParams:
         """The backlash part of ``model`` with the given band."""
         return cls(m2=model.m2, c1=model.c1, c2=model.c2, band=band)
 

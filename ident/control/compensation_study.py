@@ -21,8 +21,8 @@ a lower bound.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
@@ -30,9 +30,9 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ModelError
 from servoid.ident.control.compensate import InverseParams
-from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.control.references import Reference, reference_suite
 from servoid.ident.control.tracking import LoopDiverged, Sensor, TrackingController, TrackingRun, simulate_tracking
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = [
     "ARMS",
@@ -145,7 +145,7 @@ class ArmSummary:
                 "motor_travel": self.motor_travel}  # fmt: skip
 
     @classmethod
-    def of(cls, runs: Sequence[TrackingRun]) -> "ArmSummary":
+    def of(cls, runs: Sequence[TrackingRun]) -> ArmSummary:
         err = np.concatenate([r.reference - r.y for r in runs])
         turns = sum(r.metrics.reversals for r in runs)
         dead = sum(r.metrics.dead_time * r.metrics.reversals for r in runs)
@@ -175,7 +175,7 @@ class Improvement:
     at_floor: bool
 
     @classmethod
-    def of(cls, before: float, after: float, floor: float) -> "Improvement":
+    def of(cls, before: float, after: float, floor: float) -> Improvement:
         denominator = max(after, floor)
         if denominator == 0.0:
             return cls(ratio=math.inf, at_floor=True)
@@ -332,8 +332,11 @@ def _arms(
                         _TURN_SIGMAS * sensor.noise_std)  # fmt: skip
         runs = {
             arm: simulate_tracking(
-                plant, TrackingController(model, inverse=inv, integral_gain=integral_gain), ref.values,
-                sensor=sensor, threshold=threshold,
+                plant,
+                TrackingController(model, inverse=inv, integral_gain=integral_gain),
+                ref.values,
+                sensor=sensor,
+                threshold=threshold,
             )  # fmt: skip
             for arm, inv in inverses.items()
         }

@@ -30,8 +30,8 @@ time in samples.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -39,8 +39,8 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.control.compensate import BacklashInverse, InverseParams
 from servoid.ident.control.feedforward import LinearInverse
-from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = [
     "LoopDiverged",
@@ -238,7 +238,9 @@ def _first_travel(values: np.ndarray, direction: int, threshold: float) -> int |
     return int(hits[0]) if hits.size else None
 
 
-def tracking_metrics(r: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, *, threshold: float) -> TrackingMetrics:
+def tracking_metrics(
+    r: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, *, threshold: float
+) -> TrackingMetrics:
     """RMS and peak error, and the dead time after each reversal of ``r``.
 
     Parameters

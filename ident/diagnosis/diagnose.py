@@ -33,20 +33,32 @@ unit-free and was calibrated on the hidden-effect benchmark
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
-from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
-from servoid.ident.models.extended import AppliedEffect, ExtendedModel, ExtendedSimulation, fit_extended, simulate_extended
+from servoid.ident.diagnosis.residuals import (
+    RegimeBreakdown,
+    ResidualTests,
+    regime_breakdown,
+    residual_tests,
+    where_text,
+)
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
+from servoid.ident.models.extended import (
+    AppliedEffect,
+    ExtendedModel,
+    ExtendedSimulation,
+    fit_extended,
+    simulate_extended,
+)
 from servoid.ident.online.mrgia import MRGIAConfig
-from servoid.ident.diagnosis.residuals import RegimeBreakdown, ResidualTests, regime_breakdown, residual_tests, where_text
 
 __all__ = ["DiagnoseConfig", "Candidate", "Round", "Diagnosis", "diagnose", "select"]
 
@@ -282,7 +294,9 @@ class _Records:
         return nrmse(self.y_v, self.validation(model).y)
 
 
-def _fit_best(records: _Records, starts: Sequence[ExtendedModel], max_nfev: int | None) -> tuple[ExtendedModel, dict[str, float]] | None:
+def _fit_best(
+    records: _Records, starts: Sequence[ExtendedModel], max_nfev: int | None
+) -> tuple[ExtendedModel, dict[str, float]] | None:
     """Fit from each start on the training record; keep the best training fit."""
     best = None
     for start in starts:
@@ -297,7 +311,9 @@ def _fit_best(records: _Records, starts: Sequence[ExtendedModel], max_nfev: int 
     return best.model, best.stderr_dict()
 
 
-def _delay_starts(records: _Records, current: ExtendedModel, extra: int, ident_config: MRGIAConfig) -> list[ExtendedModel]:
+def _delay_starts(
+    records: _Records, current: ExtendedModel, extra: int, ident_config: MRGIAConfig
+) -> list[ExtendedModel]:
     """Starts for ``extra_delay = extra``: the current model as it is, and a base re-identified with the longer delay.
 
     With the wrong delay the base coefficients are fitted to the wrong lag,
@@ -357,7 +373,9 @@ def _candidate(records: _Records, current: ExtendedModel, name: str, config: Dia
             best = min(fits, key=lambda f: f[0])[1]
     else:
         error_u = records.error_in_input_units(current)
-        starts = [current.with_effect(AppliedEffect(name, tuple(v.tolist()))) for v in effect.starts(records.u_t, error_u)]
+        starts = [
+            current.with_effect(AppliedEffect(name, tuple(v.tolist()))) for v in effect.starts(records.u_t, error_u)
+        ]
         if name == EFFECTS["extra_pole"].name:
             starts += _pole_starts(records, current, config.identification)
         best = _fit_best(records, starts, config.max_nfev)
@@ -371,7 +389,9 @@ def _candidate(records: _Records, current: ExtendedModel, name: str, config: Dia
     )  # fmt: skip
 
 
-def _round(records: _Records, current: ExtendedModel, config: DiagnoseConfig, progress: Callable[[str], None] | None) -> Round:
+def _round(
+    records: _Records, current: ExtendedModel, config: DiagnoseConfig, progress: Callable[[str], None] | None
+) -> Round:
     gap = records.gap(current)
     none = Candidate(effect=NONE, model=current, extra_parameters=0, train_nrmse=records.train_nrmse(current),
                      gap=gap, score=gap, stderr={})  # fmt: skip
@@ -387,7 +407,9 @@ def _round(records: _Records, current: ExtendedModel, config: DiagnoseConfig, pr
     return Round(start=current, candidates=tuple(candidates), chosen=select(candidates))
 
 
-def _check_pair(train: tuple[np.ndarray, np.ndarray], val: tuple[np.ndarray, np.ndarray], config: MRGIAConfig) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+def _check_pair(
+    train: tuple[np.ndarray, np.ndarray], val: tuple[np.ndarray, np.ndarray], config: MRGIAConfig
+) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     try:
         t = check_record(*train, config)
     except DataError as exc:
@@ -449,7 +471,9 @@ def diagnose(
     after = records.validation(current)
     motion = before.x
     window, lag = config.reversal_window, config.identification.delay
-    breakdown_before = regime_breakdown(records.y_v, before.y, records.u_v, motion, reversal_window=window, input_lag=lag)
+    breakdown_before = regime_breakdown(
+        records.y_v, before.y, records.u_v, motion, reversal_window=window, input_lag=lag
+    )
     breakdown_after = regime_breakdown(records.y_v, after.y, records.u_v, motion, reversal_window=window, input_lag=lag)
     return Diagnosis(
         identification=ident,

@@ -16,8 +16,8 @@ import numpy as np
 from servoid import validation
 from servoid.ident.models.effects import COULOMB_FRICTION, DEAD_ZONE, EXTRA_DELAY, EXTRA_POLE, INPUT_SATURATION, NONE
 from servoid.ident.models.extended import AppliedEffect, ExtendedModel, simulate_extended
-from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 from servoid.ident.models.simulate import noise_std_for_snr
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 
 __all__ = ["HIDDEN_STRENGTHS", "HiddenRecord", "hidden_effect_record", "hidden_truth"]
 

@@ -13,18 +13,19 @@ With no effects the simulation is exactly :func:`servoid.ident.free_run`.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ModelError
-from servoid.ident.offline._oefit import failure_residual, fit_output_error, fit_record
-from servoid.ident.models.kernels import extended_kernel, schur_stable
-from servoid.ident.models.effects import EFFECTS, KernelArgs, get_effect
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.effects import EFFECTS, KernelArgs, get_effect
+from servoid.ident.models.kernels import extended_kernel, schur_stable
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
+from servoid.ident.offline._oefit import failure_residual, fit_output_error, fit_record
 
 __all__ = [
     "AppliedEffect",
@@ -64,7 +65,7 @@ class AppliedEffect:
         object.__setattr__(self, "values", tuple(float(v) for v in checked))
 
     @classmethod
-    def from_parameters(cls, name: str, parameters: Mapping[str, float]) -> "AppliedEffect":
+    def from_parameters(cls, name: str, parameters: Mapping[str, float]) -> AppliedEffect:
         """Build from ``{parameter name: value}`` (the JSON form)."""
         effect = get_effect(name)
         return cls(name, tuple(effect.check(parameters).tolist()))
@@ -118,7 +119,7 @@ class ExtendedModel:
                 return e
         return None
 
-    def with_effect(self, effect: AppliedEffect) -> "ExtendedModel":
+    def with_effect(self, effect: AppliedEffect) -> ExtendedModel:
         """This model with ``effect`` added (or replaced)."""
         kept = tuple(e for e in self.effects if e.name != effect.name)
         return ExtendedModel(self.base, (*kept, effect))
@@ -145,7 +146,7 @@ class ExtendedModel:
         return [e.to_dict() for e in self.effects]
 
     @classmethod
-    def from_json(cls, base: BacklashModel, effects: Any) -> "ExtendedModel":
+    def from_json(cls, base: BacklashModel, effects: Any) -> ExtendedModel:
         """Inverse of :meth:`effects_json` (``effects`` may be None: no effects).
 
         Raises

@@ -30,9 +30,9 @@ causal beyond ``x*``, where a reversal then jumps between the lines.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
-from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -306,9 +306,7 @@ class BacklashModel:
         This is the paper's "maximum relative error of the parameters" (Section 4).
         """
         if (self.na, self.nb) != (truth.na, truth.nb):
-            raise ModelError(
-                f"orders differ: (na, nb) = ({self.na}, {self.nb}) against ({truth.na}, {truth.nb})"
-            )
+            raise ModelError(f"orders differ: (na, nb) = ({self.na}, {self.nb}) against ({truth.na}, {truth.nb})")
         ref = truth.values()
         scale = np.where(ref != 0.0, np.abs(ref), 1.0)
         return float(np.max(np.abs(self.values() - ref) / scale))

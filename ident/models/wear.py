@@ -30,9 +30,9 @@ from typing import Any
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident.models.plant import Plant
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.models.plant import Plant
 
 __all__ = ["Wear", "WearingPlant", "GEAR_PLANT", "WEAR_RESOLUTION"]
 
@@ -76,7 +76,9 @@ class Wear:
         object.__setattr__(self, "drift", drift)
         object.__setattr__(self, "drift_start", validation.integer("drift_start", self.drift_start, minimum=0))
         if self.drift_samples is not None:
-            object.__setattr__(self, "drift_samples", validation.integer("drift_samples", self.drift_samples, minimum=1))
+            object.__setattr__(
+                self, "drift_samples", validation.integer("drift_samples", self.drift_samples, minimum=1)
+            )
         elif drift != 1.0:
             raise ConfigError(f"drift (={drift:g}) needs drift_samples: the length of the ramp in samples")
         if self.swap_at is not None:

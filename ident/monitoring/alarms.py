@@ -25,8 +25,8 @@ of +20 % against a bound at +10 % within about a thousand samples.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from servoid import validation

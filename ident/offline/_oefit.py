@@ -9,8 +9,9 @@ the parameter layout differ.
 from __future__ import annotations
 
 import contextlib
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, ContextManager
+from typing import Any, ContextManager
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -23,7 +24,14 @@ try:  # pragma: no cover - a dependency of servoid; without it fits are merely s
 except ImportError:  # pragma: no cover
     threadpool_limits = None
 
-__all__ = ["OEFit", "fit_output_error", "covariance_from_jacobian", "failure_residual", "single_threaded_blas", "fit_record"]
+__all__ = [
+    "OEFit",
+    "fit_output_error",
+    "covariance_from_jacobian",
+    "failure_residual",
+    "single_threaded_blas",
+    "fit_record",
+]
 
 
 @dataclass(frozen=True)

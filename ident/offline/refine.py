@@ -19,10 +19,10 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
-from servoid.ident.models.kernels import schur_stable, simulate_kernel
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.kernels import schur_stable, simulate_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
+from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
@@ -198,8 +198,11 @@ def refine(
 
 
 def _masked_record(
-    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray,
-    n_params: int, y0: float | None,
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    valid: Sequence[bool] | np.ndarray,
+    n_params: int,
+    y0: float | None,
 ) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """:func:`fit_record` for a record with lost samples: their ``y`` (maybe NaN) becomes 0, never fitted."""
     u_arr = validation.signal("u", u)

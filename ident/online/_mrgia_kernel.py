@@ -355,9 +355,9 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
             p_new = np.empty(n * n)
             for i in range(n):
                 for j in range(i, n):
-                    v = (
-                        state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]
-                    ) / mu + sigma * kg[i] * kg[j]
+                    v = (state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]) / mu + sigma * kg[
+                        i
+                    ] * kg[j]
                     if i == j:
                         v += q  # tracking: parameters as a random walk of variance q per update
                     p_new[i * n + j] = v

@@ -30,16 +30,16 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
-from servoid.ident.online import _mrgia_kernel as _k
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
+from servoid.ident.online import _mrgia_kernel as _k
 from servoid.ident.paper import PAPER_P0, PAPER_RHO_EXPONENT, PAPER_SIGMA0, paper_theta0
 
 __all__ = [
@@ -187,7 +187,7 @@ class MRGIAConfig:
         process_noise: float = 1e-7,
         p_max: float = 1.0,
         **kwargs: object,
-    ) -> "MRGIAConfig":
+    ) -> MRGIAConfig:
         """Settings for following slowly changing parameters (wear) for as long as the servo runs.
 
         The paper's ``rho(k)`` decays to zero, so the estimator eventually
@@ -368,8 +368,7 @@ class MRGIA:
         u, y = float(u), float(y)
         if not (math.isfinite(u) and math.isfinite(y)):
             raise ConfigError(
-                f"sample {self.samples}: u (={u!r}) and y (={y!r}) must be finite; "
-                "use skip(u) for a lost measurement"
+                f"sample {self.samples}: u (={u!r}) and y (={y!r}) must be finite; use skip(u) for a lost measurement"
             )
         code = _k.mrgia_step(self.state, self._cfg, self._na, self._nb, self._d, u, y)
         if code == _k.STEP_DIVERGED:
@@ -522,8 +521,7 @@ class MRGIA:
 
 def _diverged_message(sample: int) -> str:
     return (
-        f"the MRGIA diverged at sample {sample}: theta or P became non-finite "
-        "(check the input's scaling, or lower p0)"
+        f"the MRGIA diverged at sample {sample}: theta or P became non-finite (check the input's scaling, or lower p0)"
     )
 
 

@@ -7,10 +7,10 @@ import os
 import signal
 from pathlib import Path
 
-from servoid.drivers.dynamixel import control_table as ct
-from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.cli._live import DEFAULT_RATE_HZ
+from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
+from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.errors import ConfigError
 
 HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"

@@ -23,13 +23,13 @@ import numpy as np
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.drivers.simulated import SimulatedServo
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
-from servoid.recording import Recording
 from servoid.identify_outputs import Record
+from servoid.recording import Recording
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
 from servoid.session.listeners import EstimatorFeed
 
@@ -55,8 +55,9 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                           "a device on its own clock applies a late command in a later sample and the next "
                           "samples carry that error; default 0 for drivers whose protocol carries the slot "
                           "(sim, serial, CiA 402), else 10")  # fmt: skip
-    live.add_argument("--use-late", action="store_true",
-                      help="let the estimator use samples exchanged late (default: leave them out)")
+    live.add_argument(
+        "--use-late", action="store_true", help="let the estimator use samples exchanged late (default: leave them out)"
+    )
 
 
 def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
@@ -79,9 +80,7 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
     return usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples) & np.isfinite(rec.y)
 
 
-def live_record(
-    args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]
-) -> tuple[Record, MRGIAConfig]:
+def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -> tuple[Record, MRGIAConfig]:
     """Run the excitation through ``args.driver`` with the MRGIA online; return the record and the settings.
 
     ``make_config(epsilon)`` builds the estimator's settings from the command
@@ -122,7 +121,9 @@ def live_record(
                                f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
         with _term.live_progress("live", args.samples) as bar:
-            update: Callable[[SessionProgress], None] = lambda p: bar(p.done, _status_text(p, driver.position_unit.unit))
+            update: Callable[[SessionProgress], None] = lambda p: bar(
+                p.done, _status_text(p, driver.position_unit.unit)
+            )
             result = run_session(
                 driver, u, config, recording=path, metadata=meta, listeners=[online],
                 on_progress=None if quiet else update,
@@ -147,7 +148,11 @@ def history_every(samples: int) -> int:
 
 
 def _record(
-    result: SessionResult, source: str, identity: dict[str, Any], truth: BacklashModel | None, path: Path,
+    result: SessionResult,
+    source: str,
+    identity: dict[str, Any],
+    truth: BacklashModel | None,
+    path: Path,
     online: MRGIAResult | None,
 ) -> Record:
     valid = result.valid

@@ -7,11 +7,10 @@ stdout for the one JSON object.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
-from typing import Any, TextIO
 from collections.abc import Callable, Iterator, Sequence
+from typing import Any, TextIO
 
 from rich.console import Console
 from rich.markup import escape

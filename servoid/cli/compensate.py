@@ -17,10 +17,10 @@ from servoid.ident.control.compensation_study import (
     compensation_study,
     default_resolution,
 )
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
 from servoid.ident.control.references import amplitude_limit, reference_suite
 from servoid.ident.control.tracking import Sensor
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.paper import PAPER_PLANT
 from servoid.modelfile import ModelFile, load_model
 
 ORDER = 30
@@ -73,18 +73,31 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sim.add_argument("--plant", metavar="paper|FILE",
                      help="the servo to simulate: 'paper' (the paper's plant) or another model.json "
                           "(default: MODEL itself, a perfect identification)")  # fmt: skip
-    sim.add_argument("--resolution", type=float, metavar="Q",
-                     help="encoder step in the output unit (default: 1 for counts, else (c1 + c2)/200)")
-    sim.add_argument("--noise-std", type=float, metavar="S",
-                     help="Gaussian measurement noise, output unit (default: the noise the model file's band "
-                          "was set for, its compensation.noise_std, else 0)")
+    sim.add_argument(
+        "--resolution",
+        type=float,
+        metavar="Q",
+        help="encoder step in the output unit (default: 1 for counts, else (c1 + c2)/200)",
+    )
+    sim.add_argument(
+        "--noise-std",
+        type=float,
+        metavar="S",
+        help="Gaussian measurement noise, output unit (default: the noise the model file's band "
+        "was set for, its compensation.noise_std, else 0)",
+    )
     sim.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
     sim.add_argument("--samples", type=int, default=600, metavar="N", help="samples per path (default 600)")
     ctl = p.add_argument_group("controller")
-    ctl.add_argument("--band", type=float, metavar="B",
-                     help="smoothing band of the inverse, output unit (default: the model file's)")
-    ctl.add_argument("--integral-gain", type=float, metavar="KI",
-                     help="integral gain per sample, same for every arm (default 1/(2 (P + 1)), P the preview)")
+    ctl.add_argument(
+        "--band", type=float, metavar="B", help="smoothing band of the inverse, output unit (default: the model file's)"
+    )
+    ctl.add_argument(
+        "--integral-gain",
+        type=float,
+        metavar="KI",
+        help="integral gain per sample, same for every arm (default 1/(2 (P + 1)), P the preview)",
+    )
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, metavar="DIR", help="folder for the plots (default: MODEL's folder)")
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
@@ -190,7 +203,8 @@ def run(args: argparse.Namespace) -> int:
     out = _term.stdout
     out.print(
         f"servoid compensate: {args.model} on the simulated servo ({plant_name}); errors in {unit}, "
-        f"dead time in samples" + (f" (1 sample = {content.sample_period_s * 1e3:.3g} ms)" if content.sample_period_s else "")
+        f"dead time in samples"
+        + (f" (1 sample = {content.sample_period_s * 1e3:.3g} ms)" if content.sample_period_s else "")
     )
     out.print(
         f"controller: ZPETC feedforward with {study.preview} sample(s) of preview + integral feedback "

@@ -78,7 +78,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sel.add_argument("--penalty", type=float, default=DEFAULT_PENALTY, metavar="P",
                      help=f"relative cut of the validation gap each extra parameter must buy "
                           f"(default {DEFAULT_PENALTY}: 10 %%)")  # fmt: skip
-    sel.add_argument("--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)")
+    sel.add_argument(
+        "--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)"
+    )
     sel.add_argument("--reversal-window", type=int, default=5, metavar="K",
                      help="samples after a reversal that count as 'just after' (default 5)")  # fmt: skip
     out = p.add_argument_group("output")
@@ -139,7 +141,9 @@ def run(args: argparse.Namespace) -> int:
     output_unit = args.unit or train.metadata.get("unit", "unit")
     input_unit = train.metadata.get("input_unit", "unit")
     started = time.perf_counter()
-    with _term.progress("candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal) as bar:
+    with _term.progress(
+        "candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal
+    ) as bar:
         done = [0]
 
         def step(name: str) -> None:

@@ -12,6 +12,7 @@ from servoid.cli import _live, _term
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
+from servoid.ident.models.simulate import simulate
 from servoid.ident.online.mrgia import MRGIAConfig, noise_epsilon
 from servoid.ident.paper import (
     PAPER_INPUT_AMPLITUDE,
@@ -20,9 +21,8 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.ident.models.simulate import simulate
-from servoid.recording import read_recording
 from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
+from servoid.recording import read_recording
 
 ORDER = 10
 
@@ -75,8 +75,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )  # fmt: skip
     src = p.add_argument_group("record")
     src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
-    src.add_argument("--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)")
-    src.add_argument("--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)")
+    src.add_argument(
+        "--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)"
+    )
+    src.add_argument(
+        "--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)"
+    )
     src.add_argument("--snr", type=float, metavar="SNR",
                      help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
                           "(default: noise-free)")  # fmt: skip
@@ -97,8 +101,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     est.add_argument("--epsilon", type=float, metavar="E",
                      help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), unit of y "
                           "(default: from --snr for the simulated servo, else 0)")  # fmt: skip
-    est.add_argument("--paper-algorithm", action="store_true",
-                     help="run the MRGIA exactly as printed: no projection, no recovery from a stuck run")
+    est.add_argument(
+        "--paper-algorithm",
+        action="store_true",
+        help="run the MRGIA exactly as printed: no projection, no recovery from a stuck run",
+    )
     est.add_argument("--no-refine", action="store_true", help="skip the output-error refinement")
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("servoid-run"), metavar="DIR",
@@ -166,7 +173,9 @@ def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 def run(args: argparse.Namespace) -> int:
     record, config = get_record(args)
     started = time.perf_counter()
-    with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None) as bar:
+    with _term.progress(
+        "MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None
+    ) as bar:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online)  # fmt: skip
@@ -184,7 +193,9 @@ def run(args: argparse.Namespace) -> int:
         out.print(f"free-run NRMSE  MRGIA: {result.mrgia_nrmse:.4g}", end="")
         out.print(f"   {result.method}: {result.fit_nrmse:.4g}" if result.refinement is not None else "")
     if record.truth is not None:
-        out.print(f"max relative parameter error ({result.method}): {result.model.max_relative_error(record.truth):.3g}")
+        out.print(
+            f"max relative parameter error ({result.method}): {result.model.max_relative_error(record.truth):.3g}"
+        )
     out.print(f"dead zone c1 + c2 = {result.model.dead_zone:.6g} {record.output_unit}, "
               f"down-line slope m2 = {result.model.m2:.6g}")  # fmt: skip
     for name, path in paths.items():

@@ -6,8 +6,9 @@ import argparse
 import itertools
 import math
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from servoid.cli import _live, _term
 from servoid.drivers import driver_from_url
@@ -87,8 +88,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     servo.add_argument("--driver", metavar="URL", required=True,
                        help="the servo: sim://?plant=gear&snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
                             "(docs/drivers.md; sim:// wears with drift=, drift_samples=, swap_at=, swap_factor=)")  # fmt: skip
-    servo.add_argument("--model", metavar="MODEL.json", type=Path, required=True,
-                       help="the servo's model file (servoid identify): where the estimate starts, its unit and noise")
+    servo.add_argument(
+        "--model",
+        metavar="MODEL.json",
+        type=Path,
+        required=True,
+        help="the servo's model file (servoid identify): where the estimate starts, its unit and noise",
+    )
     servo.add_argument("--rate", type=float, metavar="HZ",
                        help=f"sample rate in Hz (default: the model's, else {_live.DEFAULT_RATE_HZ:g}); "
                             "the model's linear block holds at the rate it was identified at")  # fmt: skip
@@ -108,20 +114,48 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                           "uniform noise of the driver's reference amplitude; with it, none)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
     al = p.add_argument_group("alarms")
-    al.add_argument("--dead-zone", default="10%", metavar="MIN,MAX|P%",
-                    help="bounds on c1 + c2, servo's unit, or +/- P %% of the model's (default 10%%)")
-    al.add_argument("--m2", default="10%", metavar="MIN,MAX|P%",
-                    help="bounds on the down-line slope m2, or +/- P %% of the model's (default 10%%)")
-    al.add_argument("--fit", type=float, metavar="MAX",
-                    help="largest free-run NRMSE of the recent window, e.g. 0.1 (default: not checked)")
-    al.add_argument("--persist", type=int, default=AlarmRule.persist, metavar="N",
-                    help=f"consecutive checks a bound must be left (or regained) (default {AlarmRule.persist})")
-    al.add_argument("--z", type=float, default=AlarmRule.z, metavar="Z",
-                    help=f"standard deviations beyond a bound before it counts as left (default {AlarmRule.z:g})")
-    al.add_argument("--check-every", type=int, default=MonitorConfig.check_every, metavar="N",
-                    help=f"samples between checks (default {MonitorConfig.check_every})")
-    al.add_argument("--fail-on-alarm", action="store_true",
-                    help=f"stop at the first alarm and exit with status {EXIT_ALARM}")
+    al.add_argument(
+        "--dead-zone",
+        default="10%",
+        metavar="MIN,MAX|P%",
+        help="bounds on c1 + c2, servo's unit, or +/- P %% of the model's (default 10%%)",
+    )
+    al.add_argument(
+        "--m2",
+        default="10%",
+        metavar="MIN,MAX|P%",
+        help="bounds on the down-line slope m2, or +/- P %% of the model's (default 10%%)",
+    )
+    al.add_argument(
+        "--fit",
+        type=float,
+        metavar="MAX",
+        help="largest free-run NRMSE of the recent window, e.g. 0.1 (default: not checked)",
+    )
+    al.add_argument(
+        "--persist",
+        type=int,
+        default=AlarmRule.persist,
+        metavar="N",
+        help=f"consecutive checks a bound must be left (or regained) (default {AlarmRule.persist})",
+    )
+    al.add_argument(
+        "--z",
+        type=float,
+        default=AlarmRule.z,
+        metavar="Z",
+        help=f"standard deviations beyond a bound before it counts as left (default {AlarmRule.z:g})",
+    )
+    al.add_argument(
+        "--check-every",
+        type=int,
+        default=MonitorConfig.check_every,
+        metavar="N",
+        help=f"samples between checks (default {MonitorConfig.check_every})",
+    )
+    al.add_argument(
+        "--fail-on-alarm", action="store_true", help=f"stop at the first alarm and exit with status {EXIT_ALARM}"
+    )
     est = p.add_argument_group("estimator")
     est.add_argument("--process-noise", type=float, default=DEFAULT_PROCESS_NOISE, metavar="Q",
                      help="random-walk variance of the parameters per update, relative to (c1 + c2)^2: larger "
@@ -132,14 +166,24 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("servoid-monitor"), metavar="DIR",
                      help="output folder (default ./servoid-monitor/)")  # fmt: skip
-    out.add_argument("--every", type=float, default=1.0, metavar="S",
-                     help="seconds between rows of estimates.csv (default 1; at least one check)")
+    out.add_argument(
+        "--every",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="seconds between rows of estimates.csv (default 1; at least one check)",
+    )
     out.add_argument("--compensation-step", type=float, default=MonitorConfig.compensation_step, metavar="SHARE",
                      help="relative change of c1 + c2 or m2 that writes new compensation parameters "
                           f"(default {MonitorConfig.compensation_step:g})")  # fmt: skip
     out.add_argument("--plot", type=Path, metavar="FILE.png", help="a live plot, redrawn every --plot-every s")
-    out.add_argument("--plot-every", type=float, default=MonitorConfig.plot_every_s, metavar="S",
-                     help=f"seconds between redraws of --plot (default {MonitorConfig.plot_every_s:g})")
+    out.add_argument(
+        "--plot-every",
+        type=float,
+        default=MonitorConfig.plot_every_s,
+        metavar="S",
+        help=f"seconds between redraws of --plot (default {MonitorConfig.plot_every_s:g})",
+    )
     out.add_argument("--json", action="store_true", help="print one JSON summary on stdout at the end")
     p.set_defaults(handler=run)
 
@@ -172,7 +216,9 @@ def parse_bounds(text: str, *, quantity: str, label: str, reference: float, unit
 def _bounds(args: argparse.Namespace, model_file: ModelFile, unit: str) -> tuple[Bound, ...]:
     model = model_file.model
     found = [
-        parse_bounds(args.dead_zone, quantity="dead_zone", label="dead zone c1 + c2", reference=model.dead_zone, unit=unit),
+        parse_bounds(
+            args.dead_zone, quantity="dead_zone", label="dead zone c1 + c2", reference=model.dead_zone, unit=unit
+        ),
         parse_bounds(args.m2, quantity="m2", label="m2", reference=model.m2),
     ]
     if args.fit is not None:
@@ -203,13 +249,17 @@ def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec |
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
     elif operating is None:
-        excitation = UniformSpec(amplitude=driver.reference_amplitude if isinstance(driver, SimulatedServo) else MODEL_AMPLITUDE)
+        excitation = UniformSpec(
+            amplitude=driver.reference_amplitude if isinstance(driver, SimulatedServo) else MODEL_AMPLITUDE
+        )
     else:
         excitation = None
     return operating, excitation
 
 
-def commands(centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int) -> Iterator[float]:
+def commands(
+    centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int
+) -> Iterator[float]:
     """The endless command: ``centre + operating(k) + excitation(k)`` (each seeded, the second with ``seed + 1``)."""
     parts: list[Iterator[float]] = [itertools.repeat(centre)]
     if operating is not None:
@@ -281,7 +331,9 @@ def run(args: argparse.Namespace) -> int:
     if result.stopped == "alarm":
         first = result.first_alarm
         assert first is not None
-        _term.stderr.print(f"servoid monitor: stopped on alarm (exit {EXIT_ALARM}): {first.message()}", markup=False, soft_wrap=True)
+        _term.stderr.print(
+            f"servoid monitor: stopped on alarm (exit {EXIT_ALARM}): {first.message()}", markup=False, soft_wrap=True
+        )
         return EXIT_ALARM
     return 0
 
@@ -293,8 +345,14 @@ def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorCon
     length = "until Ctrl-C" if total is None else f"{total} samples ({total / rate:g} s)"
     bounds = "; ".join(f"{b.label} {b.describe()}" for b in config.bounds) or "none"
     err = _term.stderr
-    err.print(f"servoid monitor: {driver.describe()} at {rate:g} Hz, {length}; writing to {args.out}/", markup=False, soft_wrap=True)
-    err.print(f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True)
+    err.print(
+        f"servoid monitor: {driver.describe()} at {rate:g} Hz, {length}; writing to {args.out}/",
+        markup=False,
+        soft_wrap=True,
+    )
+    err.print(
+        f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True
+    )
     err.print(f"  bounds    {bounds}", markup=False, soft_wrap=True)
     err.print(f"  rule      beyond a bound by > {config.rule.z:g} std at {config.rule.persist} checks in a row, "
               f"one check every {config.check_every} samples", markup=False, soft_wrap=True)  # fmt: skip
@@ -315,7 +373,7 @@ def _progress(bar: Callable[[int, str], None], unit: str) -> Callable[[MonitorPr
         e = p.estimate
         if e is not None:
             fit = "-" if math.isnan(e.fit) else f"{e.fit:.3g}"
-            text += (f" | c1 + c2 {e.dead_zone:.4g} +/- {e.dead_zone_std:.2g} {unit}, m2 {e.m2:.4g}, fit {fit}")
+            text += f" | c1 + c2 {e.dead_zone:.4g} +/- {e.dead_zone_std:.2g} {unit}, m2 {e.m2:.4g}, fit {fit}"
         text += " | alarms: " + (", ".join(p.active) if p.active else "none")
         bar(p.done, text)
 

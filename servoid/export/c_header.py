@@ -13,9 +13,10 @@ types and functions are guarded once, the parameters per name.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from importlib import resources
 from string import Template
-from typing import Any, Iterable
+from typing import Any
 
 from servoid import __version__
 from servoid.errors import ConfigError

@@ -80,7 +80,6 @@ from servoid.session.samples import (
     STATUSES,
     TIMEOUT,
     Sample,
-    Status,
     UsableRule,
     usable,
 )
@@ -138,7 +137,7 @@ class SessionConfig:
         validation.positive("give_up_after_s", self.give_up_after_s)
         validation.positive("progress_every_s", self.progress_every_s)
 
-    def resolved(self, driver: Driver) -> "SessionConfig":
+    def resolved(self, driver: Driver) -> SessionConfig:
         """This configuration with ``guard_samples`` decided for ``driver``."""
         if self.guard_samples is not None:
             return self
@@ -601,4 +600,3 @@ class _Sampler:
             slot_counts=dict(self.counts),
             usable_flags=np.array(self.flags, dtype=np.bool_) if self.keep_samples else None,
         )
-

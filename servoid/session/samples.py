@@ -20,6 +20,7 @@ from servoid import validation
 __all__ = ["Status", "OK", "LATE", "MISSED", "TIMEOUT", "Sample", "COLUMNS", "UsableRule", "usable",
            "DEFAULT_GUARD_SAMPLES"]  # fmt: skip
 
+
 class Status(str, enum.Enum):
     """What happened to one slot (:mod:`servoid.session.sampler` says when each applies).
 
@@ -139,5 +140,3 @@ def usable(status: Iterable[str], *, use_late: bool = False, guard: int = 0) -> 
     """Mask of the samples an estimator may use, by :class:`UsableRule`."""
     rule = UsableRule(use_late=use_late, guard=guard)
     return np.array([rule(str(s)) for s in status], dtype=np.bool_)
-
-

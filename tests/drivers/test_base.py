@@ -8,7 +8,6 @@ each real driver is then tested against its emulator by the contract tests.
 import math
 
 import numpy as np
-
 import pytest
 
 from servoid.drivers import Driver, Limits, Reading, UnitConversion, parse_url, register
@@ -224,4 +223,6 @@ def test_after_lost_requests_and_replies_no_step_the_servo_receives_exceeds_max_
     assert steps.max() <= max_step * (1 + 1e-9), f"a step of {steps.max():.4g} reached the servo"
     assert steps.max() >= max_step - (command_step or 0.0) - 1e-12  # the limit bound, nothing froze
     if command_step is not None:
-        np.testing.assert_allclose(np.asarray(d.applied) / command_step, np.round(np.asarray(d.applied) / command_step), atol=1e-9)
+        np.testing.assert_allclose(
+            np.asarray(d.applied) / command_step, np.round(np.asarray(d.applied) / command_step), atol=1e-9
+        )

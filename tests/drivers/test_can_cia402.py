@@ -14,16 +14,21 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM, SimCia402Drive
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
 from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+    recorded_run,
+)
 
 COUNT = 2 * math.pi / SIM_COUNTS_PER_REV
 

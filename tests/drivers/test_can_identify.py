@@ -12,12 +12,16 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can.simulated import simulated_drive
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import MRGIAConfig, identify, simulate
 
-from .can_helpers import PATIENT_S, bench_input, private_bus
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+)
 
 SAMPLES = 2500
 

@@ -13,17 +13,22 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.sim_odrive import SimOdriveAxis
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import DeviceFault, DriverTimeout
 from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+    recorded_run,
+)
 
 FLOAT32_TURN = 2 * math.pi * 2.0**-22  # resolution of a float32 position near one turn, rad
 

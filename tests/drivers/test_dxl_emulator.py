@@ -11,11 +11,11 @@ import time
 import dynamixel_sdk as sdk
 import pytest
 
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 from servoid.drivers.dynamixel.protocol import Instruction
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident.models.plant import Plant
 
 from .dxl_helpers import TEST_LATENCY_MS, clock, emulator  # noqa: F401 - fixtures

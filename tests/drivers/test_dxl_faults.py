@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import DeviceFault, DriverTimeout, ProtocolError
 from servoid.recording import RecordingWriter, read_recording
 
@@ -64,7 +64,9 @@ def corrupt_requests(emu):
     ],
     ids=["stops answering", "hardware error", "corrupted replies", "corrupted requests"],
 )
-def test_a_fault_is_named_the_recording_kept_and_the_torque_left_off(emulator, tmp_path, inject, error, message, caplog):  # noqa: F811
+def test_a_fault_is_named_the_recording_kept_and_the_torque_left_off(
+    emulator, tmp_path, inject, error, message, caplog
+):  # noqa: F811
     path = tmp_path / "run.csv"
     with caplog.at_level(logging.WARNING, logger="servoid.drivers"), pytest.raises(error, match=message):
         run(emulator, path, inject)

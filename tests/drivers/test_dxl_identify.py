@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, EmulatorProcess
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.ident import MRGIAConfig, identify, simulate
 
 from .dxl_helpers import TEST_LATENCY_MS, url

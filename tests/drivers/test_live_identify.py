@@ -54,8 +54,10 @@ from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.modelfile import load_model
 
-from .can_helpers import private_bus
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+)
 
 RATE_HZ = 500
 SAMPLES = 2000
@@ -110,7 +112,9 @@ def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, to
         live = identify(capsys, url, tmp_path / "live")
     acquisition = live["acquisition"]
     assert live["source"] == url and acquisition["samples"] == SAMPLES and acquisition["rate_hz"] == RATE_HZ
-    assert acquisition["counts"]["ok"] > SAMPLES // 2, acquisition["counts"]  # most slots on time, even on a busy machine
+    assert acquisition["counts"]["ok"] > SAMPLES // 2, acquisition[
+        "counts"
+    ]  # most slots on time, even on a busy machine
     assert load_model(tmp_path / "live" / "model.json").servo["driver"] == url.split(":")[0]
     if servo is odrive and acquisition["late_share"] >= 0.01:
         tolerance = TIMING_TOLERANCE  # see the module docstring

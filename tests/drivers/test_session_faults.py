@@ -20,21 +20,25 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any, Callable, ContextManager, Iterator
+from typing import Any, ContextManager
 
 import numpy as np
 import pytest
 
 from servoid.drivers import Driver, driver_from_url
-from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import DeviceFault, DriverError, DriverTimeout
 from servoid.recording import read_recording
 from servoid.session import SessionConfig, run_session
 
-from .can_helpers import PATIENT_S, private_bus
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+)
 
 FAULT_AT = 40
 RATE_HZ = 500.0

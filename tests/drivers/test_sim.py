@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.clock import VirtualClock
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
 from servoid.drivers.sim import SIM_PLANTS, SimDriver, reference_output_std
 from servoid.errors import ConfigError, DriverError
