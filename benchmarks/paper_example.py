@@ -101,7 +101,10 @@ def main() -> None:
         for name, make in (
             ("MRGIA as printed, r=0.25", lambda e: MRGIAConfig.paper(epsilon=e)),
             ("MRGIA + safeguards, r=0.25", lambda e: MRGIAConfig(epsilon=e)),
-            (f"MRGIA + safeguards, r={best_r[label]:g}", lambda e: MRGIAConfig(rho_exponent=best_r[label], epsilon=e)),
+            (
+                f"MRGIA + safeguards, r={best_r[label]:g}",
+                lambda e, r=best_r[label]: MRGIAConfig(rho_exponent=r, epsilon=e),
+            ),
         ):
             out = [mrgia_errors(s, make(e)) for s, e in zip(sims, eps)]
             errs = np.array([o[0] for o in out])

@@ -459,7 +459,7 @@ class Driver(abc.ABC):
         """What the servo says it is; drivers that know, override this."""
         return {}
 
-    def _set_period(self, period_s: float) -> None:
+    def _set_period(self, period_s: float) -> None:  # noqa: B027 - optional, the default ignores it
         """Learn the sample period; drivers whose device runs on its own time grid override this."""
 
     # ---- construction from a URL -------------------------------------------------------

@@ -46,7 +46,8 @@ class Regressor:
         """
         used = self.h[self.phi]
         n = max(self.h.shape[0], 1)
-        return used.T @ used / n
+        out: np.ndarray = used.T @ used / n
+        return out
 
 
 def _lagged(values: np.ndarray, lag: int) -> np.ndarray:

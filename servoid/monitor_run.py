@@ -502,7 +502,6 @@ class _Loop:
         for event in self.alarms.check(k, readings):
             self.events.append(event)
             self.history.alarm(event)
-            b = event.bound
             self._event("alarm" if event.raised else "clear", k, **event.to_dict())
             self._announce("alarm" if event.raised else "clear", event.message())
             if event.raised and self.config.stop_on_alarm:

@@ -182,7 +182,7 @@ def test_bad_samples_and_settings_are_rejected():
 def test_an_invalid_estimate_is_not_handed_out_as_a_model():
     est = MRGIA(MRGIAConfig.paper())  # theta(0) has c1 = c2 = 0
     with pytest.raises(ModelError, match="not a valid model: c1 \\(=0.0\\) must be > 0"):
-        est.model
+        _ = est.model
 
 
 def _drifting_record(n: int, c_sum: np.ndarray, seed: int, u: np.ndarray | None = None):

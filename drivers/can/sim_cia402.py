@@ -395,7 +395,7 @@ def _network_class(canopen: Any) -> Any:
     global _NETWORK_CLASS
     if _NETWORK_CLASS is None:
 
-        class _DriveNetwork(canopen.Network):  # type: ignore[misc, name-defined]
+        class _DriveNetwork(canopen.Network):  # type: ignore[misc]
             drive: SimCia402Drive | None = None
 
             def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:

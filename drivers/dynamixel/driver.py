@@ -245,7 +245,7 @@ class _Port(PortHandler):  # type: ignore[misc]
 
     def timeout_ms(self, packet_length: int) -> float:
         """The reply timeout the SDK will use for a reply of ``packet_length`` bytes."""
-        return self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0
+        return float(self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0)
 
 
 class DynamixelDriver(Driver):

@@ -350,7 +350,7 @@ def compensation_study(
     *,
     band: float,
     integral_gain: float | None = None,
-    sensor: Sensor = Sensor(),
+    sensor: Sensor = Sensor(),  # noqa: B008 - a frozen dataclass: one shared default is safe
     references: Sequence[Reference] | None = None,
     changes: Sequence[float] = CHANGES,
     families: Sequence[Family] = FAMILIES,
@@ -388,8 +388,7 @@ def compensation_study(
             raise ModelError(f"family (={fam!r}) must be one of {', '.join(map(repr, FAMILIES))}")
     total = 1 + len(families) * len(changes)
     report = progress or (lambda done, total: None)
-    common = {"band": band, "integral_gain": integral_gain, "sensor": sensor}
-    comparisons = _arms(plant, model, refs, **common)
+    comparisons = _arms(plant, model, refs, band=band, integral_gain=integral_gain, sensor=sensor)
     report(1, total)
     perturbations = []
     for fam in families:
@@ -401,7 +400,7 @@ def compensation_study(
                 report(len(perturbations) + 1, total)
                 continue
             try:
-                runs = _arms(plant, pmodel, refs, **common)
+                runs = _arms(plant, pmodel, refs, band=band, integral_gain=integral_gain, sensor=sensor)
             except LoopDiverged as exc:
                 perturbations.append(Perturbation(fam, float(change), pmodel, {}, note=str(exc)))
             else:

@@ -113,7 +113,7 @@ class TrackingController:
         self._inverse_params = inverse
         self.reset(upcoming, y0=y0, x0=x0)
 
-    def reset(self, upcoming: Sequence[float] | None = None, *, y0: float = 0.0, x0: float = 0.0) -> None:
+    def reset(self, upcoming: Sequence[float] | np.ndarray | None = None, *, y0: float = 0.0, x0: float = 0.0) -> None:
         """Start again at rest (output ``y0``, backlash input ``x0``), with ``r(0) .. r(P-1)``."""
         y0 = validation.real("y0", y0)
         ahead = [y0] * self.preview if upcoming is None else validation.signal("upcoming", upcoming).tolist()

@@ -408,7 +408,9 @@ def _round(
 
 
 def _check_pair(
-    train: tuple[np.ndarray, np.ndarray], val: tuple[np.ndarray, np.ndarray], config: MRGIAConfig
+    train: tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray],
+    val: tuple[Sequence[float] | np.ndarray, Sequence[float] | np.ndarray],
+    config: MRGIAConfig,
 ) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]:
     try:
         t = check_record(*train, config)

@@ -133,7 +133,8 @@ def _reversals(direction: np.ndarray) -> np.ndarray:
     if moving.size < 2:
         return np.empty(0, dtype=np.intp)
     d = direction[moving]
-    return moving[1:][d[1:] != d[:-1]]
+    out: np.ndarray = moving[1:][d[1:] != d[:-1]]
+    return out
 
 
 def _regime(group: str, label: str, mask: np.ndarray, r: np.ndarray, energy: float) -> Regime:

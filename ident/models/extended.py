@@ -297,7 +297,7 @@ class _Layout:
 
     def model(self, p: np.ndarray) -> ExtendedModel:
         lay = ThetaLayout(self.na, self.nb)
-        base = BacklashModel(a=p[lay.a], b=p[lay.b], delay=self.delay,
+        base = BacklashModel(a=tuple(p[lay.a]), b=tuple(p[lay.b]), delay=self.delay,
                              m2=float(p[lay.m2]), c1=float(p[lay.c1]), c2=float(p[lay.c2]))  # fmt: skip
         effects = []
         i = lay.n
@@ -326,7 +326,7 @@ class _ExtendedOutputError:
         if not schur_stable(np.ascontiguousarray(args.a)):
             return self.penalty
         _run(args, self.u, self.y0, self.x, self.y_hat, self.zone)
-        out = self.y_hat - self.y
+        out: np.ndarray = self.y_hat - self.y
         if not np.all(np.isfinite(out)):
             return self.penalty
         return out

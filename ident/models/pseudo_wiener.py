@@ -275,8 +275,8 @@ class BacklashModel:
         if th.size != lay.n:
             raise ModelError(f"theta has {th.size} entries, na={na} and nb={nb} need {lay.n}")
         return cls(
-            a=th[lay.a],
-            b=th[lay.b],
+            a=tuple(th[lay.a]),
+            b=tuple(th[lay.b]),
             delay=delay,
             m2=float(th[lay.m2]) + M1,
             c1=float(th[lay.c1]),

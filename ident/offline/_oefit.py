@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any, ContextManager
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -107,7 +108,7 @@ def covariance_from_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: in
     return cov, stderr
 
 
-def single_threaded_blas() -> ContextManager[Any]:
+def single_threaded_blas() -> AbstractContextManager[Any]:
     """Run BLAS on one thread inside the block.
 
     The least-squares steps factor tall, thin Jacobians (thousands of rows, a
@@ -116,7 +117,8 @@ def single_threaded_blas() -> ContextManager[Any]:
     """
     if threadpool_limits is None:  # pragma: no cover
         return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    limits: AbstractContextManager[Any] = threadpool_limits(limits=1, user_api="blas")
+    return limits
 
 
 def fit_output_error(

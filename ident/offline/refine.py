@@ -108,7 +108,7 @@ class _OutputError:
             return self.penalty
         simulate_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), self.delay, m2, c1, c2,
                         self.u, self.y0, self.x, self.y_hat, self.zone)  # fmt: skip
-        out = self.y_hat - self.y
+        out: np.ndarray = self.y_hat - self.y
         if self.keep is not None:
             out = out[self.keep]
         if not np.all(np.isfinite(out)):
@@ -117,7 +117,7 @@ class _OutputError:
 
     def model(self, p: np.ndarray) -> BacklashModel:
         a, b, m2, c1, c2 = self.split(p)
-        return BacklashModel(a=a, b=b, delay=self.delay, m2=m2, c1=c1, c2=c2)
+        return BacklashModel(a=tuple(a), b=tuple(b), delay=self.delay, m2=m2, c1=c1, c2=c2)
 
 
 def output_error_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:

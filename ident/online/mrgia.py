@@ -438,18 +438,18 @@ class MRGIA:
     @property
     def theta(self) -> np.ndarray:
         """Current estimate ``[a_1..a_na, b_0..b_nb, m2 - 1, c1, c2]`` (eq. 24); a copy."""
-        return self.state[self._lay.theta].copy()
+        return np.array(self.state[self._lay.theta])
 
     @property
     def P(self) -> np.ndarray:
         """Covariance matrix ``P(k)`` (eq. 21); a copy."""
         n = self._lay.n
-        return self.state[self._lay.P].reshape(n, n).copy()
+        return np.array(self.state[self._lay.P].reshape(n, n))
 
     @property
     def K(self) -> np.ndarray:
         """Gain vector ``K(k)`` of the last update (eq. 20); a copy."""
-        return self.state[self._lay.K].copy()
+        return np.array(self.state[self._lay.K])
 
     @property
     def S(self) -> float:
@@ -464,12 +464,12 @@ class MRGIA:
     @property
     def x_history(self) -> np.ndarray:
         """``x-hat(k-1) .. x-hat(k-na)``, newest first (eq. 27); a copy."""
-        return self.state[self._lay.x_history].copy()
+        return np.array(self.state[self._lay.x_history])
 
     @property
     def u_history(self) -> np.ndarray:
         """``u(k-1) .. u(k-d-nb)``, newest first; a copy."""
-        return self.state[self._lay.u_history].copy()
+        return np.array(self.state[self._lay.u_history])
 
     @property
     def samples(self) -> int:

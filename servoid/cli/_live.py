@@ -77,7 +77,9 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
     guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
-    return usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples) & np.isfinite(rec.y)
+    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples)
+    used &= np.isfinite(rec.y)
+    return used
 
 
 def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -> tuple[Record, MRGIAConfig]:
@@ -121,9 +123,10 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                                f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
         with _term.live_progress("live", args.samples) as bar:
-            update: Callable[[SessionProgress], None] = lambda p: bar(
-                p.done, _status_text(p, driver.position_unit.unit)
-            )
+
+            def update(p: SessionProgress) -> None:
+                bar(p.done, _status_text(p, driver.position_unit.unit))
+
             result = run_session(
                 driver, u, config, recording=path, metadata=meta, listeners=[online],
                 on_progress=None if quiet else update,

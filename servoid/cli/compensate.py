@@ -130,12 +130,12 @@ def _nominal_rows(study: CompensationStudy) -> list[list[str]]:
             _fmt(before.metrics.peak_error), _fmt(after.metrics.peak_error), str(study.peak_improvement(before, after)),
             f"{before.metrics.dead_time:.1f}", f"{after.metrics.dead_time:.1f}",
         ])  # fmt: skip
-    before, after = study.summary("uncompensated"), study.summary("compensated")
+    first, last = study.summary("uncompensated"), study.summary("compensated")
     rows.append([
         "all paths",
-        _fmt(before.rms_error), _fmt(after.rms_error), str(study.rms_improvement(before, after)),
-        _fmt(before.peak_error), _fmt(after.peak_error), str(study.peak_improvement(before, after)),
-        f"{before.dead_time:.1f}", f"{after.dead_time:.1f}",
+        _fmt(first.rms_error), _fmt(last.rms_error), str(study.rms_improvement(first, last)),
+        _fmt(first.peak_error), _fmt(last.peak_error), str(study.peak_improvement(first, last)),
+        f"{first.dead_time:.1f}", f"{last.dead_time:.1f}",
     ])  # fmt: skip
     return rows
 

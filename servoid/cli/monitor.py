@@ -241,7 +241,7 @@ def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
             f"--rate (={rate:g} Hz) differs from the rate the model was identified at ({1.0 / period:g} Hz): "
             "its linear block holds only at that rate; leave --rate out or identify again at this rate"
         )
-    return 1.0 / rate
+    return 1.0 / float(rate)
 
 
 def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:

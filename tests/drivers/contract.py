@@ -6,7 +6,7 @@ and hands out a driver for it, not yet open. ``test_contract.py`` runs every
 test over every entry of :data:`TRANSPORTS`.
 
 Adding a driver is one entry: write a factory
-``def _my_servo(faults: Faults, limits: Limits | None) -> ContextManager[Driver]``
+``def _my_servo(faults: Faults, limits: Limits | None) -> AbstractContextManager[Driver]``
 that starts its emulator with ``faults`` (those it cannot inject it leaves
 out of ``Transport.faults``, with the reason in ``Transport.cannot``, and the
 fault tests skip it saying so), yields a driver built from a URL (so the URL
@@ -30,9 +30,9 @@ import math
 import uuid
 from collections import deque
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ContextManager
 
 from servoid.drivers import Driver, Limits, driver_from_url
 from servoid.drivers.clock import VirtualClock
@@ -103,7 +103,7 @@ class Transport:
     """
 
     name: str
-    servo: Callable[[Faults, Limits | None], ContextManager[Driver]]
+    servo: Callable[[Faults, Limits | None], AbstractContextManager[Driver]]
     faults: frozenset[str] = field(default_factory=frozenset)
     plant: BacklashModel = MODEL_PLANT
     resolution: float = 0.0

@@ -65,8 +65,13 @@ def corrupt_requests(emu):
     ids=["stops answering", "hardware error", "corrupted replies", "corrupted requests"],
 )
 def test_a_fault_is_named_the_recording_kept_and_the_torque_left_off(
-    emulator, tmp_path, inject, error, message, caplog
-):  # noqa: F811
+    emulator,  # noqa: F811 - the fixture imported above
+    tmp_path,
+    inject,
+    error,
+    message,
+    caplog,
+):
     path = tmp_path / "run.csv"
     with caplog.at_level(logging.WARNING, logger="servoid.drivers"), pytest.raises(error, match=message):
         run(emulator, path, inject)

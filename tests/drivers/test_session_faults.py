@@ -21,8 +21,9 @@ from __future__ import annotations
 import contextlib
 import logging
 from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any, ContextManager
+from typing import Any
 
 import numpy as np
 import pytest
@@ -84,7 +85,7 @@ class Fault:
     """One fault: how to set up the device, inject the fault, and what must come out."""
 
     name: str
-    device: Callable[[], ContextManager[tuple[Driver, Any]]]
+    device: Callable[[], AbstractContextManager[tuple[Driver, Any]]]
     inject: Callable[[Any], None]
     error: type[DriverError]
     message: str
