@@ -1,3 +1,5 @@
+"""``servoid identify`` from the command line: the simulated servo and recordings, files, table and JSON."""
+
 import json
 
 import numpy as np

@@ -1,3 +1,5 @@
+"""The pseudo-Wiener model: theta (eq. 15), where the lines cross, validation of every parameter."""
+
 import numpy as np
 import pytest
 

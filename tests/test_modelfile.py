@@ -1,3 +1,5 @@
+"""``model.json``: round trip, bad files named, versions."""
+
 import json
 
 import pytest

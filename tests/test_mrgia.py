@@ -1,3 +1,5 @@
+"""The MRGIA: exact recovery, online equals batch, compiled equals Python, safeguards, reset, the regressor of eq. (25)."""
+
 import json
 import os
 import subprocess

@@ -1,3 +1,5 @@
+"""Recordings on disk: written as samples arrive, read back, a cut-off line survived."""
+
 import signal
 import subprocess
 import sys

@@ -1,3 +1,5 @@
+"""Output-error refinement and the identification pipeline: better fits, honest standard errors, bad records named."""
+
 import numpy as np
 import pytest
 from conftest import paper_record

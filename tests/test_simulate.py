@@ -1,3 +1,5 @@
+"""Simulation of the pseudo-Wiener model: the backlash zones, the direction rule, the stepped plant."""
+
 import numpy as np
 import pytest
 
