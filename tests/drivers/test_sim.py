@@ -104,3 +104,14 @@ def test_url_options():
     ]:
         with pytest.raises(ConfigError, match=fragment):
             driver_from_url(url)
+
+
+def test_the_simulated_servo_declares_its_extra_members_and_a_real_driver_does_not_have_them():
+    from servoid.drivers.serial.driver import SerialDriver
+    from servoid.drivers.simulated import SimulatedServo
+
+    sim = SimDriver(plant="paper", snr=40, clock="virtual", drift=1.5, drift_samples=100)
+    assert isinstance(sim, SimulatedServo)
+    assert sim.truth == PAPER_PLANT and sim.truth_at(100).dead_zone == pytest.approx(1.5 * PAPER_PLANT.dead_zone)
+    assert isinstance(sim.clock, VirtualClock) and sim.noise_std > 0 and sim.reference_amplitude > 0
+    assert not isinstance(SerialDriver(port="/dev/null"), SimulatedServo)
