@@ -3,13 +3,17 @@
 #                and export its compensation parameters as a C header
 #   make test    create .venv, install servoid with test tools, run the tests
 #   make bench   run the benchmarks (tables on stdout)
+#   make lint    install ruff and mypy into .venv, then lint, check the format and check the types
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
+LINT_STAMP := $(VENV)/.lint-installed
+# mypy must see the pillars where Python imports them (servoid.ident, ...): a tree of links
+LINT_TREE  := build/lint
 DEMO_OUT ?= servoid-run
 
-.PHONY: install demo test bench clean
+.PHONY: install demo test bench lint clean
 
 $(STAMP): pyproject.toml setup.py
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +28,18 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest
+
+$(LINT_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet --disable-pip-version-check -e ".[test,lint]"
+	touch $(LINT_STAMP)
+
+lint: $(LINT_STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	rm -rf $(LINT_TREE) && mkdir -p $(LINT_TREE)/servoid
+	for f in servoid/*; do ln -s "$(CURDIR)/$$f" $(LINT_TREE)/servoid/; done
+	for p in ident excitation drivers; do ln -s "$(CURDIR)/$$p" $(LINT_TREE)/servoid/$$p; done
+	MYPYPATH=$(LINT_TREE) $(VENV)/bin/mypy -p servoid
 
 bench: $(STAMP)
 	@for f in benchmarks/[!_]*.py; do echo "== $$f"; $(PY) $$f || exit 1; done

@@ -18,9 +18,9 @@ from __future__ import annotations
 import time
 
 from servoid.ident import PAPER_PLANT
-from servoid.ident.compensate import BacklashInverse, InverseParams, default_band
-from servoid.ident.compensation_study import compensation_study
-from servoid.ident.tracking import Sensor, TrackingController
+from servoid.ident.control.compensate import BacklashInverse, InverseParams, default_band
+from servoid.ident.control.compensation_study import compensation_study
+from servoid.ident.control.tracking import Sensor, TrackingController
 
 RESOLUTION = 0.0075
 

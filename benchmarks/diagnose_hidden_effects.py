@@ -2,7 +2,7 @@
 
 For every effect of the library at two strengths, and with no effect, at
 SNR 40 with 6000 training and 6000 validation samples (the paper's plant and
-input, :mod:`servoid.ident.hidden`), run :func:`servoid.ident.diagnose.diagnose`
+input, :mod:`servoid.ident.diagnosis.hidden_effects`), run :func:`servoid.ident.diagnosis.diagnose.diagnose`
 without telling it the effect, and print: the effect it names, its size
 estimate against the truth, the validation gap before and after, and the time
 per run. Then a confusion table over several seeds, which says which effects
@@ -16,10 +16,10 @@ from __future__ import annotations
 import argparse
 import time
 
-from servoid.ident.diagnose import DiagnoseConfig, diagnose
-from servoid.ident.effects import EFFECTS, EFFECT_NAMES, NONE
-from servoid.ident.hidden import HIDDEN_STRENGTHS, hidden_effect_record
-from servoid.ident.mrgia import MRGIAConfig
+from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+from servoid.ident.diagnosis.hidden_effects import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, EFFECTS, NONE
+from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 
 SAMPLES = 6000
@@ -76,8 +76,10 @@ def main() -> None:
             print(f"{effect:17s} {truth:>6s} {seed:4d}  {shown:26s} {estimate:>9s} {rel:>8s} "
                   f"{result.gap_before:10.4f} {result.gap_after:9.4f} {ratio:6.2f} {elapsed:5.1f}s", flush=True)  # fmt: skip
     print()
-    print(f"named right: {right}/{total}; worst gap ratio after/before with an effect hidden: {worst_ratio:.2f} "
-          f"(target <= 0.6); time per run: median {sorted(times)[len(times) // 2]:.1f} s, max {max(times):.1f} s")
+    print(
+        f"named right: {right}/{total}; worst gap ratio after/before with an effect hidden: {worst_ratio:.2f} "
+        f"(target <= 0.6); time per run: median {sorted(times)[len(times) // 2]:.1f} s, max {max(times):.1f} s"
+    )
     print()
     print("confusion (rows: hidden, columns: named; counts over strengths and seeds)")
     names = list(EFFECT_NAMES)

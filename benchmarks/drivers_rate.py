@@ -8,7 +8,7 @@ three tables:
    process) and with the simulated servo in this process;
 2. the sampling session over the serial pty at 100 Hz, 500 Hz and 1 kHz: the
    rate answered, and the share of ok / late / missed / timed-out slots;
-3. identification of BENCH_PLANT from the same excitation on the serial path
+3. identification of MODEL_PLANT from the same excitation on the serial path
    and on the simulated driver (virtual time: no timing faults at all), as the
    maximum relative parameter error of the online MRGIA and of the refined model.
 
@@ -23,18 +23,17 @@ import os
 import time
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.drivers.serial.emulator import FirmwareEmulator
 from servoid.ident import MRGIA, MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session
 
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
-
 
 def latency(url: str, n: int) -> np.ndarray:
-    u = np.random.default_rng(0).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, n)
+    u = np.random.default_rng(0).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, n)
     out = np.empty(n)
     with driver_from_url(url) as servo:
         servo.enable()
@@ -79,7 +78,7 @@ def main() -> None:
     for rate in (100.0, 500.0, 1000.0):
         n = int(args.seconds * rate)
         with FirmwareEmulator() as fresh:
-            result, _, stats = session(fresh.url, rate, rng.uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, n))
+            result, _, stats = session(fresh.url, rate, rng.uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, n))
         c, total = result.counts, len(result)
         sent = np.isfinite(result.t_actual)
         lateness = (result.t_actual - result.t)[sent] * 1e6
@@ -90,7 +89,7 @@ def main() -> None:
           ["asked Hz", "answered Hz", "ok", "late", "missed", "timeout", "start p99 us", "exchange us",
            "rejected"], rows)  # fmt: skip
 
-    u = np.random.default_rng(2).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, args.samples)
+    u = np.random.default_rng(2).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, args.samples)
     rows = []
     for name, url, rate in (
         ("sim, virtual time", "sim://?clock=virtual", 500.0),
@@ -101,10 +100,10 @@ def main() -> None:
         with FirmwareEmulator() as fresh:  # every run starts from a servo at rest
             result, est, _ = session(fresh.url if url == "serial" else url, rate, u)
         ident = identify(result.u, result.y, MRGIAConfig(), valid=result.valid)
-        online = est.model.max_relative_error(BENCH_PLANT)
+        online = est.model.max_relative_error(MODEL_PLANT)
         rows.append([name, f"{rate:g}", f"{int(result.valid.sum())}/{len(result)}", f"{online:.2e}",
-                     f"{ident.model.max_relative_error(BENCH_PLANT):.2e}", f"{ident.fit_nrmse:.2e}"])  # fmt: skip
-    table(f"3. identifying BENCH_PLANT, {args.samples} samples of uniform +/-{BENCH_AMPLITUDE} rad",
+                     f"{ident.model.max_relative_error(MODEL_PLANT):.2e}", f"{ident.fit_nrmse:.2e}"])  # fmt: skip
+    table(f"3. identifying MODEL_PLANT, {args.samples} samples of uniform +/-{MODEL_AMPLITUDE} rad",
           ["path", "Hz", "used samples", "MRGIA max rel err", "refined max rel err", "fit NRMSE"], rows)  # fmt: skip
     load = os.getloadavg()
     print(f"\nload average at the end: {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f}")

@@ -26,20 +26,19 @@ import os
 import time
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.emulator import EmulatorProcess
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 RATES_HZ = (100.0, 500.0, 1000.0)
 LOOP_LATENCY_MS = 1.0
 
 
 def run(poll: str, rate: float, seconds: float) -> list[str]:
-    u = np.random.default_rng(0).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, int(rate * seconds))
+    u = np.random.default_rng(0).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, int(rate * seconds))
     with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate) as emu:
         with driver_from_url(emu.url(1, latency_ms=LOOP_LATENCY_MS)) as servo:
             servo._port.poll = poll  # the SDK's own busy-polling, or the driver's select() wait

@@ -3,7 +3,7 @@
 Run: ``.venv/bin/python benchmarks/monitor.py`` (about two minutes on one core). Everything
 runs through the real path: the simulated servo (``sim://``, virtual clock,
 so no real-time waiting), the sampling session keeping no samples, the
-tracker, the alarm rule and the files (:func:`servoid.monitor.run_monitor`),
+wear estimator, the alarm rule and the files (:func:`servoid.monitor_run.run_monitor`),
 at 1 kHz, checking every 100 samples and writing a row at every check.
 
 The servo is ``sim://?plant=gear&snr=40``: the paper's linear block and
@@ -16,7 +16,7 @@ default (beyond a bound by more than 2 std at 5 checks in a row).
 1. Tracking: c1 + c2 ramps from 1.0 to 1.5 over 200 000 samples (after
    20 000 at 1.0, then 100 000 at 1.5). RMS error of the estimate over the
    ramp, its lag, scatter and bias on the plateau (as in
-   ``benchmarks/tracking.py``: :func:`tracking.ramp_figures`); the reported
+   ``benchmarks/random_walk.py``: :func:`random_walk.ramp_figures`); the reported
    standard deviation; when the alarm came against the time the truth
    crossed the bound.
 2. Detection: a gear swap multiplies c1 and c2 by 1.2 at sample 50 000
@@ -28,7 +28,7 @@ default (beyond a bound by more than 2 std at 5 checks in a row).
    runs' detection delay for each rule.
 4. Memory: resident set size over the 1 000 000-sample run, and Python's
    traced allocations (tracemalloc) over a 300 000-sample run.
-5. Cost per sample: the whole monitor, the session with the simulated servo alone, the tracker alone.
+5. Cost per sample: the whole monitor, the session with the simulated servo alone, the wear estimator alone.
 6. Other servos and inputs: the bench servo (rad, c1 + c2 = 0.05 rad) under
    its uniform input, and under a slow operating trajectory with a small
    excitation on top; the same ramp by 1.5 (the lag is left out: with a
@@ -43,22 +43,29 @@ import statistics
 import tempfile
 import time
 import tracemalloc
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
+from random_walk import (  # benchmarks/random_walk.py: one definition of the figures
+    AFTER,
+    BEFORE,
+    PLATEAU,
+    RAMP,
+    ramp_figures,
+)
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.excitation import UniformSpec, parse_spec, stream
-from servoid.ident.alarms import AlarmRule, Alarms, Bound
-from servoid.ident.monitor import Tracker, TrackerConfig
+from servoid.ident.models.wear import GEAR_PLANT
+from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
+from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
-from servoid.ident.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile
-from servoid.monitor import MonitorConfig, MonitorProgress, MonitorResult, read_estimates, run_monitor
+from servoid.monitor_run import MonitorConfig, MonitorProgress, MonitorResult, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
-from tracking import AFTER, BEFORE, PLATEAU, RAMP, ramp_figures  # benchmarks/tracking.py: one definition of the figures
 
 RATE = 1000.0
 CHECK = 100
@@ -89,7 +96,7 @@ def monitor(
     """One monitoring run; returns the result, the rows of estimates.csv and the wall time per sample (s)."""
     with driver_from_url(url) as servo:
         config = MonitorConfig(
-            tracker=TrackerConfig(reference=model, noise_std=servo.noise_std), bounds=bounds_for(model, unit=unit),
+            estimator=WearEstimatorConfig(reference=model, noise_std=servo.noise_std), bounds=bounds_for(model, unit=unit),
             check_every=CHECK, row_every=CHECK, stop_on_alarm=stop_on_alarm,
         )  # fmt: skip
         if inputs is None:
@@ -104,7 +111,7 @@ def monitor(
 
 
 def figures(rows: dict[str, np.ndarray], total: int) -> dict[str, float]:
-    """:func:`tracking.ramp_figures` of a run's rows, and the median reported std on the plateau (relative)."""
+    """:func:`random_walk.ramp_figures` of a run's rows, and the median reported std on the plateau (relative)."""
     f = ramp_figures(rows["k"], rows["dead_zone"], rows["true_dead_zone"], total=total)
     plateau = rows["k"] >= total - PLATEAU
     f["reported"] = float(np.median(rows["dead_zone_std"][plateau])) / rows["true_dead_zone"][0]
@@ -122,7 +129,9 @@ def tracking(tmp: Path) -> None:
     print(f"1. tracking c1 + c2 from 1.0 to 1.5 over {RAMP} samples at SNR 40 ({url})")
     print(f"   RMS error over the ramp        {f['rms']:.4f}")
     print(f"   lag of the estimate            {f['lag']:.0f} samples ({f['lag'] / RATE:.2f} s at {RATE:g} Hz)")
-    print(f"   plateau: scatter / bias        {f['std']:.4f} / {f['bias']:+.4f} (relative)   reported std {f['reported']:.4f}")
+    print(
+        f"   plateau: scatter / bias        {f['std']:.4f} / {f['bias']:+.4f} (relative)   reported std {f['reported']:.4f}"
+    )
     if alarm is not None:
         truth = GEAR_PLANT.dead_zone * (1.0 + 0.5 * (alarm.sample - BEFORE) / RAMP)
         print(f"   alarm at c1 + c2 > {high:.3g}          truth crossed at sample {crossed:.0f}, alarm decided at "
@@ -148,8 +157,10 @@ RULES = [("raw: z 0, persist 1", AlarmRule(z=0.0, persist=1)), ("z 0, persist 5"
 
 
 def detection(tmp: Path) -> list[dict[str, np.ndarray]]:
-    print(f"2. detecting a gear swap: c1 + c2 x 1.2 at sample {SWAP_AT}, bound +10 %, stop at the alarm "
-          "(checks every 100 samples)")
+    print(
+        f"2. detecting a gear swap: c1 + c2 x 1.2 at sample {SWAP_AT}, bound +10 %, stop at the alarm "
+        "(checks every 100 samples)"
+    )
     delays, runs = [], []
     for seed in range(5):
         url = f"{GEAR}&seed={seed}&swap_at={SWAP_AT}&swap_factor=1.2"
@@ -158,13 +169,17 @@ def detection(tmp: Path) -> list[dict[str, np.ndarray]]:
         delay = math.nan if alarm is None else alarm.sample - SWAP_AT
         delays.append(delay)
         since = "-" if alarm is None else f"{alarm.since - SWAP_AT}"
-        print(f"   seed {seed}: alarm {delay:.0f} samples after the swap (out of bounds from +{since}); "
-              f"stopped: {result.stopped}")
+        print(
+            f"   seed {seed}: alarm {delay:.0f} samples after the swap (out of bounds from +{since}); "
+            f"stopped: {result.stopped}"
+        )
         # the same servo without stopping, rows at every check, for the rule table
         _, rows, _ = monitor(url, SWAP_RUN, tmp / f"swap{seed}-all", seed=seed + 10)
         runs.append(rows)
-    print(f"   median {statistics.median(delays):.0f} samples, worst {max(delays):.0f} "
-          f"({statistics.median(delays) / RATE * 1e3:.0f} / {max(delays) / RATE * 1e3:.0f} ms at {RATE:g} Hz)")
+    print(
+        f"   median {statistics.median(delays):.0f} samples, worst {max(delays):.0f} "
+        f"({statistics.median(delays) / RATE * 1e3:.0f} / {max(delays) / RATE * 1e3:.0f} ms at {RATE:g} Hz)"
+    )
     print()
     return runs
 
@@ -187,7 +202,9 @@ def false_alarms(tmp: Path, step_runs: list[dict[str, np.ndarray]]) -> tuple[lis
     print(f"   alarms raised by the run (c1 + c2 and m2 within +/- 10 %): {sum(e.raised for e in result.events)}")
     print(f"   c1 + c2 / 1.0: range {dz[settled].min():.4f} .. {dz[settled].max():.4f}, scatter "
           f"{np.std(dz[settled]):.4f}, reported std {np.median(rows['dead_zone_std'][settled]):.4f}")  # fmt: skip
-    print(f"   m2 / 1.5:      range {m2[settled].min():.4f} .. {m2[settled].max():.4f}, scatter {np.std(m2[settled]):.4f}")
+    print(
+        f"   m2 / 1.5:      range {m2[settled].min():.4f} .. {m2[settled].max():.4f}, scatter {np.std(m2[settled]):.4f}"
+    )
     print("   the same 10 000 checks replayed (false alarms on c1 + c2 per bound), and the swap's detection delay:")
     shares = (0.015, 0.02, 0.03, 0.05, 0.10)
     head = "".join(f"{'+/-' + format(s * 100, 'g') + ' %':>9s}" for s in shares)
@@ -232,24 +249,26 @@ def cost_table(monitor_wall: float) -> None:
         started = time.perf_counter()
         run_session(servo, u, SessionConfig(period_s=1.0 / RATE), keep_samples=False)
         session = (time.perf_counter() - started) / n
-    tracker = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=0.0337))
+    estimator = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=0.0337))
     rng = np.random.default_rng(0)
     uu, yy = rng.uniform(-2.4, 2.4, n), rng.normal(0.0, 1.0, n)
-    tracker.update(0.0, 0.0)
+    estimator.update(0.0, 0.0)
     started = time.perf_counter()
     for a, b in zip(uu, yy):
-        tracker.update(a, b)
+        estimator.update(a, b)
     alone = (time.perf_counter() - started) / n
     print("5. cost per sample (wall time, this machine)")
     print(f"   the whole monitor (1 000 000-sample run)      {monitor_wall * 1e6:6.1f} us")
     print(f"   the session with the simulated servo alone     {session * 1e6:6.1f} us")
-    print(f"   the tracker alone (MRGIA step + fit)           {alone * 1e6:6.1f} us")
+    print(f"   the wear estimator alone (MRGIA step + fit)      {alone * 1e6:6.1f} us")
     print()
 
 
 def other_servos(tmp: Path) -> None:
     n = BEFORE + RAMP + AFTER
-    print("6. other servos and inputs: c1 + c2 ramped by 1.5 over 200 000 samples, SNR 40 (errors relative to the unworn c1 + c2)")
+    print(
+        "6. other servos and inputs: c1 + c2 ramped by 1.5 over 200 000 samples, SNR 40 (errors relative to the unworn c1 + c2)"
+    )
     print(f"   {'servo and input':62s} {'RMS':>7s} {'std':>7s} {'bias':>8s}")
     cases = [
         ("bench servo (rad), uniform +/-0.2 rad", None),
@@ -263,7 +282,7 @@ def other_servos(tmp: Path) -> None:
             op = stream(parse_spec(operating), seed=2, n=n)
             inputs = (a + b for a, b in zip(op, stream(UniformSpec(amplitude=0.05), seed=1, n=n)))
         _, rows, _ = monitor(url, n, tmp / label.split(",")[0].replace(" ", "_") / str(operating is None),
-                             model=BENCH_PLANT, inputs=inputs, unit="rad")  # fmt: skip
+                             model=MODEL_PLANT, inputs=inputs, unit="rad")  # fmt: skip
         f = figures(rows, n)
         print(f"   {label:62s} {f['rms']:7.4f} {f['std']:7.4f} {f['bias']:+8.4f}")
     print()

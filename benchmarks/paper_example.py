@@ -26,7 +26,7 @@ import time
 import numpy as np
 
 from servoid.errors import EstimatorDiverged
-from servoid.ident import MRGIA, MRGIAConfig, PAPER_PLANT, identify, noise_epsilon, refine, run_mrgia, simulate
+from servoid.ident import MRGIA, PAPER_PLANT, MRGIAConfig, identify, noise_epsilon, refine, run_mrgia, simulate
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_REPORTED_MAX_RELATIVE_ERROR, PAPER_SNR
 
 CHECKPOINTS = (600, 2000, 5000, 20_000)
@@ -90,15 +90,21 @@ def main() -> None:
             errs = [mrgia_errors(s, MRGIAConfig(rho_exponent=r, epsilon=e))[0][-1] for s, e in zip(sims, eps)]
             scan[r] = float(np.median(errs))
         best_r[label] = min(scan, key=scan.get)  # type: ignore[arg-type]
-        print(f"\n[{label}] rho exponent scan, median max relative error at k = {n}: "
-              + ", ".join(f"r={r:g}: {v:.1e}" for r, v in scan.items()) + f"  -> best r = {best_r[label]:g}")
+        print(
+            f"\n[{label}] rho exponent scan, median max relative error at k = {n}: "
+            + ", ".join(f"r={r:g}: {v:.1e}" for r, v in scan.items())
+            + f"  -> best r = {best_r[label]:g}"
+        )
 
         rows = []
         flagged = {}
         for name, make in (
             ("MRGIA as printed, r=0.25", lambda e: MRGIAConfig.paper(epsilon=e)),
             ("MRGIA + safeguards, r=0.25", lambda e: MRGIAConfig(epsilon=e)),
-            (f"MRGIA + safeguards, r={best_r[label]:g}", lambda e: MRGIAConfig(rho_exponent=best_r[label], epsilon=e)),
+            (
+                f"MRGIA + safeguards, r={best_r[label]:g}",
+                lambda e, r=best_r[label]: MRGIAConfig(rho_exponent=r, epsilon=e),
+            ),
         ):
             out = [mrgia_errors(s, make(e)) for s, e in zip(sims, eps)]
             errs = np.array([o[0] for o in out])
@@ -118,12 +124,16 @@ def main() -> None:
                 refined[i, j] = res.model.max_relative_error(PAPER_PLANT)
         rows.append((f"refined (mrgia+oe), r={best_r[label]:g}", fmt(refined)))
         table(f"[{label}] max relative parameter error over {len(sims)} seeds", rows, header)
-        print("\nruns with a recovery / unsettled at the end (flagged) / diverged (reported) / not converged "
-              f"at k=20000 ({'> 1e-6' if snr is None else '> 0.1'}):")
+        print(
+            "\nruns with a recovery / unsettled at the end (flagged) / diverged (reported) / not converged "
+            f"at k=20000 ({'> 1e-6' if snr is None else '> 0.1'}):"
+        )
         for name, (rec, unsettled, diverged, bad) in flagged.items():
             print(f"  {name:32s} {rec:3d} / {unsettled:3d} / {diverged:3d} / {bad:3d}")
-        print(f"identify() on {n} samples (MRGIA + two refinements): median {np.median(t_refine):.3f} s, "
-              f"worst {np.max(t_refine):.3f} s")
+        print(
+            f"identify() on {n} samples (MRGIA + two refinements): median {np.median(t_refine):.3f} s, "
+            f"worst {np.max(t_refine):.3f} s"
+        )
         if snr is not None:
             print(f"paper's reported max relative error (noisy case): {PAPER_REPORTED_MAX_RELATIVE_ERROR:.2e}")
 
@@ -151,8 +161,10 @@ def main() -> None:
         t_ref.append(time.perf_counter() - t0)
     print("\nspeed")
     print(f"  refine() on {n} samples from the MRGIA estimate: median {np.median(t_ref):.3f} s (target <= 2 s)")
-    print(f"  MRGIA.update          median {np.median(costs) / 1e3:.2f} us, p99 {np.percentile(costs, 99) / 1e3:.2f} us "
-          "per sample (target <= 5 us)")
+    print(
+        f"  MRGIA.update          median {np.median(costs) / 1e3:.2f} us, p99 {np.percentile(costs, 99) / 1e3:.2f} us "
+        "per sample (target <= 5 us)"
+    )
     print(f"  run_mrgia (batch)     {batch / 1e6:.2f} million samples/s (target >= 1)")
 
 

@@ -22,7 +22,7 @@ Table 2: ``servoid identify --driver URL --rate 500 --json`` on each
 transport and on the simulated servo (``sim://?clock=virtual``, the same
 plant in simulated time), with the same seeded excitation: the largest
 relative error of the online MRGIA's and of the refined parameters against
-BENCH_PLANT, and the share of samples used.
+MODEL_PLANT, and the share of samples used.
 
 The machine's load is printed before and after: on a shared 2-core machine the
 late and missed shares are the scheduler's as much as the link's.
@@ -46,14 +46,13 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.cli import main as servoid_main
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.session import SessionConfig, run_session
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 IDENTIFY_RATE_HZ = 500.0
 
@@ -107,7 +106,7 @@ TRANSPORTS: dict[str, Callable[[float], contextlib.AbstractContextManager[str]]]
 
 # ---- measurements ---------------------------------------------------------------------------------
 def session_row(name: str, rate: float, seconds: float, seed: int) -> list[str]:
-    u = np.random.default_rng(seed).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, int(rate * seconds))
+    u = np.random.default_rng(seed).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, int(rate * seconds))
     with TRANSPORTS[name](rate) as url, driver_from_url(url) as servo:
         result = run_session(servo, u, SessionConfig(period_s=1 / rate))
     n = len(result)
@@ -130,8 +129,8 @@ def identify_json(url: str, samples: int, out: Path) -> dict:
 
 def identification_row(name: str, url: str, samples: int, out: Path) -> list[str]:
     result = identify_json(url, samples, out)
-    refined = BacklashModel.from_dict(result["model"]).max_relative_error(BENCH_PLANT)
-    mrgia = BacklashModel.from_dict(result["mrgia"]["model"]).max_relative_error(BENCH_PLANT)
+    refined = BacklashModel.from_dict(result["model"]).max_relative_error(MODEL_PLANT)
+    mrgia = BacklashModel.from_dict(result["mrgia"]["model"]).max_relative_error(MODEL_PLANT)
     counts = result["acquisition"]["counts"]
     return [name, f"{IDENTIFY_RATE_HZ:g}", f"{counts['ok']}/{samples}", f"{mrgia:.2e}", f"{refined:.2e}",
             f"{result['fit_nrmse']:.2e}"]  # fmt: skip
@@ -140,7 +139,9 @@ def identification_row(name: str, url: str, samples: int, out: Path) -> list[str
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seconds", type=float, default=3.0, help="length of each session of table 1, s (default 3)")
-    parser.add_argument("--samples", type=int, default=4000, help="samples of each identification of table 2 (default 4000)")
+    parser.add_argument(
+        "--samples", type=int, default=4000, help="samples of each identification of table 2 (default 4000)"
+    )
     parser.add_argument("--rates", type=float, nargs="+", default=[100.0, 500.0, 1000.0], help="rates of table 1, Hz")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
@@ -159,7 +160,7 @@ def main() -> int:
             with transport(IDENTIFY_RATE_HZ) as url:
                 ident.append(identification_row(name, url, args.samples, Path(tmp) / name.replace(" / ", "-")))
     table(
-        f"2. servoid identify --driver URL --rate {IDENTIFY_RATE_HZ:g}: BENCH_PLANT from {args.samples} samples "
+        f"2. servoid identify --driver URL --rate {IDENTIFY_RATE_HZ:g}: MODEL_PLANT from {args.samples} samples "
         "(max relative parameter error)",
         ["transport", "Hz", "ok samples", "MRGIA", "refined", "fit NRMSE"],
         ident,

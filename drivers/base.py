@@ -12,12 +12,13 @@ What a driver MUST implement
 ``_set_torque(self, enabled: bool) -> None``
     Switch the servo's output stage on or off (Dynamixel Torque Enable, CiA 402
     state machine, the serial firmware's enable request, ...).
-``_exchange(self, command: float) -> Reading``
+``_exchange(self, command: float, slot: int | None) -> Reading``
     Send one command, in the driver's native unit, and return the measurement
     that answers it (position in native units, with the device's clock when it
-    has one). One call per sample. During a session, :attr:`Driver.exchange_slot`
-    holds the slot number ``k`` of the sample (scheduled at ``t0 + k T``), for
-    devices that want to know how many periods lie between two commands.
+    has one). One call per sample. ``slot`` is the sampling session's slot
+    number ``k`` of the sample (scheduled at ``t0 + k T``; None outside a
+    session), for devices that want to know how many periods lie between two
+    commands.
 
 What a driver MAY implement
 ---------------------------
@@ -68,7 +69,11 @@ rounding of commands to the device's resolution (:meth:`Driver.quantise`),
 safety limits (a command outside the position range, farther than
 ``amplitude`` from ``centre`` or changing faster than ``max_step`` per sample
 is clamped and counted, never sent; a measured position farther than
-``guard`` outside the range stops the run with the torque off), the context
+``guard`` outside the range stops the run with the torque off), the last
+command sent and which commands the servo may hold (:attr:`Driver.last_command`,
+:attr:`Driver.possibly_held`: after a lost reply or a lost request the servo
+holds either the new command or the one before, and the next command is kept
+within ``max_step`` of both), the context
 manager, idempotent :meth:`Driver.close` that always tries to leave the torque
 off, unwrapping of the device clock, counters, and wrapping of library errors
 into :mod:`servoid.errors` (``raise ... from``): a ``TimeoutError`` becomes
@@ -82,9 +87,9 @@ from __future__ import annotations
 import abc
 import logging
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
-from collections.abc import Callable, Mapping
 
 from servoid import validation
 from servoid.errors import ConfigError, DriverError, DriverTimeout, PositionOutOfRange, ServoidError
@@ -203,15 +208,42 @@ class Limits:
         """Highest command sent."""
         return min(self.maximum, self.centre + self.amplitude)
 
-    def clamp(self, requested: float, previous: float | None) -> float:
-        """The command to send for ``requested``, given the last command sent."""
+    def window(self, held: tuple[float, float] | None) -> tuple[float, float]:
+        """The commands allowed next, ``(low, high)``: inside the range and within ``max_step`` of every held one.
+
+        Parameters
+        ----------
+        held : (float, float) or None
+            The lowest and highest command the servo may hold now (one value
+            twice when it is known; two after a lost reply or request, when
+            the servo holds either the new command or the one before); None
+            before the first command.
+        """
         low, high = self.low, self.high
-        value = min(max(requested, low), high)
-        if previous is not None and math.isfinite(self.max_step):
-            value = min(max(value, previous - self.max_step), previous + self.max_step)
-            # the step limit never leaves the range: previous lies inside it
-            value = min(max(value, low), high)
-        return value
+        if held is not None and math.isfinite(self.max_step):
+            # every held command lies inside the range and within max_step of the others (each was
+            # sent from such a window), so this window holds them all and is never empty
+            low = max(low, held[1] - self.max_step)
+            high = min(high, held[0] + self.max_step)
+            if low > high:  # only for held commands that broke the rule (rounding): stay between them
+                low = high = min(max(0.5 * (held[0] + held[1]), self.low), self.high)
+        return low, high
+
+    def clamp(self, requested: float, held: float | tuple[float, float] | None = None) -> float:
+        """The command to send for ``requested`` (see :meth:`window`).
+
+        Parameters
+        ----------
+        requested : float
+            The command asked for.
+        held : float or (float, float) or None
+            The command the servo holds (or the lowest and highest it may hold);
+            None before the first command.
+        """
+        if isinstance(held, (int, float)):
+            held = (float(held), float(held))
+        low, high = self.window(held)
+        return min(max(requested, low), high)
 
     def position_ok(self, position: float) -> bool:
         """Whether a measured position lies within ``guard`` of the range (always, when the guard is off)."""
@@ -220,7 +252,7 @@ class Limits:
         return self.minimum - self.guard <= position <= self.maximum + self.guard
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Reading:
     """One measurement as a driver primitive returns it, in native units.
 
@@ -240,7 +272,7 @@ class Reading:
     current: float | None = None
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Measurement:
     """One exchange as the user sees it: in the user's units.
 
@@ -396,11 +428,11 @@ class Driver(abc.ABC):
         self._is_open = False
         self._torque = False
         self._last_command: float | None = None
+        self._held: tuple[float, float] | None = None
         self._clock_last: float | None = None
         self._clock_offset = 0.0
         self._identity_cache: dict[str, Any] | None = None
         self.sample_period_s: float | None = None
-        self._exchange_slot: int | None = None
 
     # ---- primitives -----------------------------------------------------------------
     @abc.abstractmethod
@@ -416,8 +448,8 @@ class Driver(abc.ABC):
         """Switch the output stage on or off."""
 
     @abc.abstractmethod
-    def _exchange(self, command: float) -> Reading:
-        """Send one command (native unit); return the measurement that answers it."""
+    def _exchange(self, command: float, slot: int | None) -> Reading:
+        """Send one command (native unit) for the session's slot ``slot``; return the measurement that answers it."""
 
     def _read(self) -> Reading:
         """A measurement without a command; drivers that can, override this."""
@@ -427,7 +459,7 @@ class Driver(abc.ABC):
         """What the servo says it is; drivers that know, override this."""
         return {}
 
-    def _set_period(self, period_s: float) -> None:
+    def _set_period(self, period_s: float) -> None:  # noqa: B027 - optional, the default ignores it
         """Learn the sample period; drivers whose device runs on its own time grid override this."""
 
     # ---- construction from a URL -------------------------------------------------------
@@ -489,6 +521,7 @@ class Driver(abc.ABC):
         self._call(self._open)
         self._is_open = True
         self._last_command = None
+        self._held = None
         self._clock_last = None
         self._clock_offset = 0.0
         return self
@@ -508,8 +541,22 @@ class Driver(abc.ABC):
 
     @property
     def last_command(self) -> float | None:
-        """The last command sent and answered (user unit), None before the first."""
+        """The last command sent (user unit), answered or not; None before the first.
+
+        When a reply is lost the servo most likely applied the command (a lost
+        request is rarer): this is what a recording says the servo held.
+        """
         return self._last_command
+
+    @property
+    def possibly_held(self) -> tuple[float, float] | None:
+        """The lowest and highest command the servo may hold now (user unit); None before the first.
+
+        One value twice after an answered exchange; after a lost reply (or
+        request) the servo holds either that command or an earlier one, and
+        the next command is kept within ``max_step`` of every one of them.
+        """
+        return self._held
 
     def disable(self) -> None:
         """Switch the torque off."""
@@ -553,27 +600,21 @@ class Driver(abc.ABC):
             pass
 
     # ---- per sample ----------------------------------------------------------------------
-    @property
-    def exchange_slot(self) -> int | None:
-        """Sample slot ``k`` of the next exchange, as the sampler counts them (None outside a session).
-
-        The sampling session sets it before each :meth:`exchange` (slots only
-        increase); a driver whose device wants to know how many periods lie
-        between two commands reads it in ``_exchange``.
-        """
-        return self._exchange_slot
-
-    @exchange_slot.setter
-    def exchange_slot(self, slot: int | None) -> None:
-        self._exchange_slot = None if slot is None else validation.integer("slot", slot, minimum=0)
-
-    def exchange(self, u: float) -> Measurement:
+    def exchange(self, u: float, *, slot: int | None = None) -> Measurement:
         """Command ``u`` (user unit), clamped to the limits, and return the measurement.
+
+        Parameters
+        ----------
+        u : float
+            The command asked for, user unit.
+        slot : int, optional
+            The sampling session's slot number of this sample (only
+            increasing); passed on to the driver's ``_exchange``.
 
         Raises
         ------
         ConfigError
-            If ``u`` is not finite.
+            If ``u`` is not finite, or ``slot`` is not an integer >= 0.
         DriverTimeout
             If the servo did not answer in time.
         DriverError
@@ -583,13 +624,21 @@ class Driver(abc.ABC):
         requested = float(u)
         if not math.isfinite(requested):
             raise ConfigError(f"command u (={requested!r}) must be finite")
-        limited = self.limits.clamp(requested, self._last_command)
+        if slot is not None:
+            slot = validation.integer("slot", slot, minimum=0)
+        low, high = self.limits.window(self._held)
+        limited = min(max(requested, low), high)
         clamped = limited != requested
         if clamped:
             self.stats.clamped += 1
-        command = self.quantise(limited)
-        reading = self._call(self._exchange, self.command_unit.to_native(command))
+        command = self._round(limited, low, high)
+        # From here the servo may hold this command, whether its reply comes back or not (a lost
+        # reply), or still the one before (a lost request): the next command must respect both.
         self._last_command = command
+        held = self._held
+        self._held = (command, command) if held is None else (min(held[0], command), max(held[1], command))
+        reading = self._call(self._exchange, self.command_unit.to_native(command), slot)
+        self._held = (command, command)
         self.stats.exchanges += 1
         measurement = self._measurement(reading, requested, command, clamped)
         self._guard(measurement.position)
@@ -601,15 +650,22 @@ class Driver(abc.ABC):
         Rounding never carries a command past a limit, not even by half a
         step; a range narrower than one step gets the nearest step.
         """
+        return self._round(command, self.limits.low, self.limits.high)
+
+    def _round(self, command: float, low: float, high: float) -> float:
+        """``command`` on the device's grid, the nearest step inside ``[low, high]`` (the limits' window)."""
         step = self.command_step
         if step is None:
             return command
         steps = self.command_unit.to_native(command) / step
-        low, high = self.limits.low, self.limits.high
         for candidate in (round(steps), math.floor(steps), math.ceil(steps)):
             user = self.command_unit.to_user(candidate * step)
             if low <= user <= high:
                 return user
+        # a window narrower than one step: it holds the commands the servo may hold, which lie on the grid
+        held = self._held
+        if held is not None:
+            return held[0] if abs(held[0] - command) <= abs(held[1] - command) else held[1]
         return self.command_unit.to_user(round(steps) * step)
 
     def read(self) -> Measurement:

@@ -101,4 +101,3 @@ class VirtualClock:
         if duration_ns < 0:
             raise ConfigError(f"duration_ns (={duration_ns}) must be >= 0: time does not run backwards")
         self.t_ns += int(duration_ns)
-

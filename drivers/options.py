@@ -8,12 +8,14 @@ names the URL, the option and its help text.
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 __all__ = ["number", "integer", "choice"]
 
 
-def number(*, low: float = -math.inf, high: float = math.inf, low_open: bool = False, what: str = "a number") -> Callable[[str], float]:
+def number(
+    *, low: float = -math.inf, high: float = math.inf, low_open: bool = False, what: str = "a number"
+) -> Callable[[str], float]:
     """A finite float in ``[low, high]`` (``(low, high]`` with ``low_open``)."""
     left = "(" if low_open else "["
 

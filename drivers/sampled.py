@@ -2,7 +2,7 @@
 
 A real servo moves continuously; the model servoid identifies is its
 discrete-time behaviour at the session's sample period ``T``
-(:data:`servoid.drivers.bench.BENCH_PLANT` is "the servo at the session's
+(:data:`servoid.drivers.model_plant.MODEL_PLANT` is "the servo at the session's
 rate"). :class:`SampledPlant` makes a :class:`~servoid.ident.Plant` behave
 like a bench controller whose position loop is triggered by the host's set
 points and keeps running on its own when the host falls silent:
@@ -44,14 +44,14 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S
 from servoid.errors import DriverError
-from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
-from servoid.ident.wear import Wear, WearingPlant
+from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.wear import Wear, WearingPlant
 
 __all__ = ["SampledPlant", "PlantSample"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class PlantSample:
     """One reading of the plant.
 
@@ -87,7 +87,7 @@ class SampledPlant:
         Source of the noise; required when ``noise_std > 0``.
     wear : Wear, optional
         Dead zones that change with the plant's age in samples
-        (:class:`~servoid.ident.wear.WearingPlant`); :attr:`model` is then
+        (:class:`~servoid.ident.models.wear.WearingPlant`); :attr:`model` is then
         the plant as it is now.
     slot_modulus : int, optional
         The slot numbers given to :meth:`command` count modulo this (a
@@ -105,7 +105,9 @@ class SampledPlant:
         slot_modulus: int | None = None,
     ) -> None:
         self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
-        self.slot_modulus = None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
+        self.slot_modulus = (
+            None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
+        )
         self._last_slot: int | None = None
         self.noise_std = validation.non_negative("noise_std", noise_std)
         if self.noise_std > 0 and rng is None:

@@ -19,22 +19,23 @@ absence) and detects the restart from the boot id.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
 from servoid import validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, Option, Reading, UnitConversion
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT, BENCH_UNIT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
 from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import simulate
+from servoid.ident.models.wear import GEAR_PLANT, Wear
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
-from servoid.ident.simulate import simulate
-from servoid.ident.wear import GEAR_PLANT, Wear
 
 __all__ = ["SimDriver", "SimDevice", "SimPlant", "SIM_PLANTS"]
 
@@ -61,7 +62,7 @@ class SimPlant:
 
 #: ``plant=`` choices of the URL.
 SIM_PLANTS: dict[str, SimPlant] = {
-    "bench": SimPlant(BENCH_PLANT, BENCH_UNIT, BENCH_AMPLITUDE),
+    "bench": SimPlant(MODEL_PLANT, MODEL_UNIT, MODEL_AMPLITUDE),
     "paper": SimPlant(PAPER_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
     "gear": SimPlant(GEAR_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
 }
@@ -152,9 +153,9 @@ class SimDriver(Driver):
     Parameters
     ----------
     plant : {"bench", "paper", "gear"}
-        ``bench``: :data:`~servoid.drivers.bench.BENCH_PLANT` in rad;
+        ``bench``: :data:`~servoid.drivers.model_plant.MODEL_PLANT` in rad;
         ``paper``: the paper's Section 4 plant, unitless; ``gear``: the paper's
-        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.wear.GEAR_PLANT`).
+        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.models.wear.GEAR_PLANT`).
     snr : float, optional
         Measurement noise as a signal-to-noise ratio: noise standard deviation
         = std of the output under the plant's reference input / ``snr``.
@@ -174,7 +175,7 @@ class SimDriver(Driver):
         Time source; default the real clock. ``virtual`` (also a URL option)
         runs in simulated time: a session takes no wall time and repeats exactly.
     drift, drift_samples, drift_start, swap_at, swap_factor : optional
-        Simulated wear (:class:`~servoid.ident.wear.Wear`): the dead zones
+        Simulated wear (:class:`~servoid.ident.models.wear.Wear`): the dead zones
         ``c1`` and ``c2`` ramp by the factor ``drift`` over ``drift_samples``
         samples from sample ``drift_start``, and are multiplied by
         ``swap_factor`` from sample ``swap_at`` on (a gear swap). Samples are
@@ -187,7 +188,9 @@ class SimDriver(Driver):
     carries_slots: ClassVar[bool] = True  # the simulated plant steps on the session's slots
     options: ClassVar[Mapping[str, Option]] = {
         "plant": Option(opt.choice(*SIM_PLANTS), f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
-        "snr": Option(opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"),
+        "snr": Option(
+            opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"
+        ),
         "noise": Option(opt.number(low=0), "measurement noise standard deviation (plant unit)"),
         "latency": Option(opt.number(low=0), "reply delay (s)"),
         "jitter": Option(opt.number(low=0), "mean exponential extra reply delay (s)"),
@@ -196,8 +199,13 @@ class SimDriver(Driver):
         "mute_after": Option(opt.integer(), "stop answering after this many exchanges (fault injection)"),
         "restart_after": Option(opt.integer(), "restart after this many exchanges (fault injection)"),
         "seed": Option(opt.integer(), "seed of noise, drops and jitter (default 0)"),
-        "clock": Option(opt.choice("real", "virtual"), "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly"),
-        "drift": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"),
+        "clock": Option(
+            opt.choice("real", "virtual"),
+            "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly",
+        ),
+        "drift": Option(
+            opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"
+        ),
         "drift_samples": Option(opt.integer(minimum=1), "wear: length of the ramp (samples)"),
         "drift_start": Option(opt.integer(), "wear: sample at which the ramp begins (default 0)"),
         "swap_at": Option(opt.integer(), "wear: sample of a gear swap that multiplies c1 and c2 by swap_factor"),
@@ -291,11 +299,11 @@ class SimDriver(Driver):
         self._device().plant.set_period(int(round(period_s * NS_PER_S)))
         self._last_slot = None
 
-    def _exchange(self, command: float) -> Reading:
-        return self._request(command)
+    def _exchange(self, command: float, slot: int | None) -> Reading:
+        return self._request(command, slot)
 
     def _read(self) -> Reading:
-        return self._request(None)
+        return self._request(None, None)
 
     def _identity(self) -> dict[str, Any]:
         return {
@@ -314,12 +322,11 @@ class SimDriver(Driver):
             raise DriverError(f"{self.describe()} is not open")
         return self.device
 
-    def _request(self, command: float | None) -> Reading:
+    def _request(self, command: float | None, slot: int | None) -> Reading:
         device = self._device()
         if command is not None and not device.plant.enabled and device.boot_id == self._boot_id:
             raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
         periods = None
-        slot = self.exchange_slot
         if command is not None and slot is not None:
             if self._last_slot is not None:
                 periods = slot - self._last_slot

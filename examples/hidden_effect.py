@@ -5,7 +5,7 @@
 
 The plant is the paper's (Section 4) with the named effect of the library
 added, driven by the paper's uniform input, 6000 samples each, SNR 40
-(:func:`servoid.ident.hidden.hidden_effect_record`).
+(:func:`servoid.ident.diagnosis.hidden_effects.hidden_effect_record`).
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.effects import EFFECT_NAMES, NONE
-from servoid.ident.hidden import hidden_effect_record
+from servoid.ident.diagnosis.hidden_effects import hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, NONE
 from servoid.recording import write_recording
 
 
@@ -33,8 +33,11 @@ def main() -> None:
         parser.error(f"{args.effect} needs a value")
     for name, seed in (("train.csv", args.seed), ("validate.csv", args.seed + 1000)):
         rec = hidden_effect_record(args.effect, args.value, samples=args.samples, seed=seed, snr=args.snr)
-        path = write_recording(args.out / name, {"t": 0.01 * np.arange(args.samples), "u": rec.u, "y": rec.y},
-                               metadata={"source": f"paper plant + {args.effect} {args.value}", "unit": "unit"})
+        path = write_recording(
+            args.out / name,
+            {"t": 0.01 * np.arange(args.samples), "u": rec.u, "y": rec.y},
+            metadata={"source": f"paper plant + {args.effect} {args.value}", "unit": "unit"},
+        )
         print(path)
 
 

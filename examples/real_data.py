@@ -47,16 +47,35 @@ def convert(which: str, data: Path, out: Path) -> tuple[Path, Path]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("which", choices=sorted(SETTINGS))
-    parser.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[1].parent / "shared" / "data",
-                        help="the shared data folder (default ../shared/data beside the repository)")
+    parser.add_argument(
+        "--data",
+        type=Path,
+        default=Path(__file__).resolve().parents[1].parent / "shared" / "data",
+        help="the shared data folder (default ../shared/data beside the repository)",
+    )
     parser.add_argument("--out", type=Path, help="output folder (default runs/<which>)")
     parser.add_argument("--json", action="store_true", help="print the diagnosis as one JSON object")
     args = parser.parse_args()
     out = args.out or Path("runs") / args.which
     train, validate = convert(args.which, args.data, out)
     s = SETTINGS[args.which]
-    argv = ["diagnose", "--train", str(train), "--validate", str(validate), "--na", str(s["na"]),
-            "--nb", str(s["nb"]), "--delay", str(s["delay"]), "--rho-exponent", "0.75", "--out", str(out)]
+    argv = [
+        "diagnose",
+        "--train",
+        str(train),
+        "--validate",
+        str(validate),
+        "--na",
+        str(s["na"]),
+        "--nb",
+        str(s["nb"]),
+        "--delay",
+        str(s["delay"]),
+        "--rho-exponent",
+        "0.75",
+        "--out",
+        str(out),
+    ]
     if args.json:
         argv.append("--json")
     print("servoid " + " ".join(argv), file=sys.stderr)

@@ -19,7 +19,7 @@ from servoid.errors import ConfigError, ModelError
 from servoid.excitation.generate import sample
 from servoid.excitation.report import ExcitationReport, Level, Verdict, assess, worst_level
 from servoid.excitation.specs import SignalSpec, StepsSpec, UniformSpec
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Prior", "ServoLimits", "Design", "design"]
 
@@ -324,13 +324,17 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
             + (", capped by the range" if chosen == half else "")
         )
     spec = _spec_for(chosen, limits)
-    reasons.append(f"offset {limits.centre:.4g}: the middle of the range [{limits.position_min:g}, {limits.position_max:g}]")
+    reasons.append(
+        f"offset {limits.centre:.4g}: the middle of the range [{limits.position_min:g}, {limits.position_max:g}]"
+    )
     if isinstance(spec, StepsSpec):
         why_hold = []
         if limits.settle_samples > 1:
             why_hold.append(f"the servo settles in {limits.settle_samples} samples")
         if math.isfinite(limits.max_step):
-            why_hold.append(f"a full swing takes {math.ceil(2 * chosen / limits.max_step - 1e-9)} samples at the max step")
+            why_hold.append(
+                f"a full swing takes {math.ceil(2 * chosen / limits.max_step - 1e-9)} samples at the max step"
+            )
         reasons.append(f"random steps held {spec.hold} samples: {' and '.join(why_hold)}")
     else:
         reasons.append("uniform white noise (the paper's input): the servo takes any step every sample")

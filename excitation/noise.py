@@ -50,7 +50,8 @@ def steps(spec: StepsSpec, seed: int, start: int, count: int) -> np.ndarray:
     if spec.levels == 0:
         return spec.offset + _uniform_in(-spec.amplitude, spec.amplitude, r)
     index = np.minimum(np.floor(r * spec.levels), spec.levels - 1)
-    return spec.offset + spec.amplitude * (-1.0 + 2.0 * index / (spec.levels - 1))
+    out: np.ndarray = spec.offset + spec.amplitude * (-1.0 + 2.0 * index / (spec.levels - 1))
+    return out
 
 
 def levels(spec: LevelsSpec, seed: int, start: int, count: int) -> np.ndarray:
@@ -76,4 +77,5 @@ def levels(spec: LevelsSpec, seed: int, start: int, count: int) -> np.ndarray:
     if dither == 0.0:
         return level
     r = _per_block(seed, _STREAM_DITHER, start, count, spec.hold)
-    return level + _uniform_in(-dither, dither, r)
+    out: np.ndarray = level + _uniform_in(-dither, dither, r)
+    return out

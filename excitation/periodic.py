@@ -67,7 +67,8 @@ def _cycles(spec: ChirpSpec, t: np.ndarray) -> np.ndarray:
     if spec.sweep == "log" and f0 != f1:
         ratio = f1 / f0
         return f0 * length / math.log(ratio) * (ratio ** (t / length) - 1.0)
-    return f0 * t + (f1 - f0) * t * t / (2.0 * length)
+    out: np.ndarray = f0 * t + (f1 - f0) * t * t / (2.0 * length)
+    return out
 
 
 def chirp(spec: ChirpSpec, seed: int, start: int, count: int) -> np.ndarray:
@@ -80,4 +81,5 @@ def chirp(spec: ChirpSpec, seed: int, start: int, count: int) -> np.ndarray:
     sweep, t = np.divmod(k, spec.period)
     per_sweep = float(_cycles(spec, np.array([float(spec.period)]))[0]) % 1.0
     cycles = (sweep * per_sweep) % 1.0 + _cycles(spec, t.astype(np.float64))
-    return spec.offset + spec.amplitude * np.sin(2.0 * np.pi * (cycles % 1.0))
+    out: np.ndarray = spec.offset + spec.amplitude * np.sin(2.0 * np.pi * (cycles % 1.0))
+    return out

@@ -25,7 +25,8 @@ def mls(order: int) -> np.ndarray:
     bits = max_len_seq(order)[0]
     seq = 2.0 * bits.astype(np.float64) - 1.0
     seq.flags.writeable = False
-    return seq
+    out: np.ndarray = seq
+    return out
 
 
 def prbs(spec: PRBSSpec, seed: int, start: int, count: int) -> np.ndarray:

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from servoid.ident.model import BacklashModel
-from servoid.ident.simulate import Simulation
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import Simulation
 
 __all__ = ["Regressor", "regressor"]
 
@@ -46,7 +46,8 @@ class Regressor:
         """
         used = self.h[self.phi]
         n = max(self.h.shape[0], 1)
-        return used.T @ used / n
+        out: np.ndarray = used.T @ used / n
+        return out
 
 
 def _lagged(values: np.ndarray, lag: int) -> np.ndarray:
@@ -71,7 +72,7 @@ def regressor(model: BacklashModel, sim: Simulation, *, y0: float = 0.0) -> Regr
 
     Notes
     -----
-    Per sample, as the MRGIA kernel (:mod:`servoid.ident._mrgia_kernel`) does
+    Per sample, as the MRGIA kernel (:mod:`servoid.ident.online._mrgia_kernel`) does
     with the estimate replaced by ``model``:
 
     * ``g3 = [dx(k) < 0]`` (eq. 34) and ``m(k) = 1 + (m2 - 1) g3`` (eq. 26);

@@ -24,16 +24,18 @@ paper's plant (see ``benchmarks/excitation_compare.py``) and documented in
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.excitation.regressor import regressor
-from servoid.ident.model import BacklashModel
-from servoid.ident.simulate import Simulation, simulate
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import Simulation, simulate
+from servoid.ident.serialise import number
 
 __all__ = [
     "Verdict",
@@ -246,9 +248,9 @@ class ExcitationReport:
             "sufficient": self.sufficient,
             "signal": {
                 "samples": sig.samples, "minimum": sig.minimum, "maximum": sig.maximum, "mean": sig.mean,
-                "std": sig.std, "crest_factor": _finite_or_none(sig.crest_factor), "max_step": sig.max_step,
+                "std": sig.std, "crest_factor": number(sig.crest_factor), "max_step": sig.max_step,
                 "reversals": sig.reversals, "pe_order": sig.pe_order, "pe_max_order": sig.pe_max_order,
-                "pe_condition": [_finite_or_none(c) for c in sig.pe_condition],
+                "pe_condition": [number(c) for c in sig.pe_condition],
             },
             "needed_order": self.needed_order,
             "verdicts": [v.to_dict() for v in self.verdicts],
@@ -260,8 +262,8 @@ class ExcitationReport:
                 "shares": {"up": tm.share_up, "down": tm.share_down, "memory": tm.share_memory},
                 "reversals": tm.reversals, "line_switches": tm.line_switches, "update_share": tm.update_share,
                 "gamma": tm.gamma, "beta": tm.beta, "trace": tm.trace,
-                "condition": _finite_or_none(tm.condition),
-                "collinearity": _finite_or_none(tm.collinearity), "weakest": tm.weakest, "x_span": tm.x_span,
+                "condition": number(tm.condition),
+                "collinearity": number(tm.collinearity), "weakest": tm.weakest, "x_span": tm.x_span,
                 "beyond_crossing": tm.beyond_crossing,
             }  # fmt: skip
         return out
@@ -271,10 +273,6 @@ def worst_level(verdicts: Sequence[Verdict]) -> Level:
     """The worst level among ``verdicts`` (``ok`` when there are none)."""
     levels = {v.level for v in verdicts}
     return "insufficient" if "insufficient" in levels else "warning" if "warning" in levels else "ok"
-
-
-def _finite_or_none(value: float) -> float | None:
-    return value if math.isfinite(value) else None
 
 
 def _reversals(values: np.ndarray) -> int:
@@ -446,7 +444,7 @@ def _model_verdicts(sig: InputStats, tm: ModelExcitation) -> list[Verdict]:
         level: Level = "insufficient" if singular or (backlash and tm.collinearity > COLLINEARITY_LIMIT) else "warning"
         out.append(Verdict(
             level, "information",
-            f"the information matrix of the regressor (eq. 25) is "
+            "the information matrix of the regressor (eq. 25) is "
             + ("singular: the input tells nothing about " if singular else
                f"poorly conditioned (collinearity {tm.collinearity:.3g} > "
                f"{COLLINEARITY_LIMIT if level == 'insufficient' else COLLINEARITY_WARN:g}): the input tells ")

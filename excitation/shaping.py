@@ -53,7 +53,9 @@ def rate_limit_kernel(target: np.ndarray, last: float, rate: float, low: float, 
     return last
 
 
-def clip_and_limit(target: np.ndarray, *, low: float, high: float, rate: float, last: float) -> tuple[np.ndarray, float]:
+def clip_and_limit(
+    target: np.ndarray, *, low: float, high: float, rate: float, last: float
+) -> tuple[np.ndarray, float]:
     """Clip ``target`` to ``[low, high]`` and rate-limit it from ``last``.
 
     Parameters

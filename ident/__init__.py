@@ -4,6 +4,16 @@ The pseudo-Wiener model of the paper (Dong, Tan & Tan), its simulator, the
 MRGIA online estimator (eqs 17-42), an offline output-error refinement and
 the metrics. Depends on NumPy, SciPy and (for speed) numba only.
 
+The rooms, in the order data flows through them::
+
+    models/      what a servo is: the model, theta's layout, simulation, wear, effects
+    online/      estimators stepping one sample at a time (the Estimator protocol, the MRGIA)
+    offline/     fits over a whole record (output-error refinement, the ARX start)
+    identify.py  the pipeline: online estimate, refinement, verdicts
+    diagnosis/   where model and measurement disagree, which effect is missing
+    monitoring/  following wear: the wear estimator and the alarm rule
+    control/     compensating the backlash: inverse, feedforward, tracking study
+
 Conventions: arrays are 1-D float64, one entry per sample, oldest first;
 time is counted in samples; ``u`` is in the unit of the command and ``y``,
 ``x``, ``c1``, ``c2`` in the unit of the measured position.
@@ -11,8 +21,12 @@ time is counted in samples; ``u`` is in the unit of the command and ``y``,
 
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
-from servoid.ident.model import M1, BacklashModel
-from servoid.ident.mrgia import (
+from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import M1, BacklashModel, ThetaLayout
+from servoid.ident.models.simulate import Simulation, free_run, noise_std_for_snr, simulate
+from servoid.ident.offline.refine import Refinement, arx_start, refine
+from servoid.ident.online.estimator import Estimator
+from servoid.ident.online.mrgia import (
     MRGIA,
     MRGIAConfig,
     MRGIAResult,
@@ -23,13 +37,12 @@ from servoid.ident.mrgia import (
     run_mrgia,
 )
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.plant import Plant
-from servoid.ident.refine import Refinement, arx_start, refine
-from servoid.ident.simulate import Simulation, free_run, noise_std_for_snr, simulate
 
 __all__ = [
     "BacklashModel",
     "M1",
+    "ThetaLayout",
+    "Estimator",
     "PAPER_PLANT",
     "Simulation",
     "simulate",

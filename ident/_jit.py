@@ -10,11 +10,12 @@ decorator returns the function unchanged and servoid is merely slower.
 
 from __future__ import annotations
 
-from typing import Any, TypeVar
 from collections.abc import Callable
+from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+_numba: Any
 try:  # pragma: no cover - which branch runs depends on the platform
     import numba as _numba
 
@@ -31,7 +32,8 @@ def jit(func: F) -> F:
     if not HAVE_NUMBA:
         func.py_func = func  # type: ignore[attr-defined]
         return func
-    return _numba.njit(cache=True, nogil=True)(func)  # type: ignore[no-any-return]
+    compiled: F = _numba.njit(cache=True, nogil=True)(func)  # a Dispatcher: called as func is
+    return compiled
 
 
 def python_version(kernel: Callable[..., Any]) -> Callable[..., Any]:

@@ -7,19 +7,19 @@ with the free-run fit of the best one.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Literal
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.metrics import nrmse
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
-from servoid.ident.refine import Refinement, arx_start, refine
-from servoid.ident.simulate import free_run
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import free_run
+from servoid.ident.offline.refine import Refinement, arx_start, refine
+from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 
 __all__ = ["Identification", "identify", "check_record"]
 
@@ -44,7 +44,7 @@ class Identification:
         The output-error refinement that won, when refinement ran.
     refined_from : {"mrgia", "arx"} or None
         Which start that refinement came from: the MRGIA estimate, or the
-        MRGIA-independent ARX start (:func:`servoid.ident.refine.arx_start`).
+        MRGIA-independent ARX start (:func:`servoid.ident.offline.refine.arx_start`).
     start_nrmse : dict
         Free-run NRMSE reached from each start that was tried.
     samples : int
@@ -75,8 +75,25 @@ class Identification:
         """Standard errors of :attr:`model`'s parameters, when refinement ran."""
         return None if self.refinement is None else self.refinement.stderr_dict()
 
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: ``model``, ``method``, ``samples``, ``fit_nrmse``, ``stderr``, ``refined_from``,
+        ``start_nrmse``, ``mrgia`` (:meth:`MRGIAResult.to_dict` with its own ``fit_nrmse``) and ``warnings``.
 
-def check_record(u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig) -> tuple[np.ndarray, np.ndarray]:
+        ``stderr`` is null without refinement; one of its entries is null where
+        the data do not determine that parameter. ``mrgia.model`` is null (with
+        ``model_error``) when the online estimate is not a valid model.
+        """
+        return {
+            "model": self.model.to_dict(), "method": self.method, "samples": self.samples,
+            "fit_nrmse": self.fit_nrmse, "stderr": self.stderr, "refined_from": self.refined_from,
+            "start_nrmse": dict(self.start_nrmse), "mrgia": {**self.mrgia.to_dict(), "fit_nrmse": self.mrgia_nrmse},
+            "warnings": list(self.warnings),
+        }  # fmt: skip
+
+
+def check_record(
+    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, config: MRGIAConfig
+) -> tuple[np.ndarray, np.ndarray]:
     """Validate a record for identification; return it as float arrays.
 
     Parameters
@@ -122,6 +139,7 @@ def identify(
     record_every: int = 1,
     progress: Callable[[int, int], None] | None = None,
     valid: Sequence[bool] | np.ndarray | None = None,
+    online: MRGIAResult | None = None,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -142,6 +160,11 @@ def identify(
         trusted (a live session's late, missed and timed-out samples): their
         ``y`` may be NaN; the MRGIA skips them (:meth:`MRGIA.skip`) and the
         refinement and the fit leave them out, simulating through them.
+    online : MRGIAResult, optional
+        The MRGIA's result over this record, already computed (a live
+        session ran it sample by sample: :meth:`servoid.session.listeners.EstimatorFeed.mrgia_result`);
+        it is used as it is, and only the offline stage runs here. Its
+        configuration must have ``config``'s orders and delay.
 
     Returns
     -------
@@ -160,7 +183,14 @@ def identify(
     warnings: list[str] = []
     if keep is not None and not keep.all():
         warnings.append(f"{int(keep.size - keep.sum())} of {keep.size} samples were lost or late and left out")
-    online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
+    if online is None:
+        online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
+    elif (online.config.na, online.config.nb, online.config.delay) != (config.na, config.nb, config.delay):
+        c = online.config
+        raise ConfigError(
+            f"the online result is for na={c.na}, nb={c.nb}, delay={c.delay}; "
+            f"config asks for na={config.na}, nb={config.nb}, delay={config.delay}"
+        )
     if online.recoveries:
         at = ", ".join(str(r.sample) for r in online.recoveries[:5])
         warnings.append(
@@ -249,7 +279,9 @@ def identify(
 
 
 def _record(
-    u: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray, valid: Sequence[bool] | np.ndarray | None,
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    valid: Sequence[bool] | np.ndarray | None,
     config: MRGIAConfig,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """The record as arrays, checked; lost samples' ``y`` set to 0 (never used) and the mask."""
@@ -280,11 +312,12 @@ def _feasible_start(theta: np.ndarray, config: MRGIAConfig) -> BacklashModel:
     """
     th = np.array(theta, dtype=np.float64)
     na, nb = config.na, config.nb
-    th[na + nb + 1] = max(th[na + nb + 1], 0.05 - 1.0)
-    th[na + nb + 2] = max(th[na + nb + 2], 1e-3)
-    th[na + nb + 3] = max(th[na + nb + 3], 1e-3)
-    if not any(th[na : na + nb + 1]):
-        th[na] = 1.0
+    lay = config.theta_layout
+    th[lay.m2] = max(th[lay.m2], 0.05 - 1.0)
+    th[lay.c1] = max(th[lay.c1], 1e-3)
+    th[lay.c2] = max(th[lay.c2], 1e-3)
+    if not any(th[lay.b]):
+        th[lay.b.start] = 1.0
     for _ in range(200):
         try:
             return BacklashModel.from_theta(th, na=na, nb=nb, delay=config.delay)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = [
     "PAPER_PLANT",

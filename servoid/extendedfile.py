@@ -1,13 +1,13 @@
 """Extended models (base + effects) in ``model.json``.
 
-An :class:`~servoid.ident.extended.ExtendedModel` is saved as an ordinary
+An :class:`~servoid.ident.models.extended.ExtendedModel` is saved as an ordinary
 ``model.json`` (:mod:`servoid.modelfile`, the base model under ``"model"``)
 with one more top-level key::
 
     "effects": [{"name": "coulomb_friction", "parameters": {"force": 0.1}}, ...]
 
 in the order the effects were found. Parameter units are those of
-:data:`servoid.ident.effects.EFFECTS` (``force``, ``limit``, ``width`` in the
+:data:`servoid.ident.models.effects.EFFECTS` (``force``, ``limit``, ``width`` in the
 unit of ``u``; ``samples`` in samples; ``pole`` dimensionless). A file
 without the key is a model with no effect, so every ``model.json`` loads.
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from servoid.errors import ModelError
-from servoid.ident.extended import ExtendedModel
+from servoid.ident.models.extended import ExtendedModel
 from servoid.modelfile import ModelFile, load_model, save_model
 
 __all__ = ["EFFECTS_KEY", "save_extended_model", "load_extended_model"]

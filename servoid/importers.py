@@ -93,7 +93,9 @@ def read_bam(path: str | os.PathLike[str], *, decimate: int = 1) -> Recording:
     data = read_json(p)
     entries = data.get("entries") if isinstance(data, dict) else None
     if not isinstance(entries, list) or not entries:
-        raise DataError(f"{p}: no 'entries' list; a BAM log is {{..., 'entries': [{{timestamp, goal_position, position}}]}}")
+        raise DataError(
+            f"{p}: no 'entries' list; a BAM log is {{..., 'entries': [{{timestamp, goal_position, position}}]}}"
+        )
     try:
         t = np.array([float(e["timestamp"]) for e in entries])
         u = np.array([float(e["goal_position"]) for e in entries])

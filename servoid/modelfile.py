@@ -26,7 +26,7 @@ samples; the output unit is whatever the recording was in (``rad``,
 ``counts``, or the user's unit, as stated).
 
 Versions: version 1 (no ``compensation``) is still read; its band is then
-servoid's default (:func:`servoid.ident.compensate.default_band`) and
+servoid's default (:func:`servoid.ident.control.compensate.default_band`) and
 :attr:`ModelFile.read_version` says so. Unknown top-level keys, ``effects``
 among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 """
@@ -34,19 +34,19 @@ among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-from collections.abc import Mapping
 
 from servoid import __version__, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.files import read_json
-from servoid.ident.compensate import default_band
-from servoid.ident.model import BacklashModel
+from servoid.ident.control.compensate import default_band
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.serialise import dumps, number
 
 __all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model"]
 
@@ -119,7 +119,7 @@ class ModelFile:
             "version": VERSION,
             "model": self.model.to_dict(),
             # JSON has no NaN: a standard error the data do not determine is null
-            "stderr": None if self.stderr is None else {k: _finite_or_none(v) for k, v in self.stderr.items()},
+            "stderr": None if self.stderr is None else {k: number(v) for k, v in self.stderr.items()},
             "units": {
                 "input": self.input_unit,
                 "output": self.output_unit,
@@ -142,11 +142,7 @@ class ModelFile:
 
     def to_json(self) -> str:
         """The file's text: :meth:`to_dict` pretty-printed, with a final newline."""
-        return json.dumps(self.to_dict(), indent=2) + "\n"
-
-
-def _finite_or_none(value: Any) -> Any:
-    return value if not isinstance(value, float) or math.isfinite(value) else None
+        return dumps(self.to_dict(), indent=2) + "\n"
 
 
 def _now() -> str:
@@ -181,7 +177,9 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     if isinstance(version, bool) or not isinstance(version, int):
         raise DataError(f"{p}: schema version {version!r} is not a version number (this servoid reads {_readable()})")
     if version > VERSION:
-        raise DataError(f"{p}: schema version {version} is newer than this servoid reads ({_readable()}); upgrade servoid")
+        raise DataError(
+            f"{p}: schema version {version} is newer than this servoid reads ({_readable()}); upgrade servoid"
+        )
     if version not in READABLE_VERSIONS:
         raise DataError(f"{p}: schema version {version} is older than any this servoid reads ({_readable()})")
     required = ("model", "units", "identified") + (("compensation",) if version >= 2 else ())
@@ -214,7 +212,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
             if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
                 raise DataError(f"{p}: stderr.{name} (={value!r}) must be a number or null")
         # files of servoid 0.1 wrote NaN (not JSON) where the data left a parameter undetermined
-        stderr = {k: _finite_or_none(v) for k, v in stderr.items()}
+        stderr = {k: number(v) for k, v in stderr.items()}
     period = units.get("sample_period_s")
     if period is not None and not (_is_number(period) and period > 0):
         raise DataError(f"{p}: units.sample_period_s (={period!r}) must be a positive number of seconds or null")

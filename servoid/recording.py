@@ -23,10 +23,10 @@ import csv
 import io
 import math
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
-from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -150,7 +150,12 @@ def read_recording(path: str | os.PathLike[str], *, u_column: str = "u", y_colum
 
 
 def _parse_row(
-    row: list[str], header: list[str], cols: dict[str, int], p: Path, line_no: int, may_be_nan: frozenset[str] | set[str] = frozenset()
+    row: list[str],
+    header: list[str],
+    cols: dict[str, int],
+    p: Path,
+    line_no: int,
+    may_be_nan: frozenset[str] | set[str] = frozenset(),
 ) -> dict[str, float]:
     if len(row) != len(header):
         raise DataError(f"{p}, line {line_no}: {len(row)} fields, the header has {len(header)}")

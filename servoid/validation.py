@@ -113,6 +113,4 @@ def reject_unknown(what: str, given: Any, allowed: Any) -> None:
     """Raise :class:`ConfigError` if ``given`` has keys not in ``allowed``, naming them."""
     unknown = sorted(set(given) - set(allowed))
     if unknown:
-        raise ConfigError(
-            f"unknown {what} {', '.join(map(repr, unknown))}; valid: {', '.join(sorted(allowed))}"
-        )
+        raise ConfigError(f"unknown {what} {', '.join(map(repr, unknown))}; valid: {', '.join(sorted(allowed))}")

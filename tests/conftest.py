@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from servoid.ident.models.simulate import Simulation, simulate
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
-from servoid.ident.simulate import Simulation, simulate
 
 
 def paper_record(n: int, seed: int, snr: float | None = None) -> Simulation:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from servoid.errors import ConfigError
-from servoid.ident.alarms import AlarmRule, Alarms, Bound
+from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
 
 DZ = Bound(quantity="dead_zone", low=0.9, high=1.1, label="dead zone", unit="rad")
 

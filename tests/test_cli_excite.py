@@ -28,8 +28,21 @@ def read_signal(path):
 
 def test_excite_writes_the_signal_the_plot_and_reports(tmp_path, capsys):
     out, plot = tmp_path / "s.csv", tmp_path / "s.png"
-    code, obj = run_json(capsys, "excite", "prbs:amplitude=1.5,hold=3", "--samples", "3000", "--seed", "4",
-                         "--out", str(out), "--plot", str(plot), "--sample-period", "0.01")
+    code, obj = run_json(
+        capsys,
+        "excite",
+        "prbs:amplitude=1.5,hold=3",
+        "--samples",
+        "3000",
+        "--seed",
+        "4",
+        "--out",
+        str(out),
+        "--plot",
+        str(plot),
+        "--sample-period",
+        "0.01",
+    )
     assert code == 0 and plot.stat().st_size > 10_000
     meta, header, data = read_signal(out)
     assert header == ["t", "u"] and data.shape == (3000, 2)
@@ -63,12 +76,31 @@ def test_excite_through_a_model_file_an_inline_prior_or_none(tmp_path, capsys):
 
 
 def test_design_mode_proposes_a_signal_inside_the_limits(tmp_path, capsys):
-    code, obj = run_json(capsys, "excite", "--design", "--range", "-3", "3", "--max-step", "1", "--dead-zone", "1.5",
-                         "--gain", "0.4", "--sample-period", "0.01", "--out", str(tmp_path / "d.csv"), "--no-plot")
+    code, obj = run_json(
+        capsys,
+        "excite",
+        "--design",
+        "--range",
+        "-3",
+        "3",
+        "--max-step",
+        "1",
+        "--dead-zone",
+        "1.5",
+        "--gain",
+        "0.4",
+        "--sample-period",
+        "0.01",
+        "--out",
+        str(tmp_path / "d.csv"),
+        "--no-plot",
+    )
     assert code == 0
     spec = parse_spec(obj["design"]["spec"])
     assert spec.low >= -3 and spec.high <= 3 and spec.rate == 1.0
-    assert obj["samples"] == obj["design"]["samples"] and obj["design"]["duration_s"] == pytest.approx(obj["samples"] * 0.01)
+    assert obj["samples"] == obj["design"]["samples"] and obj["design"]["duration_s"] == pytest.approx(
+        obj["samples"] * 0.01
+    )
     assert obj["report"]["sufficient"]
     _, _, data = read_signal(tmp_path / "d.csv")
     assert np.max(np.abs(np.diff(data[:, 1]))) <= 1.0 and np.max(np.abs(data[:, 1])) <= 3.0
@@ -95,8 +127,19 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, monkeypatch, argv, f
 
 
 def test_identify_with_an_excitation_spec(tmp_path, capsys):
-    code, obj = run_json(capsys, "identify", "--excitation", "steps:amplitude=2.4,hold=2", "--samples", "3000",
-                         "--snr", "43", "--out", str(tmp_path), "--no-plots")
+    code, obj = run_json(
+        capsys,
+        "identify",
+        "--excitation",
+        "steps:amplitude=2.4,hold=2",
+        "--samples",
+        "3000",
+        "--snr",
+        "43",
+        "--out",
+        str(tmp_path),
+        "--no-plots",
+    )
     assert code == 0
     assert "&excitation=steps:amplitude=2.4," in obj["source"]
     assert obj["max_relative_error"] < 0.02
@@ -110,8 +153,15 @@ def test_identify_default_equals_the_papers_uniform_spec(tmp_path, capsys):
 
     common = ["--samples", "1500", "--snr", "43", "--seed", "2", "--no-plots"]
     _, default = run_json(capsys, "identify", *common, "--out", str(tmp_path / "a"))
-    _, explicit = run_json(capsys, "identify", *common, "--out", str(tmp_path / "b"),
-                           "--excitation", f"uniform:amplitude={PAPER_INPUT_AMPLITUDE!r}")
+    _, explicit = run_json(
+        capsys,
+        "identify",
+        *common,
+        "--out",
+        str(tmp_path / "b"),
+        "--excitation",
+        f"uniform:amplitude={PAPER_INPUT_AMPLITUDE!r}",
+    )
     assert default["model"] == explicit["model"]
     assert "excitation=uniform:amplitude=2.40624" in default["source"]
 

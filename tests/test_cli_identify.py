@@ -1,3 +1,5 @@
+"""``servoid identify`` from the command line: the simulated servo and recordings, files, table and JSON."""
+
 import json
 
 import numpy as np
@@ -40,8 +42,16 @@ def test_fit_nrmse_is_the_free_run_error_of_the_returned_model(tmp_path, capsys)
 
 def test_identify_from_a_recording(tmp_path, capsys):
     code, first = run_json(capsys, "--out", str(tmp_path / "a"), "--samples", "2500", "--snr", "40", "--no-plots")
-    code, second = run_json(capsys, "--data", str(tmp_path / "a" / "recording.csv"), "--out",
-                            str(tmp_path / "b"), "--epsilon", str(first["mrgia"]["epsilon"]), "--no-plots")
+    code, second = run_json(
+        capsys,
+        "--data",
+        str(tmp_path / "a" / "recording.csv"),
+        "--out",
+        str(tmp_path / "b"),
+        "--epsilon",
+        str(first["mrgia"]["epsilon"]),
+        "--no-plots",
+    )
     assert code == 0 and "truth" not in second
     np.testing.assert_allclose(second["model"]["c2"], PAPER_PLANT.c2, rtol=2e-2)
     np.testing.assert_allclose(second["fit_nrmse"], first["fit_nrmse"], rtol=0.05)

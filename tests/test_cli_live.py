@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from servoid.cli import main
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.modelfile import load_model
 from servoid.recording import read_recording
@@ -96,7 +96,7 @@ def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
         assert done.returncode == 0, done.stderr
         obj = json.loads(done.stdout)
         model = BacklashModel.from_dict(obj["model"])
-        assert model.max_relative_error(BENCH_PLANT) < 0.01, obj["acquisition"]
+        assert model.max_relative_error(MODEL_PLANT) < 0.01, obj["acquisition"]
         assert obj["acquisition"]["frames_rejected"] == 0 and obj["acquisition"]["counts"]["ok"] > 500
     finally:
         emulator.terminate()

@@ -10,9 +10,9 @@ import pytest
 from servoid.cli import main
 from servoid.cli.monitor import parse_bounds
 from servoid.errors import ConfigError
-from servoid.ident.wear import GEAR_PLANT
+from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile, save_model
-from servoid.monitor import EXIT_ALARM, read_estimates
+from servoid.monitor_run import EXIT_ALARM, read_estimates
 
 GEAR = "sim://?plant=gear&snr=40&clock=virtual"
 
@@ -46,10 +46,14 @@ def test_a_run_without_wear_raises_nothing_and_summarises_in_json(tmp_path, mode
     summary = json.loads(captured.out)
     assert summary["samples"] == 30_000 and summary["alarms"] == [] and summary["stopped"] is None
     assert summary["estimate"]["dead_zone"] == pytest.approx(1.0, abs=0.02)
-    assert summary["fit"] == pytest.approx(1 / 40, rel=0.3)
+    assert summary["estimate"]["fit"] == pytest.approx(1 / 40, rel=0.3)
+    assert summary["estimate"]["values"]["m2"] == pytest.approx(1.5, rel=0.02) and summary["unit"] == "unit"
     rows, meta = read_estimates(out / "estimates.csv")
     assert rows["k"].size == 60 and "m2" not in meta["bounds"] and "fit <= 0.05" in meta["bounds"]
-    assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {"start", "stop"}
+    assert set(json.loads(line)["event"] for line in (out / "events.jsonl").read_text().splitlines()) == {
+        "start",
+        "stop",
+    }
 
 
 def test_a_drift_with_a_plot_raises_the_alarm_and_draws_the_figure(tmp_path, model, capsys):

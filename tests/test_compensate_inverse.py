@@ -7,8 +7,8 @@ from hypothesis import strategies as st
 
 from servoid.errors import ConfigError, ModelError
 from servoid.ident import PAPER_PLANT
-from servoid.ident.backlash import backlash_step
-from servoid.ident.compensate import BacklashInverse, InverseParams, backlash_inverse, default_band
+from servoid.ident.control.compensate import BacklashInverse, InverseParams, backlash_inverse, default_band
+from servoid.ident.models.kernels import backlash_step
 
 M2, C1, C2 = PAPER_PLANT.m2, PAPER_PLANT.c1, PAPER_PLANT.c2
 

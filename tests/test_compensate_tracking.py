@@ -8,17 +8,23 @@ import pytest
 from servoid.cli import main
 from servoid.errors import ConfigError, ModelError
 from servoid.ident import PAPER_PLANT, BacklashModel, simulate
-from servoid.ident.compensate import InverseParams
-from servoid.ident.compensation_study import (
+from servoid.ident.control.compensate import InverseParams
+from servoid.ident.control.compensation_study import (
     ARMS,
     Improvement,
     compensation_study,
     default_resolution,
     perturbed,
 )
-from servoid.ident.feedforward import LinearInverse
-from servoid.ident.references import amplitude_limit, reference_suite
-from servoid.ident.tracking import Sensor, TrackingController, default_integral_gain, simulate_tracking, tracking_metrics
+from servoid.ident.control.feedforward import LinearInverse
+from servoid.ident.control.references import amplitude_limit, reference_suite
+from servoid.ident.control.tracking import (
+    Sensor,
+    TrackingController,
+    default_integral_gain,
+    simulate_tracking,
+    tracking_metrics,
+)
 from servoid.modelfile import ModelFile
 
 

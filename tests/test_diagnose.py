@@ -10,10 +10,10 @@ from servoid.cli import main
 from servoid.errors import ConfigError
 from servoid.extendedfile import load_extended_model
 from servoid.ident import MRGIAConfig
-from servoid.ident.diagnose import DiagnoseConfig, diagnose
-from servoid.ident.effects import EFFECT_NAMES, EFFECTS, NONE
-from servoid.ident.extended import simulate_extended
-from servoid.ident.hidden import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+from servoid.ident.diagnosis.hidden_effects import HIDDEN_STRENGTHS, hidden_effect_record
+from servoid.ident.models.effects import EFFECT_NAMES, EFFECTS, NONE
+from servoid.ident.models.extended import simulate_extended
 from servoid.recording import write_recording
 
 SAMPLES = 6000
@@ -54,7 +54,7 @@ def test_the_hidden_effect_is_named_sized_and_closes_the_gap(effect, value):
 
 
 def test_a_second_effect_is_found_after_the_first():
-    from servoid.ident.extended import AppliedEffect, ExtendedModel
+    from servoid.ident.models.extended import AppliedEffect, ExtendedModel
     from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 
     truth = ExtendedModel(PAPER_PLANT, (AppliedEffect("input_saturation", (1.5,)), AppliedEffect("dead_zone", (0.3,))))
@@ -86,14 +86,32 @@ def csv_pair(tmp_path_factory):
     folder = tmp_path_factory.mktemp("rec")
     train, val = pair("dead_zone", 0.3, seed=21)
     for name, rec in (("a.csv", train), ("b.csv", val)):
-        write_recording(folder / name, {"t": 0.01 * np.arange(SAMPLES), "u": rec.u, "y": rec.y}, metadata={"unit": "rad"})
+        write_recording(
+            folder / name, {"t": 0.01 * np.arange(SAMPLES), "u": rec.u, "y": rec.y}, metadata={"unit": "rad"}
+        )
     return folder / "a.csv", folder / "b.csv"
 
 
 def test_cli_json_is_one_object_with_the_agreed_keys(csv_pair, tmp_path, capsys):
     a, b = csv_pair
-    code = main(["diagnose", "--train", str(a), "--validate", str(b), "--na", "2", "--nb", "0", "--delay", "1",
-                 "--out", str(tmp_path), "--json"])
+    code = main(
+        [
+            "diagnose",
+            "--train",
+            str(a),
+            "--validate",
+            str(b),
+            "--na",
+            "2",
+            "--nb",
+            "0",
+            "--delay",
+            "1",
+            "--out",
+            str(tmp_path),
+            "--json",
+        ]
+    )
     obj = json.loads(capsys.readouterr().out)
     assert code == 0
     assert obj["effect"] == "dead_zone" and set(obj["effect_parameters"]) == {"width"}
@@ -109,8 +127,23 @@ def test_cli_json_is_one_object_with_the_agreed_keys(csv_pair, tmp_path, capsys)
 
 def test_cli_table_names_the_effect_with_its_unit(csv_pair, tmp_path, capsys):
     a, b = csv_pair
-    assert main(["diagnose", "--train", str(a), "--validate", str(b), "--out", str(tmp_path), "--no-plots",
-                 "--effects", "dead_zone,coulomb_friction"]) == 0
+    assert (
+        main(
+            [
+                "diagnose",
+                "--train",
+                str(a),
+                "--validate",
+                str(b),
+                "--out",
+                str(tmp_path),
+                "--no-plots",
+                "--effects",
+                "dead_zone,coulomb_friction",
+            ]
+        )
+        == 0
+    )
     out = " ".join(capsys.readouterr().out.split())  # rich wraps long lines
     assert "missing effect: dead_zone (width = 0.3" in out or "missing effect: dead_zone (width = 0.29" in out
     assert "where:" in out and "validation gap (free-run NRMSE): before" in out
@@ -121,10 +154,16 @@ def test_cli_table_names_the_effect_with_its_unit(csv_pair, tmp_path, capsys):
     [
         (None, [], "no such CSV file"),
         ("u,v\n1,2\n", [], "missing column(s) 'y'"),
-        ("# unit: mm\nt,u,y\n" + "".join(f"{0.01 * i},{np.sin(i)},{np.cos(i)}\n" for i in range(500)), [],
-         "differ in 'unit'"),
-        ("# unit: rad\nt,u,y\n" + "".join(f"{0.02 * i},{np.sin(i)},{np.cos(i)}\n" for i in range(500)), [],
-         "differ in sample period"),
+        (
+            "# unit: mm\nt,u,y\n" + "".join(f"{0.01 * i},{np.sin(i)},{np.cos(i)}\n" for i in range(500)),
+            [],
+            "differ in 'unit'",
+        ),
+        (
+            "# unit: rad\nt,u,y\n" + "".join(f"{0.02 * i},{np.sin(i)},{np.cos(i)}\n" for i in range(500)),
+            [],
+            "differ in sample period",
+        ),
         ("t,u,y\n0,1,2\n0.01,1,3\n", [], "validation record: 2 samples are too few"),
         ("t,u,y\n0,1,2\n", ["--effects", "stiction"], "--effects (='stiction') must list effects from"),
     ],
@@ -134,7 +173,9 @@ def test_cli_bad_or_mismatched_files_give_one_line(csv_pair, tmp_path, capsys, c
     b = tmp_path / "b.csv"
     if content_b is not None:
         b.write_text(content_b)
-    code = main(["diagnose", "--train", str(a), "--validate", str(b), "--out", str(tmp_path / "o"), "--no-plots", *args])
+    code = main(
+        ["diagnose", "--train", str(a), "--validate", str(b), "--out", str(tmp_path / "o"), "--no-plots", *args]
+    )
     err = capsys.readouterr().err
     assert code == 2, err
     assert fragment in err
@@ -163,7 +204,13 @@ def test_emps_reads_and_diagnoses():
     train = read_emps(EMPS / "DATA_EMPS.mat", decimate=10)
     val = read_emps(EMPS / "DATA_EMPS_PULSES.mat", decimate=10)
     assert len(train) == 2485 and train.metadata["unit"] == "m" and train.sample_period == pytest.approx(0.01, rel=1e-3)
-    result = diagnose(train.u, train.y, val.u, val.y, DiagnoseConfig(identification=MRGIAConfig(na=2, nb=1, delay=1, rho_exponent=0.75)))
+    result = diagnose(
+        train.u,
+        train.y,
+        val.u,
+        val.y,
+        DiagnoseConfig(identification=MRGIAConfig(na=2, nb=1, delay=1, rho_exponent=0.75)),
+    )
     assert result.effect in EFFECT_NAMES and result.gap_after <= result.gap_before
 
 
@@ -174,7 +221,13 @@ def test_xl330_reads_and_diagnoses():
     rec = read_bam(BAM)
     assert len(rec) == 1124 and rec.metadata["unit"] == "rad"
     train, val = split(rec, 0.67)
-    result = diagnose(train.u, train.y, val.u, val.y, DiagnoseConfig(identification=MRGIAConfig(na=2, nb=0, delay=1, rho_exponent=0.75)))
+    result = diagnose(
+        train.u,
+        train.y,
+        val.u,
+        val.y,
+        DiagnoseConfig(identification=MRGIAConfig(na=2, nb=0, delay=1, rho_exponent=0.75)),
+    )
     assert result.effect in EFFECT_NAMES and result.gap_after <= result.gap_before
 
 

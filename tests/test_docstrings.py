@@ -44,7 +44,8 @@ def _parameters(obj: object) -> list[str]:
     return [
         p.name
         for p in sig.parameters.values()
-        if p.name not in ("self", "cls") and not p.name.startswith("_")
+        if p.name not in ("self", "cls")
+        and not p.name.startswith("_")
         and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD)
     ]
 

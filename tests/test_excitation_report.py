@@ -9,7 +9,7 @@ from servoid.excitation import MultisineSpec, sample
 from servoid.excitation.regressor import regressor
 from servoid.excitation.report import assess, input_stats
 from servoid.ident import PAPER_PLANT, BacklashModel, simulate
-from servoid.ident.backlash import ZONE_MEMORY
+from servoid.ident.models.kernels import ZONE_MEMORY
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
 
 

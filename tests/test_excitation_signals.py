@@ -44,12 +44,22 @@ def specs(draw):
         hi = draw(st.floats(lo + 0.05, 0.5))
         return MultisineSpec(**common, bands=((lo, hi),), period=draw(st.integers(64, 2000)))
     if kind == "chirp":
-        return ChirpSpec(**common, f0=draw(st.floats(0.001, 0.5)), f1=draw(st.floats(0.001, 0.5)),
-                         period=draw(st.integers(2, 3000)), sweep=draw(st.sampled_from(["linear", "log"])))
+        return ChirpSpec(
+            **common,
+            f0=draw(st.floats(0.001, 0.5)),
+            f1=draw(st.floats(0.001, 0.5)),
+            period=draw(st.integers(2, 3000)),
+            sweep=draw(st.sampled_from(["linear", "log"])),
+        )
     count = draw(st.integers(1, 5))
     share = draw(st.floats(0.0, 0.99))
-    return LevelsSpec(**common, count=count, dwell=draw(st.integers(1, 50)), dither=share * common["amplitude"],
-                      hold=draw(st.integers(1, 5)))
+    return LevelsSpec(
+        **common,
+        count=count,
+        dwell=draw(st.integers(1, 50)),
+        dither=share * common["amplitude"],
+        hold=draw(st.integers(1, 5)),
+    )
 
 
 PROPERTY = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -85,8 +95,9 @@ def test_stream_yields_the_same_samples_as_sample():
 
 
 def test_the_uniform_kind_is_the_papers_input_bit_for_bit():
-    np.testing.assert_array_equal(sample(UniformSpec(amplitude=2.4), 500, seed=11),
-                                  np.random.default_rng(11).uniform(-2.4, 2.4, 500))
+    np.testing.assert_array_equal(
+        sample(UniformSpec(amplitude=2.4), 500, seed=11), np.random.default_rng(11).uniform(-2.4, 2.4, 500)
+    )
 
 
 def test_same_seed_same_signal_other_seed_other_signal():

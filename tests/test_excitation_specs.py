@@ -4,12 +4,10 @@ import math
 
 import pytest
 from hypothesis import given, settings
-from hypothesis import strategies as st
+from test_excitation_signals import specs
 
 from servoid.errors import ConfigError
 from servoid.excitation import KINDS, MultisineSpec, PRBSSpec, format_spec, parse_spec
-
-from test_excitation_signals import specs
 
 
 @settings(max_examples=100, deadline=None)

@@ -11,7 +11,7 @@ from servoid.cli import main
 from servoid.errors import ConfigError, ModelError
 from servoid.export import export_model
 from servoid.ident import BacklashModel
-from servoid.ident.compensate import InverseParams, backlash_inverse
+from servoid.ident.control.compensate import InverseParams, backlash_inverse
 from servoid.modelfile import ModelFile
 
 GCC = shutil.which("gcc")
@@ -121,7 +121,9 @@ def test_name_must_be_a_c_identifier():
 
 def test_effects_refused_unless_ignored(tmp_path, capsys):
     content = _content(extra={"effects": [{"name": "coulomb_friction"}, {"kind": "drift"}]})
-    with pytest.raises(ModelError, match=r"2 extension\(s\) in 'effects' \(coulomb_friction, drift\).*--ignore-effects"):
+    with pytest.raises(
+        ModelError, match=r"2 extension\(s\) in 'effects' \(coulomb_friction, drift\).*--ignore-effects"
+    ):
         export_model(content, "c")
     assert "servoid_backlash_inverse" in export_model(content, "c", ignore_effects=True)
     path = tmp_path / "model.json"

@@ -10,7 +10,7 @@ import pytest
 from servoid.cli import main
 from servoid.errors import ConfigError, DataError
 from servoid.ident import PAPER_PLANT
-from servoid.ident.compensate import default_band
+from servoid.ident.control.compensate import default_band
 from servoid.modelfile import ModelFile, load_model, save_model
 
 SCHEMA = json.loads(resources.files("servoid").joinpath("model.schema.json").read_text())
@@ -96,7 +96,10 @@ def test_version_1_nan_stderr_reads_as_null(tmp_path):
 @pytest.mark.parametrize(
     "obj, fragment",
     [
-        ({"schema": "servoid.model", "version": 3}, "schema version 3 is newer than this servoid reads (versions 1, 2); upgrade"),
+        (
+            {"schema": "servoid.model", "version": 3},
+            "schema version 3 is newer than this servoid reads (versions 1, 2); upgrade",
+        ),
         ({"schema": "servoid.model", "version": 0}, "schema version 0 is older than any this servoid reads"),
         ({"schema": "servoid.model", "version": "2"}, "schema version '2' is not a version number"),
         ({"schema": "servoid.model"}, "schema version None is not a version number"),

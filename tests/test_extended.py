@@ -7,8 +7,8 @@ from servoid.errors import DataError, ModelError
 from servoid.extendedfile import load_extended_model, save_extended_model
 from servoid.ident import PAPER_PLANT, BacklashModel, free_run
 from servoid.ident._jit import python_version
-from servoid.ident.effects import CANDIDATE_NAMES, EFFECT_NAMES, EFFECTS, NONE
-from servoid.ident.extended import AppliedEffect, ExtendedModel, extended_kernel, fit_extended, simulate_extended
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECT_NAMES, EFFECTS, NONE
+from servoid.ident.models.extended import AppliedEffect, ExtendedModel, extended_kernel, fit_extended, simulate_extended
 from servoid.modelfile import ModelFile, load_model, save_model
 
 
@@ -27,12 +27,16 @@ def test_names_are_defined_once_and_include_none():
 
 
 def test_no_effect_is_the_base_free_run(u):
-    np.testing.assert_array_equal(simulate_extended(ExtendedModel(PAPER_PLANT), u, y0=0.3).y, free_run(PAPER_PLANT, u, y0=0.3))
+    np.testing.assert_array_equal(
+        simulate_extended(ExtendedModel(PAPER_PLANT), u, y0=0.3).y, free_run(PAPER_PLANT, u, y0=0.3)
+    )
 
 
 def test_input_blocks_equal_the_base_model_on_a_transformed_input(u):
     clipped = np.clip(u, -1.3, 1.3)
-    np.testing.assert_allclose(simulate_extended(with_effect("input_saturation", 1.3), u).y, free_run(PAPER_PLANT, clipped))
+    np.testing.assert_allclose(
+        simulate_extended(with_effect("input_saturation", 1.3), u).y, free_run(PAPER_PLANT, clipped)
+    )
     banded = np.where(np.abs(u) <= 0.4, 0.0, u - 0.4 * np.sign(u))
     np.testing.assert_allclose(simulate_extended(with_effect("dead_zone", 0.4), u).y, free_run(PAPER_PLANT, banded))
 
@@ -41,7 +45,9 @@ def test_structural_effects_equal_a_base_model_with_that_structure(u):
     later = BacklashModel(a=PAPER_PLANT.a, b=PAPER_PLANT.b, delay=3, m2=1.5, c1=0.5, c2=1.0)
     np.testing.assert_allclose(simulate_extended(with_effect("extra_delay", 2.0), u).y, free_run(later, u))
     p = 0.6
-    slower = BacklashModel(a=(0.45 - p, 0.55 - 0.45 * p, -0.55 * p), b=(0.8 * (1 - p),), delay=1, m2=1.5, c1=0.5, c2=1.0)
+    slower = BacklashModel(
+        a=(0.45 - p, 0.55 - 0.45 * p, -0.55 * p), b=(0.8 * (1 - p),), delay=1, m2=1.5, c1=0.5, c2=1.0
+    )
     np.testing.assert_allclose(simulate_extended(with_effect("extra_pole", p), u).y, free_run(slower, u), atol=1e-12)
     assert slower.dc_gain == pytest.approx(PAPER_PLANT.dc_gain)
 
@@ -67,14 +73,34 @@ def test_coulomb_friction_opposes_the_direction_of_motion(u):
 
 
 def test_compiled_and_python_kernels_agree(u):
-    model = ExtendedModel(PAPER_PLANT, (AppliedEffect("coulomb_friction", (0.1,)), AppliedEffect("dead_zone", (0.2,)),
-                                        AppliedEffect("input_saturation", (1.9,))))
+    model = ExtendedModel(
+        PAPER_PLANT,
+        (
+            AppliedEffect("coulomb_friction", (0.1,)),
+            AppliedEffect("dead_zone", (0.2,)),
+            AppliedEffect("input_saturation", (1.9,)),
+        ),
+    )
     args = model.kernel_args()
     outs = []
     for kernel in (extended_kernel, python_version(extended_kernel)):
         x, y, z = np.empty_like(u), np.empty_like(u), np.empty(u.shape, dtype=np.int8)
-        kernel(args.a, args.b, args.delay, args.m2, args.c1, args.c2, args.saturation, args.dead_band, args.friction,
-               u, 0.0, x, y, z)
+        kernel(
+            args.a,
+            args.b,
+            args.delay,
+            args.m2,
+            args.c1,
+            args.c2,
+            args.saturation,
+            args.dead_band,
+            args.friction,
+            u,
+            0.0,
+            x,
+            y,
+            z,
+        )
         outs.append(y)
     np.testing.assert_allclose(outs[0], outs[1], atol=1e-12)
 
@@ -108,7 +134,9 @@ def test_an_effect_appears_once():
 
 
 def test_model_json_round_trip(tmp_path):
-    model = ExtendedModel(PAPER_PLANT, (AppliedEffect("coulomb_friction", (0.12,)), AppliedEffect("extra_delay", (2.0,))))
+    model = ExtendedModel(
+        PAPER_PLANT, (AppliedEffect("coulomb_friction", (0.12,)), AppliedEffect("extra_delay", (2.0,)))
+    )
     path = save_extended_model(tmp_path / "model.json", model, output_unit="rad", fit_nrmse=0.03)
     loaded, content = load_extended_model(path)
     assert loaded == model and content.output_unit == "rad"
@@ -141,8 +169,15 @@ NEAR = BacklashModel(a=(0.44, 0.56), b=(0.81,), delay=1, m2=1.45, c1=0.48, c2=0.
 # Coulomb friction switches with the sign of the velocity: its cost has
 # plateaus, so from a distant base some starts stop short (the diagnosis tries
 # several starts from the identified base model, which is near).
-@pytest.mark.parametrize("name, value, start, base", [("coulomb_friction", 0.2, 0.3, NEAR), ("input_saturation", 1.5, 2.2, FAR),
-                                                      ("dead_zone", 0.3, 0.1, FAR), ("extra_pole", 0.4, 0.1, FAR)])
+@pytest.mark.parametrize(
+    "name, value, start, base",
+    [
+        ("coulomb_friction", 0.2, 0.3, NEAR),
+        ("input_saturation", 1.5, 2.2, FAR),
+        ("dead_zone", 0.3, 0.1, FAR),
+        ("extra_pole", 0.4, 0.1, FAR),
+    ],
+)
 def test_joint_fit_recovers_every_parameter_on_clean_data(u, name, value, start, base):
     truth = with_effect(name, value)
     y = simulate_extended(truth, u).y

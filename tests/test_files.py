@@ -1,3 +1,5 @@
+"""Reading the files servoid is given: each failure a one-line error naming the file."""
+
 import pytest
 
 from servoid.errors import DataError

@@ -1,8 +1,10 @@
+"""The pseudo-Wiener model: theta (eq. 15), where the lines cross, validation of every parameter."""
+
 import numpy as np
 import pytest
 
 from servoid.errors import ModelError, ServoidError
-from servoid.ident import BacklashModel, PAPER_PLANT
+from servoid.ident import PAPER_PLANT, BacklashModel
 
 
 def test_theta_roundtrip_and_names():

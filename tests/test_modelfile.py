@@ -1,3 +1,5 @@
+"""``model.json``: round trip, bad files named, versions."""
+
 import json
 
 import pytest
@@ -8,8 +10,15 @@ from servoid.modelfile import ModelFile, load_model, save_model
 
 
 def test_roundtrip(tmp_path):
-    content = ModelFile(model=PAPER_PLANT, stderr={"c1": 0.001}, output_unit="rad", source="sim://paper",
-                        samples=5000, fit_nrmse=0.02, sample_period_s=0.002)
+    content = ModelFile(
+        model=PAPER_PLANT,
+        stderr={"c1": 0.001},
+        output_unit="rad",
+        source="sim://paper",
+        samples=5000,
+        fit_nrmse=0.02,
+        sample_period_s=0.002,
+    )
     p = save_model(tmp_path / "model.json", content)
     data = json.loads(p.read_text())
     assert data["schema"] == "servoid.model" and data["version"] == 2

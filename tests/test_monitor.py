@@ -1,4 +1,4 @@
-"""Monitoring: the tracker (known truth, units, uncertainty, fit) and the loop on a wearing simulated servo."""
+"""Monitoring: the wear estimator (known truth, units, uncertainty, fit) and the loop on a wearing simulated servo."""
 
 from __future__ import annotations
 
@@ -12,15 +12,16 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import DataError
 from servoid.excitation import UniformSpec, stream
-from servoid.ident.alarms import Bound
-from servoid.ident.compensate import default_band
-from servoid.ident.monitor import Tracker, TrackerConfig
-from servoid.ident.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.control.compensate import default_band
+from servoid.ident.models.wear import GEAR_PLANT, Wear, WearingPlant
+from servoid.ident.monitoring.alarms import Bound
+from servoid.ident.monitoring.wear_estimator import WearEstimator, WearEstimatorConfig
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor import MonitorConfig, MonitorHistory, compensation_band, read_estimates, run_monitor
+from servoid.monitor_history import MonitorHistory
+from servoid.monitor_run import MonitorConfig, compensation_band, read_estimates, run_monitor
 from servoid.session import SessionConfig, run_session
 
 NOISE = 0.0337  # the gear plant's noise at SNR 40
@@ -36,27 +37,27 @@ def record(n: int, *, seed: int, model=GEAR_PLANT, wear: Wear | None = None, amp
 
 def test_the_tracker_follows_a_growing_dead_zone_with_an_honest_uncertainty():
     u, y = record(60_000, seed=4, wear=Wear(drift=1.3, drift_samples=30_000, drift_start=10_000))
-    tracker = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=NOISE))
+    estimator = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=NOISE))
     dead = []
     for k, (a, b) in enumerate(zip(u, y)):
-        tracker.update(a, b)
+        estimator.update(a, b)
         if k >= 45_000 and k % 100 == 0:
-            dead.append(tracker.estimate().dead_zone)
-    e = tracker.estimate()
+            dead.append(estimator.estimate().dead_zone)
+    e = estimator.estimate()
     assert abs(np.mean(dead) - 1.3) < 0.01 and e.recoveries == 0
     # the reported std is of the order of the scatter (cautious: the filter expects the parameters to wander)
     assert np.std(dead) < e.dead_zone_std < 4 * np.std(dead)
     assert e.c1 == pytest.approx(0.52, abs=0.02) and e.m2 == pytest.approx(1.5, abs=0.02)
-    assert tracker.fit == pytest.approx(1 / 40, rel=0.25)  # at the noise floor: the model explains the rest
-    assert tracker.model.dead_zone == pytest.approx(e.dead_zone)
+    assert estimator.fit == pytest.approx(1 / 40, rel=0.25)  # at the noise floor: the model explains the rest
+    assert estimator.model.dead_zone == pytest.approx(e.dead_zone)
 
 
 def test_one_setting_fits_every_unit():
     # the same servo read in a unit 100 times smaller (say, centi-units): the estimates scale exactly
     u, y = record(8000, seed=5)
     big = dataclasses.replace(GEAR_PLANT, c1=GEAR_PLANT.c1 * 100, c2=GEAR_PLANT.c2 * 100)
-    one = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=NOISE))
-    hundred = Tracker(TrackerConfig(reference=big, noise_std=NOISE * 100))
+    one = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=NOISE))
+    hundred = WearEstimator(WearEstimatorConfig(reference=big, noise_std=NOISE * 100))
     for a, b in zip(u, y):
         one.update(a, b)
         hundred.update(a * 100, b * 100)
@@ -64,21 +65,21 @@ def test_one_setting_fits_every_unit():
     np.testing.assert_allclose(e100.values[-2:], e1.values[-2:] * 100, rtol=1e-9)
     np.testing.assert_allclose(e100.values[:-2], e1.values[:-2], rtol=1e-9)
     assert e100.dead_zone_std == pytest.approx(e1.dead_zone_std * 100, rel=1e-9)
-    # without the normalisation, a q sized for dead zones of 0.05 rad freezes the linear block (see ident/monitor.py)
+    # without the normalisation, a q sized for dead zones of 0.05 rad freezes the linear block (see ident/monitoring/wear_estimator.py)
 
 
 def test_the_fit_waits_for_its_window_and_sees_a_servo_the_model_does_not_explain():
     u, y = record(12_000, seed=6)
-    tracker = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=NOISE, fit_window=5000))
+    estimator = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=NOISE, fit_window=5000))
     for a, b in zip(u[:4999], y[:4999]):
-        tracker.update(a, b)
-    assert math.isnan(tracker.fit) and math.isnan(tracker.estimate().fit)
+        estimator.update(a, b)
+    assert math.isnan(estimator.fit) and math.isnan(estimator.estimate().fit)
     for a, b in zip(u[4999:], y[4999:]):
-        tracker.update(a, b)
-    good = tracker.fit
+        estimator.update(a, b)
+    good = estimator.fit
     # an output with a slow wobble the backlash model cannot produce
     wobble = y + 0.3 * np.sin(np.arange(y.size) * 2 * np.pi / 700)
-    off = Tracker(TrackerConfig(reference=GEAR_PLANT, noise_std=NOISE, fit_window=5000))
+    off = WearEstimator(WearEstimatorConfig(reference=GEAR_PLANT, noise_std=NOISE, fit_window=5000))
     for a, b in zip(u, wobble):
         off.update(a, b)
     assert good < 0.035 and off.fit > 3 * good
@@ -106,7 +107,7 @@ def test_a_hand_set_band_is_kept_and_the_default_follows_the_model():
 def monitor(url: str, n: int, tmp_path, *, share: float = 0.1, stop: bool = False, on_progress=None):
     with driver_from_url(url) as servo:
         config = MonitorConfig(
-            tracker=TrackerConfig(reference=GEAR_PLANT, noise_std=servo.noise_std),
+            estimator=WearEstimatorConfig(reference=GEAR_PLANT, noise_std=servo.noise_std),
             bounds=(Bound(quantity="dead_zone", low=1 - share, high=1 + share, label="dead zone"),
                     Bound(quantity="m2", low=1.5 * (1 - share), high=1.5 * (1 + share))),
             row_every=500, stop_on_alarm=stop,
@@ -193,12 +194,12 @@ def test_read_estimates_rejects_other_files(tmp_path):
 
 
 def test_the_bench_servo_in_rad_is_tracked_with_the_same_settings():
-    u, y = record(30_000, seed=8, model=BENCH_PLANT, amplitude=0.2, noise=1e-4,
+    u, y = record(30_000, seed=8, model=MODEL_PLANT, amplitude=0.2, noise=1e-4,
                   wear=Wear(drift=1.3, drift_samples=10_000, drift_start=5000))  # fmt: skip
-    tracker = Tracker(TrackerConfig(reference=BENCH_PLANT, noise_std=1e-4))
+    estimator = WearEstimator(WearEstimatorConfig(reference=MODEL_PLANT, noise_std=1e-4))
     for a, b in zip(u, y):
-        tracker.update(a, b)
-    assert tracker.estimate().dead_zone == pytest.approx(0.05 * 1.3, rel=0.01)
+        estimator.update(a, b)
+    assert estimator.estimate().dead_zone == pytest.approx(0.05 * 1.3, rel=0.01)
 
 
 def test_the_live_plot_draws_in_another_process(tmp_path):
@@ -231,7 +232,9 @@ def test_ctrl_c_ends_the_run_with_every_output_complete(tmp_path):
         raise KeyboardInterrupt
 
     with driver_from_url("sim://?plant=gear&snr=40&clock=virtual") as servo:
-        config = MonitorConfig(tracker=TrackerConfig(reference=GEAR_PLANT, noise_std=servo.noise_std), row_every=1000)
+        config = MonitorConfig(
+            estimator=WearEstimatorConfig(reference=GEAR_PLANT, noise_std=servo.noise_std), row_every=1000
+        )
         result = run_monitor(servo, until_ctrl_c(), SessionConfig(period_s=1e-3), config,
                              model_file=ModelFile(model=GEAR_PLANT), out=tmp_path)  # fmt: skip
         assert not servo.device.plant.enabled  # the torque is off

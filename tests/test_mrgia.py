@@ -1,3 +1,5 @@
+"""The MRGIA: exact recovery, online equals batch, compiled equals Python, safeguards, reset, the regressor of eq. (25)."""
+
 import json
 import os
 import subprocess
@@ -7,10 +9,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import paper_record
+
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
-from servoid.ident import MRGIA, MRGIAConfig, PAPER_PLANT, Step, noise_epsilon, run_mrgia
+from servoid.ident import MRGIA, PAPER_PLANT, BacklashModel, MRGIAConfig, Step, noise_epsilon, run_mrgia, simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -182,7 +184,7 @@ def test_bad_samples_and_settings_are_rejected():
 def test_an_invalid_estimate_is_not_handed_out_as_a_model():
     est = MRGIA(MRGIAConfig.paper())  # theta(0) has c1 = c2 = 0
     with pytest.raises(ModelError, match="not a valid model: c1 \\(=0.0\\) must be > 0"):
-        est.model
+        _ = est.model
 
 
 def _drifting_record(n: int, c_sum: np.ndarray, seed: int, u: np.ndarray | None = None):
@@ -205,7 +207,7 @@ def test_tracking_mode_follows_a_growing_dead_zone_that_the_paper_settings_miss(
     n = 60_000
     c_sum = np.r_[np.ones(10_000), np.linspace(1.0, 1.3, 50_000)]
     u, y, sd = _drifting_record(n, c_sum, seed=3)
-    track = run_mrgia(u, y, MRGIAConfig.tracking(epsilon=noise_epsilon(sd)), record_every=1000)
+    track = run_mrgia(u, y, MRGIAConfig.random_walk(epsilon=noise_epsilon(sd)), record_every=1000)
     static = run_mrgia(u, y, MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(sd)), record_every=1000)
     dead = lambda r: r.values_history()[:, 4] + r.values_history()[:, 5]  # noqa: E731
     assert abs(dead(track)[-1] - 1.3) < 0.03
@@ -219,7 +221,7 @@ def test_tracking_mode_keeps_P_bounded_and_positive_under_one_sided_excitation()
     saw = (np.arange(n) % 400) / 400 * 4.8 - 2.4 + rng.uniform(-0.05, 0.05, n)
     u = np.r_[rng.uniform(-2.406, 2.406, 10_000), saw]
     u, y, sd = _drifting_record(u.size, np.ones(u.size), seed=1, u=u)
-    est = MRGIA(MRGIAConfig.tracking(epsilon=noise_epsilon(sd), p_max=np.inf))
+    est = MRGIA(MRGIAConfig.random_walk(epsilon=noise_epsilon(sd), p_max=np.inf))
     # a floor that binds: with rho exponent 0.75, (t+1)^-0.75 reaches 3e-3 after ~2300 samples
     forgetting = MRGIA(MRGIAConfig(epsilon=noise_epsilon(sd), rho_exponent=0.75, rho_floor=3e-3))
     worst = {"tracking": 0.0, "forgetting": 0.0}
@@ -233,7 +235,7 @@ def test_tracking_mode_keeps_P_bounded_and_positive_under_one_sided_excitation()
             worst["forgetting"] = max(worst["forgetting"], float(np.max(np.diag(forgetting.P))))
     assert not est.recoveries, "a one-sided stretch is not a stuck run"
     assert worst["tracking"] < 1e-3
-    # measured: 3.9e-4 against 6.9e-3; why tracking mode is a random walk, not forgetting
+    # measured: 3.9e-4 against 6.9e-3; why random-walk mode is a random walk, not forgetting
     assert worst["forgetting"] > 5 * worst["tracking"]
 
 
@@ -244,3 +246,56 @@ def test_p_max_caps_the_diagonal_and_keeps_P_positive(paper_clean):
         if est.updates:
             assert np.max(np.diag(est.P)) <= 0.01 * (1 + 1e-12)
     assert np.all(np.linalg.eigvalsh(est.P) > 0)
+
+
+def test_reset_restores_the_settings_after_the_recoveries_ran_out():
+    # a run stuck for good exhausts max_recoveries, which switches recovery off for that run only
+    cfg = MRGIAConfig(max_recoveries=1, warmup=10, coverage_window=10, stuck_below=0.99)
+    u = np.random.default_rng(1).uniform(-2.4, 2.4, 400)
+    y = simulate(PAPER_PLANT, u).y
+
+    def run(est: MRGIA) -> int:
+        for a, b in zip(u, y):
+            est.update(a, b)
+        return len(est.recoveries)
+
+    est = MRGIA(cfg)
+    first = run(est)
+    assert first == 1  # the one recovery allowed, then left alone
+    est.reset()
+    assert np.array_equal(est._cfg, cfg.kernel_config())
+    assert run(est) == first  # and the next run may recover again
+    fresh = MRGIA(cfg)
+    run(fresh)
+    np.testing.assert_array_equal(est.state, fresh.state)
+
+
+def test_the_kernel_regressor_is_the_excitation_reports_regressor():
+    # excitation/regressor.py builds eq. (25) vectorised along a model's own trajectory; the
+    # estimator's compiled kernel builds it per sample. With the estimate equal to the model, the
+    # kernel's x-hat is the model's x: both must give the same Phi and the same h on every sample.
+    from servoid.excitation.regressor import regressor
+    from servoid.ident.online import _mrgia_kernel as k
+
+    model = BacklashModel(a=(0.45, 0.55), b=(0.8, 0.3), delay=2, m2=1.5, c1=0.5, c2=1.0)
+    u = np.random.default_rng(5).uniform(-2.4, 2.4, 600)
+    sim = simulate(model, u)
+    ref = regressor(model, sim)
+    cfg = MRGIAConfig(na=model.na, nb=model.nb, delay=model.delay, theta0=tuple(model.theta))
+    n, _, _, oxh, ouh, osc = k.offsets(model.na, model.nb, model.delay)
+    state = cfg.initial_state()
+    h = np.empty(n)
+    for i in range(1, u.size):  # sample 0 only primes y(k-1), as in both
+        state[oxh : oxh + model.na] = [sim.x[i - j] if i - j >= 0 else 0.0 for j in range(1, model.na + 1)]
+        lags = range(1, model.delay + model.nb + 1)
+        state[ouh : ouh + model.delay + model.nb] = [u[i - j] if i - j >= 0 else 0.0 for j in lags]
+        state[osc + k.SC_Y_PREV] = sim.y_clean[i - 1]
+        xk = k._predict_x(state, model.na, model.nb, model.delay, oxh, ouh)
+        assert xk == pytest.approx(sim.x[i], abs=1e-12)
+        up, down, *_ = k.switching(state, model.na, model.nb, osc, xk, sim.y_clean[i], 0.0)
+        phi = up == 1.0 or down == 1.0
+        assert phi == ref.phi[i], i
+        if phi:
+            k.regressor(state, model.na, model.nb, model.delay, oxh, ouh, xk, up, down, h)
+            np.testing.assert_allclose(h, ref.h[i], atol=1e-12, err_msg=f"sample {i}")
+    assert ref.phi.sum() > 200  # both lines visited often

@@ -1,3 +1,5 @@
+"""Recordings on disk: written as samples arrive, read back, a cut-off line survived."""
+
 import signal
 import subprocess
 import sys
@@ -14,8 +16,11 @@ def test_roundtrip_keeps_values_metadata_and_ignores_other_columns(tmp_path):
     rng = np.random.default_rng(0)
     u, y = rng.normal(size=100), rng.normal(size=100)
     t = np.arange(100) * 0.002
-    p = write_recording(tmp_path / "r.csv", {"t": t, "u": u, "y": y, "temp": np.ones(100)},
-                        metadata={"unit": "rad", "source": "bench 3"})
+    p = write_recording(
+        tmp_path / "r.csv",
+        {"t": t, "u": u, "y": y, "temp": np.ones(100)},
+        metadata={"unit": "rad", "source": "bench 3"},
+    )
     rec = read_recording(p)
     assert np.array_equal(rec.u, u) and np.array_equal(rec.y, y) and np.array_equal(rec.t, t)
     assert rec.metadata == {"unit": "rad", "source": "bench 3"}

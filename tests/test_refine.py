@@ -1,9 +1,11 @@
+"""Output-error refinement and the identification pipeline: better fits, honest standard errors, bad records named."""
+
 import numpy as np
 import pytest
-
 from conftest import paper_record
+
 from servoid.errors import ConfigError, DataError
-from servoid.ident import BacklashModel, MRGIAConfig, PAPER_PLANT, check_record, identify, noise_epsilon, refine
+from servoid.ident import PAPER_PLANT, BacklashModel, MRGIAConfig, check_record, identify, noise_epsilon, refine
 
 
 def test_refinement_improves_the_online_estimate_and_its_errors_are_honest(paper_noisy):

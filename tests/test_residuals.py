@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from servoid.errors import ConfigError
-from servoid.ident.residuals import GROUPS, regime_breakdown, residual_tests, where_text
+from servoid.ident.diagnosis.residuals import GROUPS, regime_breakdown, residual_tests, where_text
 
 
 def triangle(n=2000, period=100):
@@ -37,7 +37,9 @@ def test_error_after_reversals_is_found_and_said_in_words():
     assert after.sample_share == pytest.approx(0.1, abs=0.01)
     assert after.energy_share > 0.95
     text = where_text(b)
-    assert text.startswith(f"{100 * after.energy_share:.0f} % of the error energy lies within 5 samples after a reversal")
+    assert text.startswith(
+        f"{100 * after.energy_share:.0f} % of the error energy lies within 5 samples after a reversal"
+    )
 
 
 def test_amplitude_bands_use_the_lagged_input():
@@ -45,8 +47,13 @@ def test_amplitude_bands_use_the_lagged_input():
     u = rng.uniform(-1, 1, 4000)
     r = np.zeros(u.size)
     r[3:] = np.where(np.abs(u[:-3]) < 0.25, 1.0, 0.0)  # error where |u(k-3)| is small
-    b = regime_breakdown(r + 1e-3 * rng.normal(size=u.size) + np.arange(u.size), np.arange(u.size, dtype=float),
-                         u, np.cumsum(u), input_lag=3)
+    b = regime_breakdown(
+        r + 1e-3 * rng.normal(size=u.size) + np.arange(u.size),
+        np.arange(u.size, dtype=float),
+        u,
+        np.cumsum(u),
+        input_lag=3,
+    )
     low = b.group("input amplitude")[0]
     assert low.label.startswith("|u(k-3)| in [") and low.energy_share > 0.95
 
@@ -60,7 +67,9 @@ def test_white_residual_passes_and_structure_fails():
     assert not coloured.white
     dependent = residual_tests(np.r_[np.zeros(3), 0.5 * u[:-3]] + rng.normal(size=5000), u)
     assert not dependent.independent_of_input
-    assert abs(dependent.cross_correlation[3]) > dependent.band and dependent.band == pytest.approx(2.576 / np.sqrt(5000), rel=1e-3)
+    assert abs(dependent.cross_correlation[3]) > dependent.band and dependent.band == pytest.approx(
+        2.576 / np.sqrt(5000), rel=1e-3
+    )
 
 
 def test_bad_arguments_are_named():

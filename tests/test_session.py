@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from servoid.drivers.base import Limits
 from servoid.drivers.clock import VirtualClock
 from servoid.drivers.sim import SimDriver
 from servoid.errors import ConfigError, DriverError
@@ -182,3 +183,58 @@ def test_the_guard_defaults_by_whether_the_protocol_carries_the_slot():
         assert cfg.resolved(sim).guard_samples == 0
     assert SessionConfig(period_s=0.002, guard_samples=3).resolved(sim).guard_samples == 3
     assert DEFAULT_GUARD_SAMPLES == 10
+
+
+def test_with_replies_dropped_every_step_the_servo_received_stays_within_max_step():
+    # A lost reply leaves the servo on the new command: the next step must be measured from it as
+    # well as from the one before (before the fix, steps of 2 max_step reached the servo).
+    max_step = 0.01
+    with servo(drop=0.2, timeout=0.2 * T, limits=Limits(max_step=max_step)) as s:
+        received: list[float] = []
+        plant = s.device.plant
+        apply = plant.command
+
+        def command(u, t_ns, **kw):
+            received.append(u)
+            return apply(u, t_ns, **kw)
+
+        plant.command = command
+        result = run_session(s, excitation(2000, seed=4), SessionConfig(period_s=T))
+    assert result.counts["timeout"] > 300  # the faults happened
+    steps = np.abs(np.diff(received))
+    assert steps.max() <= max_step * (1 + 1e-12), f"a step of {steps.max():.4g} reached the servo"
+    assert steps.max() > 0.99 * max_step  # and the limit was the binding one
+    # the recording says what the servo held: a timed-out row holds the command that was sent
+    timed_out = np.flatnonzero(result.status == "timeout")
+    assert np.all(np.abs(np.diff(result.u)) <= max_step * (1 + 1e-12))
+    assert set(result.u[timed_out]) <= set(received)
+
+
+def test_live_identification_refines_the_online_run_and_runs_no_second_mrgia(monkeypatch):
+    import importlib
+
+    from servoid.ident import identify
+
+    pipeline = importlib.import_module("servoid.ident.identify")  # the module (the package exports the function)
+    from servoid.session.listeners import EstimatorFeed
+
+    config = MRGIAConfig(na=2, nb=0, delay=1)
+    feed = EstimatorFeed(MRGIA(config), record_every=10)
+    with servo(snr=40, drop=0.01, timeout=0.2 * T) as s:
+        result = run_session(s, excitation(3000), SessionConfig(period_s=T), listeners=[feed])
+    online = feed.mrgia_result()
+    assert online is not None and online.samples == 3000 and (~result.valid).sum() > 10
+    # what the session ran sample by sample is the batch run over the samples it was told were usable
+    y = np.where(result.valid, result.y, 0.0)
+    batch = run_mrgia(result.u, y, config, valid=result.valid, record_every=10)
+    np.testing.assert_array_equal(online.theta, batch.theta)
+    np.testing.assert_array_equal(online.theta_history, batch.theta_history)
+
+    def no_second_run(*args, **kwargs):
+        raise AssertionError("identify ran the MRGIA again")
+
+    monkeypatch.setattr(pipeline, "run_mrgia", no_second_run)
+    ident = identify(result.u, result.y, config, valid=result.valid, online=online)
+    assert ident.mrgia is online and ident.method == "mrgia+oe"
+    with pytest.raises(ConfigError, match="online result is for na=2"):
+        identify(result.u, result.y, MRGIAConfig(na=3), valid=result.valid, online=online)

@@ -1,9 +1,11 @@
+"""Simulation of the pseudo-Wiener model: the backlash zones, the direction rule, the stepped plant."""
+
 import numpy as np
 import pytest
 
 from servoid.errors import ConfigError, ModelError
-from servoid.ident import BacklashModel, PAPER_PLANT, Plant, free_run, simulate
-from servoid.ident.backlash import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, backlash_step, schur_stable
+from servoid.ident import PAPER_PLANT, BacklashModel, Plant, free_run, simulate
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, backlash_step, schur_stable
 
 M2, C1, C2 = 1.5, 0.5, 1.0
 
@@ -87,8 +89,17 @@ def test_zone_shares_and_crossing_count():
     assert big.beyond_crossing > 0
 
 
-@pytest.mark.parametrize("a, stable", [((0.45, 0.55), True), ((-1.9, 0.95), True), ((-2.0, 1.0), False),
-                                       ((0.5,), True), ((1.0,), False), ((0.1, 0.2, 1.2), False)])
+@pytest.mark.parametrize(
+    "a, stable",
+    [
+        ((0.45, 0.55), True),
+        ((-1.9, 0.95), True),
+        ((-2.0, 1.0), False),
+        ((0.5,), True),
+        ((1.0,), False),
+        ((0.1, 0.2, 1.2), False),
+    ],
+)
 def test_schur_stable_agrees_with_roots(a, stable):
     arr = np.array(a, dtype=float)
     assert schur_stable(arr) == stable

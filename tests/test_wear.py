@@ -9,7 +9,7 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.sampled import SampledPlant
 from servoid.errors import ConfigError
 from servoid.ident import Plant
-from servoid.ident.wear import GEAR_PLANT, WEAR_RESOLUTION, Wear, WearingPlant
+from servoid.ident.models.wear import GEAR_PLANT, WEAR_RESOLUTION, Wear, WearingPlant
 from servoid.session import SessionConfig, run_session
 
 
@@ -20,7 +20,11 @@ def test_the_factor_ramps_then_holds_and_a_swap_multiplies_it():
     assert wear.factor(1200) == wear.factor(4999) == 1.5
     assert wear.factor(5000) == pytest.approx(1.8)
     m = wear.model(GEAR_PLANT, 700)
-    assert (m.c1, m.c2) == pytest.approx((0.5, 0.75)) and (m.a, m.b, m.m2) == (GEAR_PLANT.a, GEAR_PLANT.b, GEAR_PLANT.m2)
+    assert (m.c1, m.c2) == pytest.approx((0.5, 0.75)) and (m.a, m.b, m.m2) == (
+        GEAR_PLANT.a,
+        GEAR_PLANT.b,
+        GEAR_PLANT.m2,
+    )
     assert not Wear().active and Wear(drift=2.0, drift_samples=10).active
     assert GEAR_PLANT.dead_zone == pytest.approx(1.0)
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import importlib
 import socket
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from types import ModuleType
-from collections.abc import Mapping, Sequence
 from typing import Any
 from urllib.parse import urlencode
 

@@ -22,7 +22,7 @@ hardware: how late the drive's own thread gets to a frame does not move it
 to another sample.
 
 Position mode: the command is the target position (rad) fed to
-:data:`~servoid.drivers.bench.BENCH_PLANT`. Torque mode: the same plant, with
+:data:`~servoid.drivers.model_plant.MODEL_PLANT`. Torque mode: the same plant, with
 the command read as a torque (Nm) times :data:`TORQUE_GAIN` (rad per Nm) --
 a joint held by a torsion spring of ``1 / TORQUE_GAIN`` Nm/rad, so that a
 torque moves it to a position proportional to it, through the same dynamics
@@ -34,11 +34,11 @@ from __future__ import annotations
 import math
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.clock import NS_PER_S
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
-from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
+from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimAxis", "TORQUE_GAIN"]
 
@@ -68,7 +68,7 @@ class SimAxis:
 
     def __init__(
         self,
-        model: BacklashModel = BENCH_PLANT,
+        model: BacklashModel = MODEL_PLANT,
         *,
         torque_gain: float = TORQUE_GAIN,
         period_s: float | None = None,

@@ -11,7 +11,7 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.can._bus import BusAddress
 from servoid.drivers.can._sim_axis import SimAxis
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimDrive"]
 
@@ -64,7 +64,9 @@ class SimDrive(abc.ABC):
         self.axis = SimAxis(model, torque_gain=torque_gain, period_s=period_s)
         self.mute_after = None if mute_after is None else validation.integer("mute_after", mute_after, minimum=0)
         self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)
-        self.restart_after = None if restart_after is None else validation.integer("restart_after", restart_after, minimum=0)
+        self.restart_after = (
+            None if restart_after is None else validation.integer("restart_after", restart_after, minimum=0)
+        )
         self._rng = np.random.default_rng(seed)
         #: Cyclic requests served (SYNCs in Operation Enabled, inputs in closed-loop control).
         self.requests = 0

@@ -125,7 +125,9 @@ class Cia402Driver(CanDriver):
         )  # fmt: skip
         if not 1 <= self.node <= 127:
             raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")
-        self.counts_per_rev = None if counts_per_rev is None else validation.integer("counts_per_rev", counts_per_rev, minimum=1)
+        self.counts_per_rev = (
+            None if counts_per_rev is None else validation.integer("counts_per_rev", counts_per_rev, minimum=1)
+        )
         self.fault_reset = bool(fault_reset)
         self.command_step = 1.0  # targets are whole increments, or whole per mille of the rated torque
         if self.counts_per_rev is not None:
@@ -196,7 +198,9 @@ class Cia402Driver(CanDriver):
         if profile.state_of(self._sdo_read(0x6041, what="the statusword")) in _POWERED:
             # left enabled by an earlier session: torque off first
             self._sdo_call(lambda: setattr(node.sdo[0x6040], "raw", _DISABLE_VOLTAGE), "switch it off (0x6040)")
-        self._sdo_call(lambda: setattr(node.sdo[0x6060], "raw", mode_code), f"set mode of operation {mode_code} (0x6060)")
+        self._sdo_call(
+            lambda: setattr(node.sdo[0x6060], "raw", mode_code), f"set mode of operation {mode_code} (0x6060)"
+        )
         shown = self._sdo_read(0x6061, what="the mode of operation display")
         if shown != mode_code:
             raise DeviceFault(f"{self._who()} did not take mode of operation {mode_code}: 0x6061 shows {shown}")
@@ -296,10 +300,9 @@ class Cia402Driver(CanDriver):
             f"stuck in {profile.state_of(statusword)} (statusword 0x{statusword:04X})"
         )
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:
         self._raise_emcy()
         periods = 1
-        slot = self.exchange_slot
         if slot is not None:
             if self._last_slot is not None:
                 periods = slot - self._last_slot
@@ -450,7 +453,13 @@ class Cia402Driver(CanDriver):
             raise ProtocolError(f"{self._who()} refused to give {what} (0x{index:04X}): {exc}") from exc
 
     def _read_identity(self, counts_per_rev: int, rated_torque_mnm: int | None) -> dict[str, Any]:
-        info: dict[str, Any] = {"driver": "can", "protocol": "CiA 402", "node": self.node, "mode": self.mode, "counts_per_rev": counts_per_rev}
+        info: dict[str, Any] = {
+            "driver": "can",
+            "protocol": "CiA 402",
+            "node": self.node,
+            "mode": self.mode,
+            "counts_per_rev": counts_per_rev,
+        }
         if rated_torque_mnm is not None:
             info["rated_torque_mNm"] = rated_torque_mnm
         names = {

@@ -156,7 +156,13 @@ def object_dictionary(node: int) -> Any:
             ("COB-ID", U32, "rw", rx_cob if enabled else rx_cob | invalid),
             ("Transmission type", U8, "rw", 1),
         ]))  # fmt: skip
-        add(record(f"RPDO{n + 1} mapping parameter", 0x1600 + n, [(f"Mapped object {i}", U32, "rw", 0) for i in range(1, 9)]))
+        add(
+            record(
+                f"RPDO{n + 1} mapping parameter",
+                0x1600 + n,
+                [(f"Mapped object {i}", U32, "rw", 0) for i in range(1, 9)],
+            )
+        )
         add(record(f"TPDO{n + 1} communication parameter", 0x1800 + n, [
             ("COB-ID", U32, "rw", tx_cob if enabled else tx_cob | invalid),
             ("Transmission type", U8, "rw", 1),
@@ -164,7 +170,13 @@ def object_dictionary(node: int) -> Any:
             ("Reserved", U8, "rw", 0),
             ("Event timer", U16, "rw", 0),
         ]))  # fmt: skip
-        add(record(f"TPDO{n + 1} mapping parameter", 0x1A00 + n, [(f"Mapped object {i}", U32, "rw", 0) for i in range(1, 9)]))
+        add(
+            record(
+                f"TPDO{n + 1} mapping parameter",
+                0x1A00 + n,
+                [(f"Mapped object {i}", U32, "rw", 0) for i in range(1, 9)],
+            )
+        )
         # an empty mapping: sub 0 counts the mapped objects and is writable
         for index in (0x1600 + n, 0x1A00 + n):
             sub0 = dictionary[index][0]

@@ -14,8 +14,8 @@ and :class:`~servoid.drivers.can.odrive.OdriveDriver` speak the protocols.
 from __future__ import annotations
 
 import importlib
-from dataclasses import replace
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import ClassVar
 from urllib.parse import unquote
 
@@ -146,7 +146,9 @@ def protocol_class(protocol: str | None, url: str = "") -> type[CanDriver]:
     where = f"{url}: " if url else ""
     known = ", ".join(PROTOCOLS)
     if protocol is None:
-        raise ConfigError(f"{where}say which protocol the drive speaks: add protocol=<{'|'.join(PROTOCOLS)}> to the URL")
+        raise ConfigError(
+            f"{where}say which protocol the drive speaks: add protocol=<{'|'.join(PROTOCOLS)}> to the URL"
+        )
     if protocol not in PROTOCOLS:
         raise ConfigError(f"{where}unknown CAN protocol {protocol!r}; known: {known}")
     module_name, _, class_name = PROTOCOLS[protocol].partition(":")
@@ -162,4 +164,3 @@ def parse_bool(text: str) -> bool:
     if lowered in ("0", "no", "false", "off"):
         return False
     raise ValueError("expected 1 or 0 (yes/no)")
-

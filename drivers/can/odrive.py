@@ -102,7 +102,9 @@ class OdriveDriver(CanDriver):
             self._position = proto.ESTIMATES_FORMAT.unpack_from(reply)[0]
             self._send(proto.SET_AXIS_STATE, proto.AXIS_STATE_FORMAT.pack(proto.IDLE))
             control = proto.CONTROL_MODES[self.mode]
-            self._send(proto.SET_CONTROLLER_MODE, proto.CONTROLLER_MODE_FORMAT.pack(control, proto.INPUT_MODE_PASSTHROUGH))
+            self._send(
+                proto.SET_CONTROLLER_MODE, proto.CONTROLLER_MODE_FORMAT.pack(control, proto.INPUT_MODE_PASSTHROUGH)
+            )
             self._info = self._read_identity()
         except BaseException:
             self._bus.shutdown()
@@ -121,7 +123,7 @@ class OdriveDriver(CanDriver):
             self._send_command(self._position if self.mode == "position" else 0.0)
         self._request_state(proto.CLOSED_LOOP_CONTROL if enabled else proto.IDLE)
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:  # noqa: ARG002 - runs on its own clock
         if self._outstanding:
             # the last exchange timed out: let its estimates arrive now rather than answer this one
             self._await(proto.GET_ENCODER_ESTIMATES, self.timeout)

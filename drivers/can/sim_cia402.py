@@ -49,14 +49,14 @@ import time
 from typing import Any
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimCia402Drive", "SIM_COUNTS_PER_REV", "SIM_RATED_TORQUE_MNM"]
 
@@ -142,7 +142,7 @@ class SimCia402Drive(SimDrive):
         *,
         node: int = DEFAULT_NODES["cia402"],
         bus: BusAddress | None = None,
-        model: BacklashModel = BENCH_PLANT,
+        model: BacklashModel = MODEL_PLANT,
         counts_per_rev: int = SIM_COUNTS_PER_REV,
         rated_torque_mnm: int = SIM_RATED_TORQUE_MNM,
         torque_gain: float = TORQUE_GAIN,
@@ -395,7 +395,7 @@ def _network_class(canopen: Any) -> Any:
     global _NETWORK_CLASS
     if _NETWORK_CLASS is None:
 
-        class _DriveNetwork(canopen.Network):  # type: ignore[misc, name-defined]
+        class _DriveNetwork(canopen.Network):  # type: ignore[misc]
             drive: SimCia402Drive | None = None
 
             def send_message(self, can_id: int, data: bytes, remote: bool = False) -> None:

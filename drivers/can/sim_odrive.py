@@ -22,7 +22,7 @@ business, as on a real ODrive, whose loop runs on its own clock:
 * no period: each input is one sample, whatever the time between them (the
   inputs are the clock; a slot the host skips is not seen).
 * ``slot_source`` (in-process tests only): a callable that returns the host's
-  slot number of the input being handled (``lambda: driver.exchange_slot``),
+  slot number of the input being handled (the slot each command was sent with),
   told out of band because the protocol has no room for it; the axis then
   follows the host's slots exactly, as the CiA 402 drive does from its SYNC
   counter.
@@ -40,17 +40,18 @@ from __future__ import annotations
 import math
 import threading
 import time
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimOdriveAxis", "SIM_VERSION"]
 
@@ -91,7 +92,7 @@ class SimOdriveAxis(SimDrive):
         *,
         node: int = DEFAULT_NODES["odrive"],
         bus: BusAddress | None = None,
-        model: BacklashModel = BENCH_PLANT,
+        model: BacklashModel = MODEL_PLANT,
         torque_gain: float = TORQUE_GAIN,
         heartbeat_ms: float = 100.0,
         period_s: float | None = None,
@@ -254,5 +255,7 @@ class SimOdriveAxis(SimDrive):
     def _send(self, command: int, data: bytes) -> None:
         if self._muted:
             return
-        msg = self._can.Message(arbitration_id=proto.arbitration_id(self.node, command), data=data, is_extended_id=False)
+        msg = self._can.Message(
+            arbitration_id=proto.arbitration_id(self.node, command), data=data, is_extended_id=False
+        )
         self._bus.send(msg)

@@ -149,7 +149,9 @@ PRESENT_INPUT_VOLTAGE = _r("Present Input Voltage", 144, 2, 120)
 PRESENT_TEMPERATURE = _r("Present Temperature", 146, 1, 36)
 
 #: Every field, by address.
-FIELDS: tuple[Field, ...] = tuple(sorted((v for v in dict(globals()).values() if isinstance(v, Field)), key=lambda f: f.address))
+FIELDS: tuple[Field, ...] = tuple(
+    sorted((v for v in dict(globals()).values() if isinstance(v, Field)), key=lambda f: f.address)
+)
 
 #: Bytes the emulator implements (the indirect-address area above 146 is not emulated).
 TABLE_SIZE = PRESENT_TEMPERATURE.end
@@ -185,7 +187,16 @@ class HardwareError(enum.IntFlag):
 
 
 #: Baud Rate (8) register value -> bits per second.
-BAUD_RATES: dict[int, int] = {0: 9600, 1: 57600, 2: 115200, 3: 1_000_000, 4: 2_000_000, 5: 3_000_000, 6: 4_000_000, 7: 4_500_000}
+BAUD_RATES: dict[int, int] = {
+    0: 9600,
+    1: 57600,
+    2: 115200,
+    3: 1_000_000,
+    4: 2_000_000,
+    5: 3_000_000,
+    6: 4_000_000,
+    7: 4_500_000,
+}
 
 #: Model Number -> name, for messages and model.json (others are shown by number).
 MODEL_NAMES: dict[int, str] = {1020: "XM430-W350", 1030: "XM430-W210", 1060: "XL430-W250"}

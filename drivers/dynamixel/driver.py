@@ -70,7 +70,8 @@ import os
 import select
 import threading
 import time
-from typing import Any, Callable, Iterator, TypeVar
+from collections.abc import Callable, Iterator
+from typing import Any, TypeVar
 
 from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
 
@@ -87,9 +88,17 @@ log = logging.getLogger("servoid.drivers.dynamixel")
 T = TypeVar("T")
 
 #: URL ``mode`` -> Operating Mode (11).
-MODES: dict[str, OperatingMode] = {"position": OperatingMode.POSITION, "current": OperatingMode.CURRENT, "pwm": OperatingMode.PWM}
+MODES: dict[str, OperatingMode] = {
+    "position": OperatingMode.POSITION,
+    "current": OperatingMode.CURRENT,
+    "pwm": OperatingMode.PWM,
+}
 #: Goal entry written per sample in each mode.
-_GOAL = {OperatingMode.POSITION: ct.GOAL_POSITION, OperatingMode.CURRENT: ct.GOAL_CURRENT, OperatingMode.PWM: ct.GOAL_PWM}
+_GOAL = {
+    OperatingMode.POSITION: ct.GOAL_POSITION,
+    OperatingMode.CURRENT: ct.GOAL_CURRENT,
+    OperatingMode.PWM: ct.GOAL_PWM,
+}
 #: Baud rates both an X-series servo and the SDK accept (the SDK refuses 4.5 Mbps).
 SUPPORTED_BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000)
 #: Factory baud rate of X-series servos.
@@ -236,7 +245,7 @@ class _Port(PortHandler):  # type: ignore[misc]
 
     def timeout_ms(self, packet_length: int) -> float:
         """The reply timeout the SDK will use for a reply of ``packet_length`` bytes."""
-        return self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0
+        return float(self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0)
 
 
 class DynamixelDriver(Driver):
@@ -272,8 +281,12 @@ class DynamixelDriver(Driver):
         "id": Option(_servo_id, "servo ID 0..252 (default 1)", "servo_id"),
         "baud": Option(_baud, f"baud rate of port and servo, bit/s (default {DEFAULT_BAUD}, the factory setting)"),
         "mode": Option(_mode, "operating mode: position (command in rad), current (A) or pwm (%) (default position)"),
-        "return_delay_us": Option(_return_delay, "Return Delay Time set at open, us, even, 0..508, or keep (default 0)"),
-        "latency_ms": Option(_latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"),
+        "return_delay_us": Option(
+            _return_delay, "Return Delay Time set at open, us, even, 0..508, or keep (default 0)"
+        ),
+        "latency_ms": Option(
+            _latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"
+        ),
         "reboot": Option(_flag, "1: reboot a servo that reports a hardware error at open (default 0)"),
     }
 
@@ -313,11 +326,13 @@ class DynamixelDriver(Driver):
         self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
 
     @classmethod
-    def from_url(cls, url: DriverURL) -> "DynamixelDriver":
+    def from_url(cls, url: DriverURL) -> DynamixelDriver:
         """``dxl:///dev/ttyUSB0?id=1&baud=1000000`` (the port is the URL's path; ``dxl://COM3?...`` on Windows)."""
         port = url.path or url.host
         if not port or port == "/":
-            raise ConfigError(f"{url.raw}: the URL must name the serial port, e.g. dxl:///dev/ttyUSB0?id=1&baud=1000000")
+            raise ConfigError(
+                f"{url.raw}: the URL must name the serial port, e.g. dxl:///dev/ttyUSB0?id=1&baud=1000000"
+            )
         driver = cls(port, **cls.parse_options(url))
         driver.url = url.raw
         return driver
@@ -368,7 +383,7 @@ class DynamixelDriver(Driver):
         # switching off matters most when the line is bad: retried (SETUP_ATTEMPTS) before giving up
         self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:  # noqa: ARG002 - runs on its own clock
         self._require_owner()
         if not self.torque_enabled:
             # a Dynamixel stores a goal written with the torque off and does nothing: refuse it here
@@ -506,7 +521,9 @@ class DynamixelDriver(Driver):
             if result == COMM_SUCCESS:
                 return
             if time.monotonic() > deadline:
-                raise DriverTimeout(f"{self.describe()}: servo {self.servo_id} did not come back within {REBOOT_TIMEOUT_S} s of the REBOOT")
+                raise DriverTimeout(
+                    f"{self.describe()}: servo {self.servo_id} did not come back within {REBOOT_TIMEOUT_S} s of the REBOOT"
+                )
 
     # ---- transactions ----------------------------------------------------------------------------
     def _present(self) -> Reading:
@@ -515,8 +532,10 @@ class DynamixelDriver(Driver):
         return Reading(
             position=float(ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)),
             device_time=ct.decode_value(ct.REALTIME_TICK, data, 0) / 1000.0,
-            velocity=ct.decode_value(ct.PRESENT_VELOCITY, data, ct.PRESENT_VELOCITY.address - address) * ct.RAD_PER_S_PER_VELOCITY_UNIT,
-            current=ct.decode_value(ct.PRESENT_CURRENT, data, ct.PRESENT_CURRENT.address - address) * ct.AMPERE_PER_UNIT,
+            velocity=ct.decode_value(ct.PRESENT_VELOCITY, data, ct.PRESENT_VELOCITY.address - address)
+            * ct.RAD_PER_S_PER_VELOCITY_UNIT,
+            current=ct.decode_value(ct.PRESENT_CURRENT, data, ct.PRESENT_CURRENT.address - address)
+            * ct.AMPERE_PER_UNIT,
         )
 
     def _read_block(self, address: int, length: int, what: str, *, allow_alert: bool = False) -> bytes:
@@ -533,13 +552,17 @@ class DynamixelDriver(Driver):
             received = (reply[5] | reply[6] << 8) - 4  # LEN counts instruction, error and CRC too
             if received != length:
                 # an answer meant for another request (a stray reply) has the wrong length
-                raise ProtocolError(f"{self.describe()}: the reply to the {what} has {received} data bytes, expected {length}")
+                raise ProtocolError(
+                    f"{self.describe()}: the reply to the {what} has {received} data bytes, expected {length}"
+                )
             return bytes(reply[9 : 9 + length])
 
         return self._retried(transaction)
 
     def _read_value(self, field: ct.Field, *, allow_alert: bool = False) -> int:
-        data = self._read_block(field.address, field.size, f"READ of {field.name}({field.address})", allow_alert=allow_alert)
+        data = self._read_block(
+            field.address, field.size, f"READ of {field.name}({field.address})", allow_alert=allow_alert
+        )
         return ct.decode_value(field, data)
 
     def _write_value(self, field: ct.Field, value: int, *, allow_alert: bool = False) -> None:
@@ -592,7 +615,9 @@ class DynamixelDriver(Driver):
                 raise DriverTimeout(f"{self.describe()}: servo {sid} did not answer the {what} within {timeout:.1f} ms")
             if result == COMM_RX_CORRUPT:
                 self.stats.rejected += 1
-                raise ProtocolError(f"{self.describe()}: the answer of servo {sid} to the {what} was corrupted (bad CRC or cut short)")
+                raise ProtocolError(
+                    f"{self.describe()}: the answer of servo {sid} to the {what} was corrupted (bad CRC or cut short)"
+                )
             raise DriverError(f"{self.describe()}: {what} failed: {self._ph.getTxRxResult(result)}")
         number = error & 0x7F
         if number:
@@ -618,7 +643,9 @@ class DynamixelDriver(Driver):
 
     def _require_owner(self) -> None:
         if threading.get_ident() != self._owner:
-            raise DriverError(f"{self.describe()}: a Dynamixel driver is not thread-safe; use it from the thread that opened it")
+            raise DriverError(
+                f"{self.describe()}: a Dynamixel driver is not thread-safe; use it from the thread that opened it"
+            )
 
 
 def _checked(name: str, value: Any, parse: Callable[[Any], Any]) -> Any:

@@ -11,7 +11,7 @@ What the emulated servo does
   its initial values; read-only entries, partial writes of an entry, values out
   of range and the EEPROM lock while the torque is on are refused with the
   e-manual's error numbers (Access, Data Length, Data Range, Data Limit).
-* **The plant, sampled**: the plant (:data:`servoid.drivers.bench.BENCH_PLANT`
+* **The plant, sampled**: the plant (:data:`servoid.drivers.model_plant.MODEL_PLANT`
   unless another is given) is a :class:`~servoid.drivers.sampled.SampledPlant`;
   each write of the goal of the active operating mode with the torque on is
   one sample of it. Protocol 2.0 carries no sample number, and a real servo's
@@ -29,8 +29,8 @@ What the emulated servo does
     goals are the clock: any rate sees the same plant, but a slot the host
     skips is not seen);
   - ``slot_source`` (in-process tests only): a callable that returns the
-    host's slot number of the goal being handled (``lambda:
-    driver.exchange_slot``), told out of band because the protocol has no
+    host's slot number of the goal being handled (the slot each
+    command was sent with), told out of band because the protocol has no
     room for it; the servo then follows the host's slots exactly.
 
   Present Position, Velocity, Current and PWM change only when the plant does.
@@ -58,17 +58,17 @@ What the emulated servo does
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from servoid import validation
-from servoid.errors import ConfigError
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.drivers.sampled import PlantSample, SampledPlant
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
-from servoid.ident.model import BacklashModel
+from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.drivers.sampled import PlantSample, SampledPlant
+from servoid.errors import ConfigError
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
 
@@ -128,7 +128,7 @@ class EmulatedServo:
         self,
         servo_id: int = 1,
         *,
-        plant: BacklashModel = BENCH_PLANT,
+        plant: BacklashModel = MODEL_PLANT,
         model_number: int = ct.MODEL_NUMBER.initial,
         firmware: int = ct.FIRMWARE_VERSION.initial,
         return_delay_us: int = 500,
@@ -367,6 +367,7 @@ class EmulatedServo:
         current_limit, pwm_limit = self.value(ct.CURRENT_LIMIT), self.value(ct.PWM_LIMIT)
         self._put(ct.PRESENT_CURRENT, max(-current_limit, min(current_limit, current)))
         self._put(ct.PRESENT_PWM, max(-pwm_limit, min(pwm_limit, pwm)))
+
 
 def _clip(field: Field, value: int) -> int:
     return max(field.minimum, min(field.maximum, value))

@@ -45,14 +45,14 @@ import subprocess
 import sys
 import threading
 import tty
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any, Callable, Iterable
+from typing import IO, Any
 
 import numpy as np
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
@@ -68,9 +68,10 @@ from servoid.drivers.dynamixel.protocol import (
     status_packet,
     unstuff,
 )
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError, DriverError
-from servoid.ident.model import BacklashModel
-from servoid.ident.plant import Plant
+from servoid.ident.models.plant import Plant
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "dxl_url"]
 
@@ -175,7 +176,9 @@ class DynamixelBus:
         servo = self.find(packet.id)
         return [] if servo is None else [servo]
 
-    def _answer(self, packet: Packet, servo: EmulatedServo, error: int, params: bytes = b"", *, level: int = 2) -> list[tuple[EmulatedServo, bytes]]:
+    def _answer(
+        self, packet: Packet, servo: EmulatedServo, error: int, params: bytes = b"", *, level: int = 2
+    ) -> list[tuple[EmulatedServo, bytes]]:
         """The status packet, unless the packet was broadcast or Status Return Level is below ``level``."""
         if packet.id == BROADCAST_ID or servo.status_return_level < level:
             return []
@@ -185,7 +188,9 @@ class DynamixelBus:
     def _ping(self, packet: Packet) -> list[tuple[EmulatedServo, bytes]]:
         out = []
         for servo in self._targets(packet):  # PING is answered whatever the Status Return Level
-            info = ct.encode_value(ct.MODEL_NUMBER, servo.value(ct.MODEL_NUMBER)) + bytes((servo.value(ct.FIRMWARE_VERSION),))
+            info = ct.encode_value(ct.MODEL_NUMBER, servo.value(ct.MODEL_NUMBER)) + bytes(
+                (servo.value(ct.FIRMWARE_VERSION),)
+            )
             out.append((servo, self._status(servo, ErrorNumber.NONE, info)))
         return out
 
@@ -230,7 +235,9 @@ class DynamixelBus:
             return []  # refused by design: it would give every servo ID 1
         out = []
         for servo in self._targets(packet):
-            answer = self._answer(packet, servo, servo.factory_reset(option) if option >= 0 else ErrorNumber.DATA_LENGTH)
+            answer = self._answer(
+                packet, servo, servo.factory_reset(option) if option >= 0 else ErrorNumber.DATA_LENGTH
+            )
             out += answer
         return out
 
@@ -351,7 +358,7 @@ class DynamixelEmulator:
         self,
         ids: Iterable[int] = (1,),
         *,
-        plant: BacklashModel = BENCH_PLANT,
+        plant: BacklashModel = MODEL_PLANT,
         model_number: int = 1020,
         firmware: int = 48,
         return_delay_us: int = 500,
@@ -413,7 +420,7 @@ class DynamixelEmulator:
         return dxl_url(self.port, self.bus.servos[0].id if servo_id is None else servo_id, baud=baud, **options)
 
     # ---- serving ------------------------------------------------------------------------------
-    def start(self) -> "DynamixelEmulator":
+    def start(self) -> DynamixelEmulator:
         """Serve from a daemon thread (for logic tests; timing needs :class:`EmulatorProcess`)."""
         if self._thread is None:
             self._stop.clear()
@@ -446,7 +453,7 @@ class DynamixelEmulator:
             except OSError:
                 pass
 
-    def __enter__(self) -> "DynamixelEmulator":
+    def __enter__(self) -> DynamixelEmulator:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -581,7 +588,7 @@ class EmulatorProcess:
         self._process: subprocess.Popen[bytes] | None = None
         self.port = ""
 
-    def start(self, timeout: float = 60.0) -> "EmulatorProcess":
+    def start(self, timeout: float = 60.0) -> EmulatorProcess:
         """Start the child and wait for its port; returns self."""
         self._process = subprocess.Popen(
             [sys.executable, "-m", __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE
@@ -594,7 +601,9 @@ class EmulatorProcess:
         if not line:
             error = b"" if self._process.poll() is None else self._process.stderr.read()  # type: ignore[union-attr]
             self.stop()
-            raise DriverError(f"the Dynamixel emulator process did not start within {timeout} s: {error.decode().strip()}")
+            raise DriverError(
+                f"the Dynamixel emulator process did not start within {timeout} s: {error.decode().strip()}"
+            )
         self.port = line
         return self
 
@@ -617,7 +626,7 @@ class EmulatorProcess:
     def url(self, servo_id: int | None = None, *, baud: int = 1_000_000, **options: Any) -> str:
         return dxl_url(self.port, self.ids[0] if servo_id is None else servo_id, baud=baud, **options)
 
-    def __enter__(self) -> "EmulatorProcess":
+    def __enter__(self) -> EmulatorProcess:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

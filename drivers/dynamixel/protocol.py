@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import Union
 
 from servoid.errors import ProtocolError
 
@@ -323,4 +322,4 @@ class PacketReader:
 
 
 #: What :meth:`PacketReader.feed` yields.
-Frame = Union[Packet, CorruptPacket]
+Frame = Packet | CorruptPacket

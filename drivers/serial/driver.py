@@ -20,7 +20,8 @@ import math
 import select
 import time
 from collections import deque
-from typing import Any, ClassVar, Mapping
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import serial
 
@@ -78,7 +79,10 @@ class SerialDriver(Driver):
         "baud": Option(opt.integer(minimum=1), "line rate in bit/s (default 1000000)"),
         "timeout": Option(opt.number(low=0, low_open=True), "seconds to wait for a reply (default 0.1)"),
         "unit": Option(opt.choice(*UNITS), "user unit: rad or counts (default rad)"),
-        "watchdog": Option(opt.number(low=0, high=600), "seconds without a request before the firmware drops the torque (0: off, default 0.5)"),
+        "watchdog": Option(
+            opt.number(low=0, high=600),
+            "seconds without a request before the firmware drops the torque (0: off, default 0.5)",
+        ),
     }
     clock_wrap_s: ClassVar[float | None] = 2**32 / 1e6  # u32 microsecond counter
 
@@ -109,7 +113,7 @@ class SerialDriver(Driver):
         self.command_step = 1.0  # set points travel as whole encoder counts
 
     @classmethod
-    def from_url(cls, url: DriverURL) -> "SerialDriver":
+    def from_url(cls, url: DriverURL) -> SerialDriver:
         driver = cls(port=url.host + url.path, **cls.parse_options(url))
         driver.url = url.raw
         return driver
@@ -128,9 +132,16 @@ class SerialDriver(Driver):
             hello = self._config("H", None, "I")
             version, cpr, firmware = int(hello.fields[0]), int(hello.fields[1]), hello.fields[2]
             if version != PROTOCOL_VERSION:
-                raise ProtocolError(f"{self.describe()}: firmware speaks protocol {version}, this driver {PROTOCOL_VERSION}")
+                raise ProtocolError(
+                    f"{self.describe()}: firmware speaks protocol {version}, this driver {PROTOCOL_VERSION}"
+                )
             self._boot = hello.boot
-            self._info = {"firmware": firmware, "protocol": version, "counts_per_rev": cpr, "boot_id": f"{hello.boot:04x}"}
+            self._info = {
+                "firmware": firmware,
+                "protocol": version,
+                "counts_per_rev": cpr,
+                "boot_id": f"{hello.boot:04x}",
+            }
             if self.unit == "rad":
                 self.position_unit = self.command_unit = UnitConversion("rad", scale=2 * math.pi / cpr)
             else:
@@ -155,9 +166,8 @@ class SerialDriver(Driver):
             raise ConfigError(f"period_s (={period_s!r}) must lie in [1e-6, 1] s for the firmware")
         self._config("C", period_us, "K")
 
-    def _exchange(self, command: float) -> Reading:
+    def _exchange(self, command: float, slot: int | None) -> Reading:
         counts = int(round(command))  # whole already (command_step): the base rounded it inside the limits
-        slot = self.exchange_slot
         if slot is None:
             return self._position(self._transact("S", counts, "P"))
         # the slot number tells the firmware how many periods passed since the last set point

@@ -25,10 +25,10 @@ import time
 from dataclasses import dataclass
 
 from servoid import validation
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial.build import firmware_binary
 from servoid.errors import ConfigError, DriverError
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["FirmwareOptions", "FirmwareEmulator"]
 
@@ -43,7 +43,7 @@ class FirmwareOptions:
     Parameters
     ----------
     model : BacklashModel
-        The simulated motor + gear, in rad (default BENCH_PLANT).
+        The simulated motor + gear, in rad (default MODEL_PLANT).
     counts_per_rev : int
         Encoder resolution.
     noise : float
@@ -70,7 +70,7 @@ class FirmwareOptions:
         A symlink to the pseudo-terminal at a stable name.
     """
 
-    model: BacklashModel = BENCH_PLANT
+    model: BacklashModel = MODEL_PLANT
     counts_per_rev: int = 65536
     noise: float = 0.0
     seed: int = 0
@@ -87,7 +87,9 @@ class FirmwareOptions:
     def __post_init__(self) -> None:
         m = self.model
         if m.na > 8 or m.nb > 8 or m.delay > 32:
-            raise ConfigError(f"the firmware's motor takes na <= 8, nb <= 8, delay <= 32; got {m.na}, {m.nb}, {m.delay}")
+            raise ConfigError(
+                f"the firmware's motor takes na <= 8, nb <= 8, delay <= 32; got {m.na}, {m.nb}, {m.delay}"
+            )
         validation.integer("counts_per_rev", self.counts_per_rev, minimum=16)
         validation.non_negative("noise", self.noise)
         validation.integer("seed", self.seed, minimum=0)
@@ -151,7 +153,7 @@ class FirmwareEmulator:
         """The driver URL of the emulated servo."""
         return f"serial://{self.port}"
 
-    def start(self) -> "FirmwareEmulator":
+    def start(self) -> FirmwareEmulator:
         """Build (first time only) and start the firmware; returns once it serves its port."""
         binary = firmware_binary()
         self.process = subprocess.Popen(
@@ -200,7 +202,7 @@ class FirmwareEmulator:
     def running(self) -> bool:
         return self.process is not None and self.process.poll() is None
 
-    def __enter__(self) -> "FirmwareEmulator":
+    def __enter__(self) -> FirmwareEmulator:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:

@@ -19,8 +19,8 @@ import argparse
 import importlib
 import pkgutil
 import sys
-from types import ModuleType
 from collections.abc import Sequence
+from types import ModuleType
 
 from servoid import __version__
 from servoid.errors import ConfigError, DataError, ModelError, ServoidError

@@ -61,7 +61,9 @@ STATUS_EVERY_S = 5.0
 
 def register(p: argparse.ArgumentParser) -> None:
     p.epilog = EPILOG
-    p.add_argument("--protocol", choices=tuple(PROTOCOLS), default="cia402", help="what the drive speaks (default cia402)")
+    p.add_argument(
+        "--protocol", choices=tuple(PROTOCOLS), default="cia402", help="what the drive speaks (default cia402)"
+    )
     p.add_argument("--node", type=int, metavar="N",
                    help=f"node id (default {DEFAULT_NODES['cia402']} for cia402, {DEFAULT_NODES['odrive']} for odrive)")  # fmt: skip
     p.add_argument("--interface", default="udp_multicast",
@@ -104,7 +106,9 @@ def run(args: argparse.Namespace) -> int:
         with drive:
             print(drive.url(), flush=True)
             if not args.quiet:
-                print(f"simulated {args.protocol} drive on {bus.describe()}; Ctrl-C to stop", file=sys.stderr, flush=True)
+                print(
+                    f"simulated {args.protocol} drive on {bus.describe()}; Ctrl-C to stop", file=sys.stderr, flush=True
+                )
             last = ""
             while not stop.wait(STATUS_EVERY_S):
                 line = drive.status()

@@ -7,10 +7,10 @@ import os
 import signal
 from pathlib import Path
 
-from servoid.drivers.dynamixel import control_table as ct
-from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.cli._live import DEFAULT_RATE_HZ
+from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
+from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.errors import ConfigError
 
 HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"
@@ -20,7 +20,7 @@ Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
 table) on a pseudo-terminal that the official dynamixel-sdk, and so the dxl://
 driver, talks to as to a U2D2 adapter. Several IDs share one bus.
 
-Behind every servo is the bench backlash plant (servoid.drivers.bench), in rad,
+Behind every servo is the bench backlash plant (servoid.drivers.model_plant), in rad,
 sampled at --rate: like a real servo, whose loop runs on its own clock, it
 takes each goal written with the torque on as the next sample, and when the
 host is silent for n periods it runs n samples on the held goal. Sample at

@@ -7,7 +7,7 @@ import signal
 import time
 
 from servoid.cli import _term
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_PLANT
 
@@ -28,7 +28,7 @@ the paper's Section 4 plant instead (excite it with --amplitude 2.4).
 The protocol is in docs/serial-protocol.md. Runs until Ctrl-C.
 """
 
-PLANTS = {"bench": BENCH_PLANT, "paper": PAPER_PLANT}
+PLANTS = {"bench": MODEL_PLANT, "paper": PAPER_PLANT}
 
 
 def register(p: argparse.ArgumentParser) -> None:

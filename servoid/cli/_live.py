@@ -14,19 +14,24 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Any, Callable
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.mrgia import MRGIA, MRGIAConfig, noise_epsilon
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
+from servoid.identify_outputs import Record
 from servoid.recording import Recording
-from servoid.report import Record
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
+from servoid.session.listeners import EstimatorFeed
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
 
@@ -44,14 +49,15 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                       help=f"sample rate of the live run in Hz (default {DEFAULT_RATE_HZ:g})")  # fmt: skip
     live.add_argument("--amplitude", type=float, metavar="A",
                       help="half-width of the uniform excitation, in the driver's unit "
-                           f"(default: the simulated servo's reference, else {BENCH_AMPLITUDE} for the bench servo)")  # fmt: skip
+                           f"(default: the simulated servo's reference, else {MODEL_AMPLITUDE} for the bench servo)")  # fmt: skip
     live.add_argument("--guard", type=int, metavar="N",
                       help="samples left out after each one that could not be used (late, missed, timed out): "
                           "a device on its own clock applies a late command in a later sample and the next "
                           "samples carry that error; default 0 for drivers whose protocol carries the slot "
                           "(sim, serial, CiA 402), else 10")  # fmt: skip
-    live.add_argument("--use-late", action="store_true",
-                      help="let the estimator use samples exchanged late (default: leave them out)")
+    live.add_argument(
+        "--use-late", action="store_true", help="let the estimator use samples exchanged late (default: leave them out)"
+    )
 
 
 def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
@@ -71,15 +77,17 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
     guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
-    return usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples) & np.isfinite(rec.y)
+    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples)
+    used &= np.isfinite(rec.y)
+    return used
 
 
-def live_record(
-    args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]
-) -> tuple[Record, float]:
-    """Run the excitation through ``args.driver``; return the record and the epsilon to use.
+def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -> tuple[Record, MRGIAConfig]:
+    """Run the excitation through ``args.driver`` with the MRGIA online; return the record and the settings.
 
-    ``make_config(epsilon)`` builds the estimator's settings from the command line.
+    ``make_config(epsilon)`` builds the estimator's settings from the command
+    line, once: the record carries the online run's result
+    (:attr:`Record.online`), which identification refines rather than runs again.
     """
     if args.data is not None:
         raise ConfigError("give --driver or --data, not both")
@@ -99,10 +107,14 @@ def live_record(
             epsilon = args.epsilon
         else:
             epsilon = noise_epsilon(noise) if isinstance(noise, (int, float)) else 0.0
-        amplitude = args.amplitude if args.amplitude is not None else getattr(driver, "reference_amplitude", BENCH_AMPLITUDE)
+        simulated = driver if isinstance(driver, SimulatedServo) else None
+        amplitude = args.amplitude if args.amplitude is not None else (
+            simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
         u = excitation(args, amplitude, driver.limits.centre)
+        estimator_config = make_config(epsilon)
+        online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         path = args.out / "recording.csv"
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
@@ -111,9 +123,12 @@ def live_record(
                                f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
         with _term.live_progress("live", args.samples) as bar:
-            update: Callable[[SessionProgress], None] = lambda p: bar(p.done, _status_text(p, driver.position_unit.unit))
+
+            def update(p: SessionProgress) -> None:
+                bar(p.done, _status_text(p, driver.position_unit.unit))
+
             result = run_session(
-                driver, u, config, recording=path, metadata=meta, estimator=MRGIA(make_config(epsilon)),
+                driver, u, config, recording=path, metadata=meta, listeners=[online],
                 on_progress=None if quiet else update,
             )  # fmt: skip
     if not quiet:
@@ -125,40 +140,41 @@ def live_record(
         raise KeyboardInterrupt
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
-    record = _record(result, driver.describe(), identity, getattr(driver, "truth", None), path)
-    return record, epsilon
+    truth = simulated.truth if simulated is not None else None
+    record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result())
+    return record, estimator_config
 
 
-def _record(result: SessionResult, source: str, identity: dict[str, Any], truth: Any, path: Any) -> Record:
+def history_every(samples: int) -> int:
+    """Every how many samples the MRGIA's history is kept: at most 20 000 rows for the convergence plot."""
+    return max(1, samples // 20_000)
+
+
+def _record(
+    result: SessionResult,
+    source: str,
+    identity: dict[str, Any],
+    truth: BacklashModel | None,
+    path: Path,
+    online: MRGIAResult | None,
+) -> Record:
     valid = result.valid
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
-    # the free-run simulation starts at the first measured sample
+    # the free-run simulation starts at the first measured sample; the online run, which began
+    # before it, then no longer matches the record, and identification runs the MRGIA itself
     first = int(np.argmax(valid))
     unit = result.unit
     return Record(
         u=result.u[first:], y=result.y[first:], t=result.t[first:], source=source, input_unit=unit,
         output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
-        acquisition=acquisition(result),
+        acquisition=acquisition(result), online=online if first == 0 else None,
     )  # fmt: skip
 
 
 def acquisition(result: SessionResult) -> dict[str, Any]:
-    """How a live record was sampled, for ``--json``."""
-    exchange = result.exchange_s[np.isfinite(result.exchange_s)]
-    stats = result.driver_stats
-    return {
-        "rate_hz": 1.0 / result.config.period_s,
-        "samples": len(result),
-        "counts": result.counts,
-        "late_share": result.late_share,
-        "achieved_rate_hz": result.achieved_rate_hz,
-        "exchange_median_s": float(np.median(exchange)) if exchange.size else None,
-        "exchange_p99_s": float(np.percentile(exchange, 99)) if exchange.size else None,
-        "frames_rejected": stats.rejected,
-        "replies_stale": stats.stale,
-        "commands_clamped": stats.clamped,
-    }
+    """How a live record was sampled, for ``--json`` (:meth:`SessionResult.to_dict`)."""
+    return result.to_dict()
 
 
 def session_rows(result: SessionResult) -> tuple[list[str], list[list[str]]]:

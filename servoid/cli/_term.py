@@ -7,16 +7,17 @@ stdout for the one JSON object.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
-from typing import Any, TextIO
 from collections.abc import Callable, Iterator, Sequence
+from typing import Any, TextIO
 
 from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
+
+from servoid.ident.serialise import dumps
 
 __all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
 
@@ -77,7 +78,7 @@ def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], *, 
 
 def print_json(obj: Any) -> None:
     """Write exactly one JSON object to stdout."""
-    sys.stdout.write(json.dumps(obj, indent=2) + "\n")
+    sys.stdout.write(dumps(obj, indent=2) + "\n")
     sys.stdout.flush()
 
 

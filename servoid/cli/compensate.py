@@ -8,7 +8,7 @@ from typing import Any
 
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.ident.compensation_study import (
+from servoid.ident.control.compensation_study import (
     ARMS,
     CHANGES,
     FAMILIES,
@@ -17,10 +17,10 @@ from servoid.ident.compensation_study import (
     compensation_study,
     default_resolution,
 )
-from servoid.ident.model import BacklashModel
+from servoid.ident.control.references import amplitude_limit, reference_suite
+from servoid.ident.control.tracking import Sensor
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
-from servoid.ident.references import amplitude_limit, reference_suite
-from servoid.ident.tracking import Sensor
 from servoid.modelfile import ModelFile, load_model
 
 ORDER = 30
@@ -73,18 +73,31 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sim.add_argument("--plant", metavar="paper|FILE",
                      help="the servo to simulate: 'paper' (the paper's plant) or another model.json "
                           "(default: MODEL itself, a perfect identification)")  # fmt: skip
-    sim.add_argument("--resolution", type=float, metavar="Q",
-                     help="encoder step in the output unit (default: 1 for counts, else (c1 + c2)/200)")
-    sim.add_argument("--noise-std", type=float, metavar="S",
-                     help="Gaussian measurement noise, output unit (default: the noise the model file's band "
-                          "was set for, its compensation.noise_std, else 0)")
+    sim.add_argument(
+        "--resolution",
+        type=float,
+        metavar="Q",
+        help="encoder step in the output unit (default: 1 for counts, else (c1 + c2)/200)",
+    )
+    sim.add_argument(
+        "--noise-std",
+        type=float,
+        metavar="S",
+        help="Gaussian measurement noise, output unit (default: the noise the model file's band "
+        "was set for, its compensation.noise_std, else 0)",
+    )
     sim.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
     sim.add_argument("--samples", type=int, default=600, metavar="N", help="samples per path (default 600)")
     ctl = p.add_argument_group("controller")
-    ctl.add_argument("--band", type=float, metavar="B",
-                     help="smoothing band of the inverse, output unit (default: the model file's)")
-    ctl.add_argument("--integral-gain", type=float, metavar="KI",
-                     help="integral gain per sample, same for every arm (default 1/(2 (P + 1)), P the preview)")
+    ctl.add_argument(
+        "--band", type=float, metavar="B", help="smoothing band of the inverse, output unit (default: the model file's)"
+    )
+    ctl.add_argument(
+        "--integral-gain",
+        type=float,
+        metavar="KI",
+        help="integral gain per sample, same for every arm (default 1/(2 (P + 1)), P the preview)",
+    )
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, metavar="DIR", help="folder for the plots (default: MODEL's folder)")
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
@@ -117,12 +130,12 @@ def _nominal_rows(study: CompensationStudy) -> list[list[str]]:
             _fmt(before.metrics.peak_error), _fmt(after.metrics.peak_error), str(study.peak_improvement(before, after)),
             f"{before.metrics.dead_time:.1f}", f"{after.metrics.dead_time:.1f}",
         ])  # fmt: skip
-    before, after = study.summary("uncompensated"), study.summary("compensated")
+    first, last = study.summary("uncompensated"), study.summary("compensated")
     rows.append([
         "all paths",
-        _fmt(before.rms_error), _fmt(after.rms_error), str(study.rms_improvement(before, after)),
-        _fmt(before.peak_error), _fmt(after.peak_error), str(study.peak_improvement(before, after)),
-        f"{before.dead_time:.1f}", f"{after.dead_time:.1f}",
+        _fmt(first.rms_error), _fmt(last.rms_error), str(study.rms_improvement(first, last)),
+        _fmt(first.peak_error), _fmt(last.peak_error), str(study.peak_improvement(first, last)),
+        f"{first.dead_time:.1f}", f"{last.dead_time:.1f}",
     ])  # fmt: skip
     return rows
 
@@ -146,42 +159,13 @@ def _robustness_rows(study: CompensationStudy) -> list[list[str]]:
     return rows
 
 
-def _summary_json(s: ArmSummary) -> dict[str, float]:
-    return {"rms_error": s.rms_error, "peak_error": s.peak_error, "dead_time_samples": s.dead_time,
-            "motor_travel": s.motor_travel}  # fmt: skip
-
-
 def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, paths: dict[str, str]) -> dict[str, Any]:
-    """The ``--json`` object of ``servoid compensate``."""
-    nominal = []
-    for comp in study.comparisons:
-        entry: dict[str, Any] = {"reference": comp.reference.name}
-        for arm in ARMS:
-            m = comp.run(arm).metrics
-            entry[arm] = {"rms_error": m.rms_error, "peak_error": m.peak_error, "dead_time_samples": m.dead_time,
-                          "dead_time_max_samples": m.dead_time_max, "reversals": m.reversals,
-                          "motor_travel": comp.run(arm).motor_travel}  # fmt: skip
-        entry["rms_ratio"] = study.rms_improvement(comp.uncompensated, comp.compensated).ratio
-        nominal.append(entry)
-    all_paths = {arm: _summary_json(study.summary(arm)) for arm in ARMS}
+    """The ``--json`` object of ``servoid compensate``: the study's own dict with where it ran."""
     return {
         "model": content.model.to_dict(),
         "plant": plant_name,
         "units": {"output": content.output_unit, "time": "sample", "sample_period_s": content.sample_period_s},
-        "band": study.band,
-        "integral_gain": study.integral_gain,
-        "preview_samples": study.preview,
-        "resolution": study.sensor.resolution,
-        "noise_std": study.sensor.noise_std,
-        "rms_floor": study.rms_floor,
-        "nominal": nominal,
-        "all_paths": all_paths,
-        "rms_ratio": study.rms_improvement(study.summary("uncompensated"), study.summary("compensated")).ratio,
-        "perturbations": [
-            {"family": p.family, "change": p.change, "note": p.note,
-             **{arm: _summary_json(s) for arm, s in p.summaries.items()}}
-            for p in study.perturbations
-        ],  # fmt: skip
+        **study.to_dict(),
         "outputs": paths,
     }
 
@@ -219,7 +203,8 @@ def run(args: argparse.Namespace) -> int:
     out = _term.stdout
     out.print(
         f"servoid compensate: {args.model} on the simulated servo ({plant_name}); errors in {unit}, "
-        f"dead time in samples" + (f" (1 sample = {content.sample_period_s * 1e3:.3g} ms)" if content.sample_period_s else "")
+        f"dead time in samples"
+        + (f" (1 sample = {content.sample_period_s * 1e3:.3g} ms)" if content.sample_period_s else "")
     )
     out.print(
         f"controller: ZPETC feedforward with {study.preview} sample(s) of preview + integral feedback "

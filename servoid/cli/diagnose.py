@@ -7,11 +7,11 @@ import time
 from pathlib import Path
 
 from servoid.cli import _term
-from servoid.diagnose_report import candidate_rows, diagnosis_json, write_diagnosis_outputs
+from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
 from servoid.errors import ConfigError, DataError
-from servoid.ident.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
-from servoid.ident.effects import CANDIDATE_NAMES, EFFECTS, NONE
-from servoid.ident.mrgia import MRGIAConfig
+from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
+from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
+from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 from servoid.recording import Recording, read_recording
 
@@ -78,7 +78,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sel.add_argument("--penalty", type=float, default=DEFAULT_PENALTY, metavar="P",
                      help=f"relative cut of the validation gap each extra parameter must buy "
                           f"(default {DEFAULT_PENALTY}: 10 %%)")  # fmt: skip
-    sel.add_argument("--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)")
+    sel.add_argument(
+        "--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)"
+    )
     sel.add_argument("--reversal-window", type=int, default=5, metavar="K",
                      help="samples after a reversal that count as 'just after' (default 5)")  # fmt: skip
     out = p.add_argument_group("output")
@@ -139,7 +141,9 @@ def run(args: argparse.Namespace) -> int:
     output_unit = args.unit or train.metadata.get("unit", "unit")
     input_unit = train.metadata.get("input_unit", "unit")
     started = time.perf_counter()
-    with _term.progress("candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal) as bar:
+    with _term.progress(
+        "candidates", len(config.candidates) * config.max_effects, enabled=not args.json and _term.stderr.is_terminal
+    ) as bar:
         done = [0]
 
         def step(name: str) -> None:

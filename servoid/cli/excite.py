@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from rich.markup import escape
@@ -16,7 +17,7 @@ from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sampl
 from servoid.excitation.design import Design, Prior, ServoLimits, design
 from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
 from servoid.excitation.specs import grammar
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
 from servoid.modelfile import load_model
 from servoid.recording import write_recording
@@ -70,7 +71,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         "excite", help=HELP, description=DESCRIPTION, epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
-    p.add_argument("spec", nargs="?", metavar="SPEC", help=f"the signal, kind:key=value,... (kinds: {', '.join(KINDS)})")
+    p.add_argument(
+        "spec", nargs="?", metavar="SPEC", help=f"the signal, kind:key=value,... (kinds: {', '.join(KINDS)})"
+    )
     sig = p.add_argument_group("signal")
     sig.add_argument("--samples", type=int, metavar="N", help="samples to generate (default 5000, or the design's)")
     sig.add_argument("--seed", type=int, default=0, help="seed of the random kinds (default 0)")
@@ -79,9 +82,14 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     sig.add_argument("--unit", default="unit", help="unit of u, for the CSV and the plot (default 'unit')")
     mdl = p.add_argument_group("model to report through (default: the paper's plant)")
     src = mdl.add_mutually_exclusive_group()
-    src.add_argument("--model", type=Path, metavar="model.json", help="an identified model (servoid identify writes one)")
-    src.add_argument("--prior", metavar="a1=..,b0=..,delay=1,m2=..,c1=..,c2=..",
-                     help="a prior model given inline (a1.. and b0.. as many as the orders; delay defaults to 1)")
+    src.add_argument(
+        "--model", type=Path, metavar="model.json", help="an identified model (servoid identify writes one)"
+    )
+    src.add_argument(
+        "--prior",
+        metavar="a1=..,b0=..,delay=1,m2=..,c1=..,c2=..",
+        help="a prior model given inline (a1.. and b0.. as many as the orders; delay defaults to 1)",
+    )
     src.add_argument("--no-model", action="store_true", help="report on the signal alone")
     des = p.add_argument_group("design (propose a signal instead of SPEC)")
     des.add_argument("--design", action="store_true", help="propose a signal from the limits and a rough prior")
@@ -89,7 +97,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="command range of the servo, unit of u (required with --design)")  # fmt: skip
     des.add_argument("--max-step", type=float, default=math.inf, metavar="S",
                      help="largest change of u per sample (default: any)")  # fmt: skip
-    des.add_argument("--settle", type=float, metavar="S", help="seconds the servo needs to follow a step (needs --sample-period)")
+    des.add_argument(
+        "--settle", type=float, metavar="S", help="seconds the servo needs to follow a step (needs --sample-period)"
+    )
     des.add_argument("--dead-zone", type=float, metavar="W", help="rough play c1 + c2, unit of y")
     des.add_argument("--gain", type=float, metavar="G", help="rough steady-state gain from u to y (default 1)")
     des.add_argument("--m2", type=float, default=1.0, help="rough down-line slope (default 1)")
@@ -192,7 +202,10 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
     tm = report.through_model
     if tm is not None:
         rows += [
-            ["up / down / memory", f"{100 * tm.share_up:.1f}% / {100 * tm.share_down:.1f}% / {100 * tm.share_memory:.1f}%"],
+            [
+                "up / down / memory",
+                f"{100 * tm.share_up:.1f}% / {100 * tm.share_down:.1f}% / {100 * tm.share_memory:.1f}%",
+            ],
             ["crossings of the play", str(tm.line_switches)],
             ["direction reversals of x", str(tm.reversals)],
             ["x span / play c1 + c2", f"{tm.x_span:.4g} / {tm.model.dead_zone:.4g}"],
@@ -268,7 +281,9 @@ def run(args: argparse.Namespace) -> int:
             out.print(f"  - {escape(reason)}")
     out.print(f"signal: {escape(format_spec(spec))}", soft_wrap=True)
     out.print(f"through: {escape(model_source) if model is not None else 'no model (the signal alone)'}")
-    _term.table(f"servoid excite: {spec.kind}", ["quantity", "value"], _report_rows(spec, report, args.seed, args.sample_period))
+    _term.table(
+        f"servoid excite: {spec.kind}", ["quantity", "value"], _report_rows(spec, report, args.seed, args.sample_period)
+    )
     _print_verdicts(verdicts)
     for name, path in paths.items():
         out.print(f"  {name:8s} {path}")

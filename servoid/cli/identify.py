@@ -12,7 +12,8 @@ from servoid.cli import _live, _term
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
-from servoid.ident.mrgia import MRGIAConfig, noise_epsilon
+from servoid.ident.models.simulate import simulate
+from servoid.ident.online.mrgia import MRGIAConfig, noise_epsilon
 from servoid.ident.paper import (
     PAPER_INPUT_AMPLITUDE,
     PAPER_INPUT_VARIANCE,
@@ -20,9 +21,8 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.ident.simulate import simulate
+from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
 from servoid.recording import read_recording
-from servoid.report import Record, result_json, summary_rows, write_outputs
 
 ORDER = 10
 
@@ -75,8 +75,12 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )  # fmt: skip
     src = p.add_argument_group("record")
     src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
-    src.add_argument("--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)")
-    src.add_argument("--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)")
+    src.add_argument(
+        "--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)"
+    )
+    src.add_argument(
+        "--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)"
+    )
     src.add_argument("--snr", type=float, metavar="SNR",
                      help="output noise of the simulated servo: sqrt(var(y)/var(noise)); the paper uses 43 "
                           "(default: noise-free)")  # fmt: skip
@@ -97,8 +101,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     est.add_argument("--epsilon", type=float, metavar="E",
                      help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), unit of y "
                           "(default: from --snr for the simulated servo, else 0)")  # fmt: skip
-    est.add_argument("--paper-algorithm", action="store_true",
-                     help="run the MRGIA exactly as printed: no projection, no recovery from a stuck run")
+    est.add_argument(
+        "--paper-algorithm",
+        action="store_true",
+        help="run the MRGIA exactly as printed: no projection, no recovery from a stuck run",
+    )
     est.add_argument("--no-refine", action="store_true", help="skip the output-error refinement")
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("servoid-run"), metavar="DIR",
@@ -115,7 +122,7 @@ def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
     )  # fmt: skip
 
 
-def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
+def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     if args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
@@ -137,10 +144,10 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, float]:
         input_unit="unit", extra={"y_clean": sim.y_clean},
     )  # fmt: skip
     eps = args.epsilon if args.epsilon is not None else noise_epsilon(sim.noise_std)
-    return record, eps
+    return record, _config(args, eps)
 
 
-def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
+def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     rec = read_recording(args.data)
     for note in rec.notes:
         _term.warn(f"{args.data}: {note}")
@@ -149,11 +156,11 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, float]:
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
         input_unit=rec.metadata.get("input_unit", "unit"), valid=_live.recording_valid(rec),
     )  # fmt: skip
-    return record, args.epsilon if args.epsilon is not None else 0.0
+    return record, _config(args, args.epsilon if args.epsilon is not None else 0.0)
 
 
-def get_record(args: argparse.Namespace) -> tuple[Record, float]:
-    """The record to identify and the epsilon to use, from the command line."""
+def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
+    """The record to identify and the estimator's settings (built once), from the command line."""
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
@@ -164,12 +171,14 @@ def get_record(args: argparse.Namespace) -> tuple[Record, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    record, epsilon = get_record(args)
-    config = _config(args, epsilon)
+    record, config = get_record(args)
     started = time.perf_counter()
-    with _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM) as bar:
+    with _term.progress(
+        "MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None
+    ) as bar:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
-                          record_every=max(1, record.u.size // 20_000), progress=bar, valid=record.valid)  # fmt: skip
+                          record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
+                          online=record.online)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
@@ -184,7 +193,9 @@ def run(args: argparse.Namespace) -> int:
         out.print(f"free-run NRMSE  MRGIA: {result.mrgia_nrmse:.4g}", end="")
         out.print(f"   {result.method}: {result.fit_nrmse:.4g}" if result.refinement is not None else "")
     if record.truth is not None:
-        out.print(f"max relative parameter error ({result.method}): {result.model.max_relative_error(record.truth):.3g}")
+        out.print(
+            f"max relative parameter error ({result.method}): {result.model.max_relative_error(record.truth):.3g}"
+        )
     out.print(f"dead zone c1 + c2 = {result.model.dead_zone:.6g} {record.output_unit}, "
               f"down-line slope m2 = {result.model.m2:.6g}")  # fmt: skip
     for name, path in paths.items():

@@ -6,19 +6,21 @@ import argparse
 import itertools
 import math
 import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from servoid.cli import _live, _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.base import Driver
-from servoid.drivers.bench import BENCH_AMPLITUDE
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
-from servoid.ident.alarms import AlarmRule, Bound
-from servoid.ident.monitor import DEFAULT_PROCESS_NOISE, TrackerConfig
+from servoid.ident.monitoring.alarms import AlarmRule, Bound
+from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, WearEstimatorConfig
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
+from servoid.monitor_run import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
 from servoid.session import SessionConfig
 
 ORDER = 15
@@ -29,7 +31,7 @@ DESCRIPTION = f"""\
 Watch a servo's backlash while it runs, for as long as it runs: gears wear, the
 dead zone grows, and a compensator tuned once drifts out of tune.
 
-The servo follows an input (below) at --rate Hz. The MRGIA in tracking mode
+The servo follows an input (below) at --rate Hz. The MRGIA in random-walk mode
 estimates the model online, starting from --model (the servo's model.json from
 `servoid identify`), with a gain that never vanishes: the parameters are taken
 as a random walk of variance --process-noise x (c1 + c2)^2 per update, and the
@@ -49,7 +51,7 @@ The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
 (--excitation SPEC), or both; the spec grammar is that of `servoid excite`.
 Without either, uniform white noise of the simulated servo's reference
-amplitude (else {BENCH_AMPLITUDE}). The MRGIA sees the backlash only where the
+amplitude (else {MODEL_AMPLITUDE}). The MRGIA sees the backlash only where the
 output moves by more than the noise from one sample to the next: a slow
 trajectory alone says little about the dead zone (docs/monitor.md).
 
@@ -86,8 +88,13 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     servo.add_argument("--driver", metavar="URL", required=True,
                        help="the servo: sim://?plant=gear&snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
                             "(docs/drivers.md; sim:// wears with drift=, drift_samples=, swap_at=, swap_factor=)")  # fmt: skip
-    servo.add_argument("--model", metavar="MODEL.json", type=Path, required=True,
-                       help="the servo's model file (servoid identify): where the estimate starts, its unit and noise")
+    servo.add_argument(
+        "--model",
+        metavar="MODEL.json",
+        type=Path,
+        required=True,
+        help="the servo's model file (servoid identify): where the estimate starts, its unit and noise",
+    )
     servo.add_argument("--rate", type=float, metavar="HZ",
                        help=f"sample rate in Hz (default: the model's, else {_live.DEFAULT_RATE_HZ:g}); "
                             "the model's linear block holds at the rate it was identified at")  # fmt: skip
@@ -107,20 +114,48 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                           "uniform noise of the driver's reference amplitude; with it, none)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
     al = p.add_argument_group("alarms")
-    al.add_argument("--dead-zone", default="10%", metavar="MIN,MAX|P%",
-                    help="bounds on c1 + c2, servo's unit, or +/- P %% of the model's (default 10%%)")
-    al.add_argument("--m2", default="10%", metavar="MIN,MAX|P%",
-                    help="bounds on the down-line slope m2, or +/- P %% of the model's (default 10%%)")
-    al.add_argument("--fit", type=float, metavar="MAX",
-                    help="largest free-run NRMSE of the recent window, e.g. 0.1 (default: not checked)")
-    al.add_argument("--persist", type=int, default=AlarmRule.persist, metavar="N",
-                    help=f"consecutive checks a bound must be left (or regained) (default {AlarmRule.persist})")
-    al.add_argument("--z", type=float, default=AlarmRule.z, metavar="Z",
-                    help=f"standard deviations beyond a bound before it counts as left (default {AlarmRule.z:g})")
-    al.add_argument("--check-every", type=int, default=MonitorConfig.check_every, metavar="N",
-                    help=f"samples between checks (default {MonitorConfig.check_every})")
-    al.add_argument("--fail-on-alarm", action="store_true",
-                    help=f"stop at the first alarm and exit with status {EXIT_ALARM}")
+    al.add_argument(
+        "--dead-zone",
+        default="10%",
+        metavar="MIN,MAX|P%",
+        help="bounds on c1 + c2, servo's unit, or +/- P %% of the model's (default 10%%)",
+    )
+    al.add_argument(
+        "--m2",
+        default="10%",
+        metavar="MIN,MAX|P%",
+        help="bounds on the down-line slope m2, or +/- P %% of the model's (default 10%%)",
+    )
+    al.add_argument(
+        "--fit",
+        type=float,
+        metavar="MAX",
+        help="largest free-run NRMSE of the recent window, e.g. 0.1 (default: not checked)",
+    )
+    al.add_argument(
+        "--persist",
+        type=int,
+        default=AlarmRule.persist,
+        metavar="N",
+        help=f"consecutive checks a bound must be left (or regained) (default {AlarmRule.persist})",
+    )
+    al.add_argument(
+        "--z",
+        type=float,
+        default=AlarmRule.z,
+        metavar="Z",
+        help=f"standard deviations beyond a bound before it counts as left (default {AlarmRule.z:g})",
+    )
+    al.add_argument(
+        "--check-every",
+        type=int,
+        default=MonitorConfig.check_every,
+        metavar="N",
+        help=f"samples between checks (default {MonitorConfig.check_every})",
+    )
+    al.add_argument(
+        "--fail-on-alarm", action="store_true", help=f"stop at the first alarm and exit with status {EXIT_ALARM}"
+    )
     est = p.add_argument_group("estimator")
     est.add_argument("--process-noise", type=float, default=DEFAULT_PROCESS_NOISE, metavar="Q",
                      help="random-walk variance of the parameters per update, relative to (c1 + c2)^2: larger "
@@ -131,14 +166,24 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("servoid-monitor"), metavar="DIR",
                      help="output folder (default ./servoid-monitor/)")  # fmt: skip
-    out.add_argument("--every", type=float, default=1.0, metavar="S",
-                     help="seconds between rows of estimates.csv (default 1; at least one check)")
+    out.add_argument(
+        "--every",
+        type=float,
+        default=1.0,
+        metavar="S",
+        help="seconds between rows of estimates.csv (default 1; at least one check)",
+    )
     out.add_argument("--compensation-step", type=float, default=MonitorConfig.compensation_step, metavar="SHARE",
                      help="relative change of c1 + c2 or m2 that writes new compensation parameters "
                           f"(default {MonitorConfig.compensation_step:g})")  # fmt: skip
     out.add_argument("--plot", type=Path, metavar="FILE.png", help="a live plot, redrawn every --plot-every s")
-    out.add_argument("--plot-every", type=float, default=MonitorConfig.plot_every_s, metavar="S",
-                     help=f"seconds between redraws of --plot (default {MonitorConfig.plot_every_s:g})")
+    out.add_argument(
+        "--plot-every",
+        type=float,
+        default=MonitorConfig.plot_every_s,
+        metavar="S",
+        help=f"seconds between redraws of --plot (default {MonitorConfig.plot_every_s:g})",
+    )
     out.add_argument("--json", action="store_true", help="print one JSON summary on stdout at the end")
     p.set_defaults(handler=run)
 
@@ -171,7 +216,9 @@ def parse_bounds(text: str, *, quantity: str, label: str, reference: float, unit
 def _bounds(args: argparse.Namespace, model_file: ModelFile, unit: str) -> tuple[Bound, ...]:
     model = model_file.model
     found = [
-        parse_bounds(args.dead_zone, quantity="dead_zone", label="dead zone c1 + c2", reference=model.dead_zone, unit=unit),
+        parse_bounds(
+            args.dead_zone, quantity="dead_zone", label="dead zone c1 + c2", reference=model.dead_zone, unit=unit
+        ),
         parse_bounds(args.m2, quantity="m2", label="m2", reference=model.m2),
     ]
     if args.fit is not None:
@@ -194,7 +241,7 @@ def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
             f"--rate (={rate:g} Hz) differs from the rate the model was identified at ({1.0 / period:g} Hz): "
             "its linear block holds only at that rate; leave --rate out or identify again at this rate"
         )
-    return 1.0 / rate
+    return 1.0 / float(rate)
 
 
 def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:
@@ -202,13 +249,17 @@ def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec |
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
     elif operating is None:
-        excitation = UniformSpec(amplitude=getattr(driver, "reference_amplitude", BENCH_AMPLITUDE))
+        excitation = UniformSpec(
+            amplitude=driver.reference_amplitude if isinstance(driver, SimulatedServo) else MODEL_AMPLITUDE
+        )
     else:
         excitation = None
     return operating, excitation
 
 
-def commands(centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int) -> Iterator[float]:
+def commands(
+    centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int
+) -> Iterator[float]:
     """The endless command: ``centre + operating(k) + excitation(k)`` (each seeded, the second with ``seed + 1``)."""
     parts: list[Iterator[float]] = [itertools.repeat(centre)]
     if operating is not None:
@@ -219,7 +270,7 @@ def commands(centre: float, operating: SignalSpec | None, excitation: SignalSpec
 
 
 def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, Any]) -> tuple[float, float | None]:
-    """``(noise_std, epsilon)`` for the tracker."""
+    """``(noise_std, epsilon)`` for the wear estimator."""
     if args.epsilon is not None:
         if not (math.isfinite(args.epsilon) and args.epsilon >= 0):
             raise ConfigError(f"--epsilon (={args.epsilon:g}) must be >= 0 (servo's unit)")
@@ -253,7 +304,7 @@ def run(args: argparse.Namespace) -> int:
         unit = driver.position_unit.unit
         noise_std, epsilon = _noise(args, model_file, driver.identity)
         config = MonitorConfig(
-            tracker=TrackerConfig(reference=model_file.model, noise_std=noise_std, epsilon=epsilon,
+            estimator=WearEstimatorConfig(reference=model_file.model, noise_std=noise_std, epsilon=epsilon,
                                   process_noise=args.process_noise),
             bounds=_bounds(args, model_file, unit), rule=rule, check_every=args.check_every, row_every=row_every,
             compensation_step=args.compensation_step, stop_on_alarm=args.fail_on_alarm, plot_every_s=args.plot_every,
@@ -269,7 +320,7 @@ def run(args: argparse.Namespace) -> int:
         with _term.live_progress("monitor", total) as bar:
             result = run_monitor(
                 driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard), config,
-                model_file=model_file, out=args.out, total=total, truth_at=getattr(driver, "truth_at", None),
+                model_file=model_file, out=args.out, total=total, truth_at=driver.truth_at if isinstance(driver, SimulatedServo) else None,
                 on_event=_print_event, on_progress=_progress(bar, unit), plot=args.plot, metadata=meta,
             )  # fmt: skip
     elapsed = time.perf_counter() - started
@@ -280,7 +331,9 @@ def run(args: argparse.Namespace) -> int:
     if result.stopped == "alarm":
         first = result.first_alarm
         assert first is not None
-        _term.stderr.print(f"servoid monitor: stopped on alarm (exit {EXIT_ALARM}): {first.message()}", markup=False, soft_wrap=True)
+        _term.stderr.print(
+            f"servoid monitor: stopped on alarm (exit {EXIT_ALARM}): {first.message()}", markup=False, soft_wrap=True
+        )
         return EXIT_ALARM
     return 0
 
@@ -292,8 +345,14 @@ def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorCon
     length = "until Ctrl-C" if total is None else f"{total} samples ({total / rate:g} s)"
     bounds = "; ".join(f"{b.label} {b.describe()}" for b in config.bounds) or "none"
     err = _term.stderr
-    err.print(f"servoid monitor: {driver.describe()} at {rate:g} Hz, {length}; writing to {args.out}/", markup=False, soft_wrap=True)
-    err.print(f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True)
+    err.print(
+        f"servoid monitor: {driver.describe()} at {rate:g} Hz, {length}; writing to {args.out}/",
+        markup=False,
+        soft_wrap=True,
+    )
+    err.print(
+        f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True
+    )
     err.print(f"  bounds    {bounds}", markup=False, soft_wrap=True)
     err.print(f"  rule      beyond a bound by > {config.rule.z:g} std at {config.rule.persist} checks in a row, "
               f"one check every {config.check_every} samples", markup=False, soft_wrap=True)  # fmt: skip
@@ -314,7 +373,7 @@ def _progress(bar: Callable[[int, str], None], unit: str) -> Callable[[MonitorPr
         e = p.estimate
         if e is not None:
             fit = "-" if math.isnan(e.fit) else f"{e.fit:.3g}"
-            text += (f" | c1 + c2 {e.dead_zone:.4g} +/- {e.dead_zone_std:.2g} {unit}, m2 {e.m2:.4g}, fit {fit}")
+            text += f" | c1 + c2 {e.dead_zone:.4g} +/- {e.dead_zone_std:.2g} {unit}, m2 {e.m2:.4g}, fit {fit}"
         text += " | alarms: " + (", ".join(p.active) if p.active else "none")
         bar(p.done, text)
 
@@ -347,24 +406,5 @@ def _print_summary(result: MonitorResult, model_file: ModelFile, unit: str, elap
 
 
 def _summary_json(result: MonitorResult, model_file: ModelFile, unit: str) -> dict[str, Any]:
-    e = result.estimate
-    return {
-        "samples": result.samples,
-        "counts": result.counts,
-        "unit": unit,
-        "stopped": result.stopped,
-        "estimate": {n: e.value(n) for n in e.names} | {"dead_zone": e.dead_zone},
-        "std": {n: e.std_of(n) for n in e.names} | {"dead_zone": e.dead_zone_std},
-        "fit": None if math.isnan(e.fit) else e.fit,
-        "model": model_file.model.to_dict(),
-        "alarms": [
-            {"quantity": ev.bound.quantity, "raised": ev.raised, "sample": ev.sample, "since": ev.since,
-             "value": ev.value, "std": ev.std, "side": ev.side, "limit": ev.limit}
-            for ev in result.events
-        ],  # fmt: skip
-        "active": [ev.bound.quantity for ev in result.active],
-        "recoveries": result.recoveries,
-        "restarts": result.restarts,
-        "compensation_updates": result.compensation_updates,
-        "files": {k: str(v) for k, v in result.files.items()},
-    }
+    """The ``--json`` summary: the result's own dict, with the unit and the model the monitor started from."""
+    return {**result.to_dict(), "unit": unit, "model": model_file.model.to_dict()}

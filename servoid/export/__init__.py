@@ -13,8 +13,9 @@ can express (the ``effects`` list of extended models) before rendering.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from servoid.errors import ConfigError, ModelError
 from servoid.export import c_header, json_file, ros2_yaml

@@ -4,7 +4,7 @@ Rendered from the package template ``templates/backlash_compensator.h``: a
 ``static const servoid_backlash_params NAME`` (m2, c1, c2, band), the linear
 block as ``NAME_a`` / ``NAME_b`` / ``NAME_DELAY``, units and standard errors
 in comments, and ``static inline`` functions that mirror
-:class:`servoid.ident.compensate.BacklashInverse` operation for operation.
+:class:`servoid.ident.control.compensate.BacklashInverse` operation for operation.
 It compiles cleanly with ``gcc -std=c99 -Wall -Wextra -Werror``. Several
 headers (one per axis, different ``--name``) can be included together: the
 types and functions are guarded once, the parameters per name.
@@ -13,9 +13,10 @@ types and functions are guarded once, the parameters per name.
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable
 from importlib import resources
 from string import Template
-from typing import Any, Iterable
+from typing import Any
 
 from servoid import __version__
 from servoid.errors import ConfigError

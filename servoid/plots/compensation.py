@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.compensation_study import ARMS, CompensationStudy
+from servoid.ident.control.compensation_study import ARMS, CompensationStudy
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 

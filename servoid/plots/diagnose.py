@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.diagnose import Diagnosis
-from servoid.ident.residuals import GROUPS
+from servoid.ident.diagnosis.diagnose import Diagnosis
+from servoid.ident.diagnosis.residuals import GROUPS
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 

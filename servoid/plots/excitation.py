@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
 from servoid.excitation.report import ExcitationReport
-from servoid.ident.backlash import ZONE_DOWN, ZONE_MEMORY, ZONE_UP
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 
@@ -72,8 +72,8 @@ def plot_excitation(
     ax = fig.add_subplot(grid[0, :])
     ax.step(axis, u_arr[:n], where="post", color="tab:green", lw=1.0)
     if bounds is not None:
-        for level in bounds:
-            ax.axhline(level, color="k", ls="--", lw=0.8)
+        for bound in bounds:
+            ax.axhline(bound, color="k", ls="--", lw=0.8)
     ax.set_ylabel("u" + unit)
     ax.set_xlabel(xlabel)
     ax.set_title(f"input, first {n} of {u_arr.size} samples")
@@ -94,8 +94,8 @@ def plot_excitation(
     ax = fig.add_subplot(grid[rows - 1, 0])
     ax.hist(u_arr, bins=min(60, max(10, u_arr.size // 50)), color="tab:green", alpha=0.8)
     if bounds is not None:
-        for level in bounds:
-            ax.axvline(level, color="k", ls="--", lw=0.8)
+        for bound in bounds:
+            ax.axvline(bound, color="k", ls="--", lw=0.8)
     ax.set_xlabel("u" + unit)
     ax.set_ylabel("samples")
     ax.set_title(f"amplitude histogram (crest factor {report.signal.crest_factor:.3g})")

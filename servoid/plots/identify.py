@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import os
-from pathlib import Path
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
-from servoid.ident.model import BacklashModel
-from servoid.ident.mrgia import MRGIAResult
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIAResult
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
 

@@ -1,6 +1,6 @@
 """Figures of a monitoring run: the dead zone, the down-line slope and the fit against time, with bounds and alarms.
 
-:func:`plot_monitor` draws a :class:`~servoid.monitor.HistorySnapshot`.
+:func:`plot_monitor` draws a :class:`~servoid.monitor_history.HistorySnapshot`.
 :class:`LivePlot` redraws it in a separate process while the monitor runs,
 so that drawing (a tenth of a second or more) never holds up the sampling
 loop: the loop only hands over a snapshot, and drops it when the previous
@@ -17,17 +17,12 @@ import struct
 import subprocess
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from servoid.monitor_history import HISTORY_COLUMNS, HistorySnapshot
 from servoid.plots._base import pyplot as _pyplot
 from servoid.plots._base import save as _save
-
-from servoid.monitor import HISTORY_COLUMNS
-
-if TYPE_CHECKING:  # pragma: no cover
-    from servoid.monitor import HistorySnapshot
 
 __all__ = ["plot_monitor", "LivePlot"]
 
@@ -52,7 +47,9 @@ def plot_monitor(history: HistorySnapshot, path: str | os.PathLike[str]) -> Path
             ax.plot(t, value, color="tab:blue", lw=1.2, label="estimate")
             if f"{name}_std" in HISTORY_COLUMNS:
                 std = history.column(f"{name}_std")
-                ax.fill_between(t, value - 2 * std, value + 2 * std, color="tab:blue", alpha=0.2, lw=0, label="+/- 2 std")
+                ax.fill_between(
+                    t, value - 2 * std, value + 2 * std, color="tab:blue", alpha=0.2, lw=0, label="+/- 2 std"
+                )
             if true_name is not None and np.isfinite(history.column(true_name)).any():
                 ax.plot(t, history.column(true_name), "k--", lw=1.0, label="true")
         for bound in history.bounds:
@@ -63,7 +60,9 @@ def plot_monitor(history: HistorySnapshot, path: str | os.PathLike[str]) -> Path
         spans = [(r, c) for label, r, c in history.alarms if _quantity_of(history, label) == name]
         for i, (raised, cleared) in enumerate(spans if rows.shape[0] else []):
             end = t[-1] if cleared is None else cleared * history.period_s
-            ax.axvspan(raised * history.period_s, end, color="tab:red", alpha=0.12, lw=0, label="alarm" if i == 0 else None)
+            ax.axvspan(
+                raised * history.period_s, end, color="tab:red", alpha=0.12, lw=0, label="alarm" if i == 0 else None
+            )
         ax.set_ylabel(title + (unit if name == "dead_zone" else ""), fontsize=9)
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8, loc="upper left", ncol=2)

@@ -4,15 +4,15 @@ from __future__ import annotations
 
 import socket
 import uuid
-from pathlib import Path
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from servoid.drivers.base import Driver
-from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.can._bus import BusAddress
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.recording import RecordingWriter
 
 #: Reply timeout, s, for tests that exchange many samples and do not test timeouts: a loaded
@@ -27,7 +27,7 @@ def private_bus() -> BusAddress:
 
 def bench_input(n: int, seed: int) -> np.ndarray:
     """Seeded uniform input over the bench plant's range."""
-    return np.random.default_rng(seed).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, n)
+    return np.random.default_rng(seed).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, n)
 
 
 def free_udp_port() -> int:
@@ -36,7 +36,9 @@ def free_udp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def recorded_run(driver: Driver, u: np.ndarray, path: Path, *, at: int = -1, event: Callable[[], None] = lambda: None) -> None:
+def recorded_run(
+    driver: Driver, u: np.ndarray, path: Path, *, at: int = -1, event: Callable[[], None] = lambda: None
+) -> None:
     """Exchange ``u`` sample by sample into a recording; call ``event`` before sample ``at``.
 
     What a sampling session does, reduced to the part the fault tests need:

@@ -6,7 +6,7 @@ and hands out a driver for it, not yet open. ``test_contract.py`` runs every
 test over every entry of :data:`TRANSPORTS`.
 
 Adding a driver is one entry: write a factory
-``def _my_servo(faults: Faults, limits: Limits | None) -> ContextManager[Driver]``
+``def _my_servo(faults: Faults, limits: Limits | None) -> AbstractContextManager[Driver]``
 that starts its emulator with ``faults`` (those it cannot inject it leaves
 out of ``Transport.faults``, with the reason in ``Transport.cannot``, and the
 fault tests skip it saying so), yields a driver built from a URL (so the URL
@@ -29,15 +29,16 @@ import contextlib
 import math
 import uuid
 from collections import deque
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, ContextManager, Iterator
 
 from servoid.drivers import Driver, Limits, driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.clock import VirtualClock
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sim import SimDriver
-from servoid.ident.model import BacklashModel
+from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Faults", "Transport", "TRANSPORTS"]
 
@@ -102,9 +103,9 @@ class Transport:
     """
 
     name: str
-    servo: Callable[[Faults, Limits | None], ContextManager[Driver]]
+    servo: Callable[[Faults, Limits | None], AbstractContextManager[Driver]]
     faults: frozenset[str] = field(default_factory=frozenset)
-    plant: BacklashModel = BENCH_PLANT
+    plant: BacklashModel = MODEL_PLANT
     resolution: float = 0.0
     virtual_time: bool = False
     bad_url: str = ""
@@ -172,10 +173,10 @@ def _slots_out_of_band(driver: Driver) -> Callable[[], int | None]:
     slots: deque[int | None] = deque()
     send = driver._exchange
 
-    def exchange(command: float):  # type: ignore[no-untyped-def]
+    def exchange(command: float, slot: int | None):  # type: ignore[no-untyped-def]
         if driver.torque_enabled:  # with the torque off nothing is sent (the driver refuses)
-            slots.append(driver.exchange_slot)
-        return send(command)
+            slots.append(slot)
+        return send(command, slot)
 
     driver._exchange = exchange  # type: ignore[method-assign]
     return lambda: slots.popleft() if slots else None
@@ -238,7 +239,9 @@ def _cia402(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
 def _odrive(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     from servoid.drivers.can.sim_odrive import SimOdriveAxis
 
-    with SimOdriveAxis(node=3, bus=_private_bus(), mute_after=faults.mute_after, drop=faults.drop, seed=faults.seed) as axis:
+    with SimOdriveAxis(
+        node=3, bus=_private_bus(), mute_after=faults.mute_after, drop=faults.drop, seed=faults.seed
+    ) as axis:
         driver = driver_from_url(axis.url(timeout=faults.timeout))
         axis.slot_source = _slots_out_of_band(driver)  # CAN Simple has no room for it
         with _handed_out(driver, limits):
@@ -254,17 +257,34 @@ _CAN_CRC = (
 #: Every driver the contract tests run over.
 TRANSPORTS = [
     Transport(
-        "sim", _sim, frozenset({"mute_after", "restart_after", "drop"}), BENCH_PLANT, 0.0, True,
+        "sim",
+        _sim,
+        frozenset({"mute_after", "restart_after", "drop"}),
+        MODEL_PLANT,
+        0.0,
+        True,
         "sim://?bogus=1",
         cannot={"flip": "the simulated servo has no byte stream to corrupt"},
     ),
     Transport(
-        "serial", _serial, frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}), BENCH_PLANT,
-        2 * math.pi / 65536, False, "serial:///dev/ttyUSB0?bogus=1", _serial_sent,
+        "serial",
+        _serial,
+        frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}),
+        MODEL_PLANT,
+        2 * math.pi / 65536,
+        False,
+        "serial:///dev/ttyUSB0?bogus=1",
+        _serial_sent,
     ),
     Transport(
-        "dxl", _dxl, frozenset({"mute_after", "drop", "flip", "trace"}), BENCH_PLANT, 2 * math.pi / 4096, False,
-        "dxl:///dev/ttyUSB0?id=1&bogus=1", _dxl_sent,
+        "dxl",
+        _dxl,
+        frozenset({"mute_after", "drop", "flip", "trace"}),
+        MODEL_PLANT,
+        2 * math.pi / 4096,
+        False,
+        "dxl:///dev/ttyUSB0?id=1&bogus=1",
+        _dxl_sent,
         cannot={
             "restart_after": "an X-series servo has no boot id or restart counter to read per sample: after a "
             "brown-out it answers again with its torque off, and its Realtime Tick restarting cannot be told "
@@ -272,11 +292,22 @@ TRANSPORTS = [
         },
     ),
     Transport(
-        "cia402", _cia402, frozenset({"mute_after", "restart_after", "drop"}), BENCH_PLANT, 2 * math.pi / 2**17,
-        False, "can://virtual/ch0?protocol=cia402&bogus=1", cannot={"flip": _CAN_CRC},
+        "cia402",
+        _cia402,
+        frozenset({"mute_after", "restart_after", "drop"}),
+        MODEL_PLANT,
+        2 * math.pi / 2**17,
+        False,
+        "can://virtual/ch0?protocol=cia402&bogus=1",
+        cannot={"flip": _CAN_CRC},
     ),
     Transport(
-        "odrive", _odrive, frozenset({"mute_after", "drop"}), BENCH_PLANT, 2 * math.pi * 2.0**-23, False,
+        "odrive",
+        _odrive,
+        frozenset({"mute_after", "drop"}),
+        MODEL_PLANT,
+        2 * math.pi * 2.0**-23,
+        False,
         "can://virtual/ch0?protocol=odrive&bogus=1",
         cannot={
             "flip": _CAN_CRC,

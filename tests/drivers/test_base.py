@@ -7,6 +7,7 @@ each real driver is then tested against its emulator by the contract tests.
 
 import math
 
+import numpy as np
 import pytest
 
 from servoid.drivers import Driver, Limits, Reading, UnitConversion, parse_url, register
@@ -35,7 +36,7 @@ class Recorder(Driver):
     def _set_torque(self, enabled):
         self.torque_calls.append(enabled)
 
-    def _exchange(self, command):
+    def _exchange(self, command, slot=None):
         if self.fail_with is not None:
             raise self.fail_with
         self.sent.append(command)
@@ -170,19 +171,58 @@ def test_the_sample_period_and_slot_reach_the_driver():
         def _set_period(self, period_s):
             self.period = period_s
 
-        def _exchange(self, command):
-            self.slots.append(self.exchange_slot)
-            return super()._exchange(command)
+        def _exchange(self, command, slot):
+            self.slots.append(slot)
+            return super()._exchange(command, slot)
 
     d = Periodic()
     d.slots = []
     with d:
         d.set_sample_period(0.002)
         d.exchange(0.0)
-        d.exchange_slot = 7
-        d.exchange(0.0)
+        d.exchange(0.0, slot=7)
+        with pytest.raises(ConfigError, match="slot"):
+            d.exchange(0.0, slot=-1)
     assert d.period == 0.002 and d.sample_period_s == 0.002 and d.slots == [None, 7]
-    with pytest.raises(ConfigError, match="slot"):
-        d.exchange_slot = -1
     with Recorder() as r, pytest.raises(ConfigError, match="period_s"):
         r.set_sample_period(-1.0)
+
+
+@pytest.mark.parametrize("command_step", [None, 0.004])
+def test_after_lost_requests_and_replies_no_step_the_servo_receives_exceeds_max_step(command_step):
+    # The servo applies a command whose reply is lost, and not one whose request is lost: the base
+    # cannot tell which, so the next command must lie within max_step of both.
+    class Lossy(Recorder):
+        def __init__(self, **kw):
+            super().__init__(**kw)
+            self.rng = np.random.default_rng(11)
+            self.applied: list[float] = []
+
+        def _exchange(self, command, slot=None):
+            fate = self.rng.random()
+            if fate < 0.2:
+                raise DriverTimeout("request lost")
+            self.applied.append(command)
+            if fate < 0.4:
+                raise DriverTimeout("reply lost")
+            return Reading(position=command)
+
+    max_step = 0.01
+    d = Lossy(limits=Limits(minimum=-1.0, maximum=1.0, max_step=max_step))
+    d.command_step = command_step
+    u = np.random.default_rng(3).uniform(-0.5, 0.5, 3000)
+    with d:
+        d.enable()
+        for v in u:
+            try:
+                d.exchange(v)
+            except DriverTimeout:
+                pass
+            assert d.last_command is not None and d.possibly_held is not None
+    steps = np.abs(np.diff(d.applied))
+    assert steps.max() <= max_step * (1 + 1e-9), f"a step of {steps.max():.4g} reached the servo"
+    assert steps.max() >= max_step - (command_step or 0.0) - 1e-12  # the limit bound, nothing froze
+    if command_step is not None:
+        np.testing.assert_allclose(
+            np.asarray(d.applied) / command_step, np.round(np.asarray(d.applied) / command_step), atol=1e-9
+        )

@@ -14,16 +14,21 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM, SimCia402Drive
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+    recorded_run,
+)
 
 COUNT = 2 * math.pi / SIM_COUNTS_PER_REV
 
@@ -44,7 +49,7 @@ def test_positions_follow_the_bench_plant_to_within_an_increment(drive):
         assert servo.identity["counts_per_rev"] == SIM_COUNTS_PER_REV  # read from 0x608F
         assert servo.identity["device_name"] == "servoid simulated CiA 402 drive"
     # target and actual position are both whole increments: at most an increment apart from the plant
-    assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 2 * COUNT
+    assert np.max(np.abs(y - simulate(MODEL_PLANT, u).y)) < 2 * COUNT
     assert np.ptp(y) > 0.1
     assert not drive.power_on and drive.state == "SWITCH ON DISABLED" and drive.nmt_state == "PRE-OPERATIONAL"
 
@@ -58,7 +63,7 @@ def test_torque_mode_scales_nm_by_the_rated_torque(drive):
         y = np.array([servo.exchange(v).position for v in u])
     per_mille = np.round(u / (SIM_RATED_TORQUE_MNM / 1e6))  # what 0x6071 carries
     torque = per_mille * SIM_RATED_TORQUE_MNM / 1e6
-    assert np.max(np.abs(y - simulate(BENCH_PLANT, TORQUE_GAIN * torque).y)) < COUNT
+    assert np.max(np.abs(y - simulate(MODEL_PLANT, TORQUE_GAIN * torque).y)) < COUNT
 
 
 def test_counts_per_rev_from_the_url_override_the_drive(drive):
@@ -67,7 +72,7 @@ def test_counts_per_rev_from_the_url_override_the_drive(drive):
         m = [servo.exchange(0.15) for _ in range(30)][-1]
     # the driver believes in half the increments per turn: the drive turns half as far (less the
     # backlash c1 on the way up), and the driver reads its increments as twice the angle
-    assert drive.axis.position == pytest.approx(0.15 / 2 - BENCH_PLANT.c1, abs=1e-4)
+    assert drive.axis.position == pytest.approx(0.15 / 2 - MODEL_PLANT.c1, abs=1e-4)
     assert m.position == pytest.approx(2 * drive.axis.position, abs=2 * COUNT)
 
 
@@ -144,9 +149,8 @@ def test_the_sync_counter_tells_the_drive_how_many_cycles_passed(drive):
         for slot, value in zip(slots, u):
             if slot == 304:
                 time.sleep(0.299)  # 299 cycles of 1 ms since slot 5, give or take the host's timing
-            servo.exchange_slot = slot
-            y.append(servo.exchange(value).position)
+            y.append(servo.exchange(value, slot=slot).position)
     held = np.repeat(u, np.diff(slots, append=slots[-1] + 1))  # the target each cycle had
-    expected = simulate(BENCH_PLANT, held).y[np.array(slots) - slots[0]]
+    expected = simulate(MODEL_PLANT, held).y[np.array(slots) - slots[0]]
     assert np.max(np.abs(np.array(y) - expected)) < 2 * COUNT
     assert drive.axis.steps == 1 + slots[-1] + 1  # the enable cycle, then one per slot 0..305

@@ -12,23 +12,35 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can._bus import NO_KERNEL_CAN, BusAddress, kernel_has_can
 from servoid.drivers.can.cia402 import Cia402Driver
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.simulated import simulated_drive
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError, DriverError, DriverTimeout
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import PATIENT_S, bench_input, free_udp_port, private_bus, recorded_run
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    free_udp_port,
+    private_bus,
+    recorded_run,
+)
 
 
 def test_urls_pick_the_protocol_and_carry_the_bus():
     d = driver_from_url("can://virtual/ch0?protocol=cia402&node=1&bitrate=1000000&timeout=0.02&min=-1&max=1")
     assert isinstance(d, Cia402Driver)
-    assert (d.address.interface, d.address.channel, d.address.bitrate, d.node, d.mode) == ("virtual", "ch0", 1000000, 1, "position")
+    assert (d.address.interface, d.address.channel, d.address.bitrate, d.node, d.mode) == (
+        "virtual",
+        "ch0",
+        1000000,
+        1,
+        "position",
+    )
     assert d.timeout == 0.02 and (d.limits.minimum, d.limits.maximum) == (-1.0, 1.0)
     o = driver_from_url("can://socketcan/can0?protocol=odrive&node=3&mode=torque")
     assert isinstance(o, OdriveDriver) and o.command_unit.unit == "Nm" and o.position_unit.unit == "rad"
@@ -45,7 +57,10 @@ def test_urls_pick_the_protocol_and_carry_the_bus():
         ("can://virtual/ch0?protocol=cia402&mode=velocity", r"option mode='velocity' is invalid.*position"),
         ("can://virtual/ch0?protocol=cia402&node=128", r"node \(=128\) must be 1..127"),
         ("can://virtual/ch0?protocol=odrive&node=64", r"node \(=64\) must be 0..63"),
-        ("can://virtual/ch0?protocol=cia402&port=47000", r"port \(=47000\) applies to the udp_multicast interface only"),
+        (
+            "can://virtual/ch0?protocol=cia402&port=47000",
+            r"port \(=47000\) applies to the udp_multicast interface only",
+        ),
         ("can://virtual/ch0?protocol=cia402&baud=1000000", r"unknown option\(s\) baud;.*bitrate"),
         ("can://virtual/?protocol=cia402", r"CAN channel is missing for interface 'virtual'"),
         ("can://virtual/ch0?protocol=cia402&counts_per_rev=0", r"option counts_per_rev='0' is invalid"),
@@ -91,7 +106,7 @@ def test_socketcan_vcan(protocol):
         with driver_from_url(drive.url()) as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
-    assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 1e-4
+    assert np.max(np.abs(y - simulate(MODEL_PLANT, u).y)) < 1e-4
 
 
 @pytest.mark.timeout(60)
@@ -109,7 +124,7 @@ def test_the_emulator_in_another_process_over_udp_multicast(protocol):
         with driver_from_url(f"{url}&timeout={PATIENT_S}") as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
-        assert np.max(np.abs(y - simulate(BENCH_PLANT, u).y)) < 1e-4
+        assert np.max(np.abs(y - simulate(MODEL_PLANT, u).y)) < 1e-4
     finally:
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=10) == 0
@@ -124,9 +139,14 @@ def test_the_emulator_refuses_the_virtual_interface(capsys):
 
 @pytest.mark.parametrize(
     ("protocol", "message"),
-    [("cia402", r"node 1 .*: no TPDO within 50 ms after SYNC"), ("odrive", r"ODrive node 0 .*: no encoder estimates within 50 ms")],
+    [
+        ("cia402", r"node 1 .*: no TPDO within 50 ms after SYNC"),
+        ("odrive", r"ODrive node 0 .*: no encoder estimates within 50 ms"),
+    ],
 )
-def test_a_drive_that_stops_answering_times_out_keeps_the_recording_and_ends_switched_off(protocol, message, tmp_path, caplog):
+def test_a_drive_that_stops_answering_times_out_keeps_the_recording_and_ends_switched_off(
+    protocol, message, tmp_path, caplog
+):
     path = tmp_path / "run.csv"
     with simulated_drive(protocol, bus=private_bus()) as drive:
         with driver_from_url(drive.url(timeout=0.05)) as servo:
@@ -143,7 +163,7 @@ def test_a_drive_that_stops_answering_times_out_keeps_the_recording_and_ends_swi
 @pytest.mark.parametrize("protocol", ["cia402", "odrive"])
 def test_a_reply_that_comes_after_the_timeout_is_not_taken_for_the_next_one(protocol):
     u = bench_input(40, seed=24)
-    expected = simulate(BENCH_PLANT, u).y
+    expected = simulate(MODEL_PLANT, u).y
     late = 22
     assert abs(expected[late + 1] - expected[late]) > 0.01  # a stale reply would show
     y = np.full(u.size, np.nan)

@@ -13,17 +13,22 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.sim_odrive import SimOdriveAxis
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import DeviceFault, DriverTimeout
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
-from .can_helpers import PATIENT_S, bench_input, private_bus, recorded_run
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    bench_input,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+    recorded_run,
+)
 
 FLOAT32_TURN = 2 * math.pi * 2.0**-22  # resolution of a float32 position near one turn, rad
 
@@ -44,7 +49,7 @@ def test_positions_follow_the_bench_plant(axis, mode):
         y = np.array([servo.exchange(v).position for v in u])
         assert servo.identity["firmware_version"] == "0.6.10"
     gain = TORQUE_GAIN if mode == "torque" else 1.0
-    assert np.max(np.abs(y - simulate(BENCH_PLANT, gain * u).y)) < FLOAT32_TURN
+    assert np.max(np.abs(y - simulate(MODEL_PLANT, gain * u).y)) < FLOAT32_TURN
     assert np.ptp(y) > 0.1
     assert axis.axis_state == proto.IDLE
 
@@ -98,5 +103,5 @@ def test_on_its_own_clock_the_axis_holds_the_input_between_samples():
                 y.append(servo.exchange(u[k]).position)
             assert axis.axis.steps == 6
     held = np.repeat(u, [1, 3, 1, 1])  # 2 samples on u[1] held before u[2]
-    expected = simulate(BENCH_PLANT, held).y
+    expected = simulate(MODEL_PLANT, held).y
     assert np.max(np.abs(np.array(y) - expected[[0, 1, 4, 5]])) < FLOAT32_TURN

@@ -16,7 +16,7 @@ import pytest
 from servoid.drivers import Limits, driver_from_url
 from servoid.drivers.clock import MonotonicClock
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
-from servoid.ident.simulate import simulate
+from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 from servoid.session import SessionConfig, run_session
 

@@ -115,7 +115,10 @@ def test_present_values_come_back_signed_in_user_units(emulator, clock):  # noqa
     servo = emulator.servo(1)
     assert second.position == pytest.approx((servo.value(ct.PRESENT_POSITION) - 2048) * RAD)
     assert second.position < -0.1 and first.position == 0.0  # one sample of delay, then down
-    assert second.velocity == pytest.approx(servo.value(ct.PRESENT_VELOCITY) * 0.229 * 2 * math.pi / 60) and second.velocity < 0
+    assert (
+        second.velocity == pytest.approx(servo.value(ct.PRESENT_VELOCITY) * 0.229 * 2 * math.pi / 60)
+        and second.velocity < 0
+    )
     assert second.current == pytest.approx(servo.value(ct.PRESENT_CURRENT) * 2.69e-3) and second.current < 0
     assert (first.device_time, second.device_time) == pytest.approx((0.01, 0.02))
 

@@ -11,12 +11,12 @@ import time
 import dynamixel_sdk as sdk
 import pytest
 
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 from servoid.drivers.dynamixel.protocol import Instruction
-from servoid.ident.plant import Plant
+from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.ident.models.plant import Plant
 
 from .dxl_helpers import TEST_LATENCY_MS, clock, emulator  # noqa: F401 - fixtures
 
@@ -120,7 +120,7 @@ def test_the_plant_advances_one_step_per_goal_written(bus, emulator, clock):  # 
     writer.txPacket()  # torque off: the goal is stored, nothing moves
     assert emulator.servo(1).steps == 0
     ph.write1ByteTxRx(port, 1, ct.TORQUE_ENABLE.address, 1)
-    reference = Plant(BENCH_PLANT)
+    reference = Plant(MODEL_PLANT)
     for goal in goals:
         writer.changeParam(1, list(ct.encode_value(ct.GOAL_POSITION, goal)))
         assert writer.txPacket() == sdk.COMM_SUCCESS
@@ -142,7 +142,7 @@ def test_on_its_own_clock_the_servo_holds_the_goal_between_samples(clock):  # no
         writer = sdk.GroupSyncWrite(port, ph, ct.GOAL_POSITION.address, 4)
         writer.addParam(1, list(ct.encode_value(ct.GOAL_POSITION, 2048)))
         ph.write1ByteTxRx(port, 1, ct.TORQUE_ENABLE.address, 1)
-        reference, held, latest = Plant(BENCH_PLANT), 0.0, 2048
+        reference, held, latest = Plant(MODEL_PLANT), 0.0, 2048
         # goals 1.3, 3.2 and 3.6 periods apart (nearest: 1, 3 and 4 samples); a READ 2.6 periods after the
         # third goal reports the latest sample (held samples are counted when the next goal comes)
         for gap, goal in ((0.0, 2048 + 150), (1.3, 2048 - 90), (3.2, 2048 + 60), (3.6, 2048 - 20)):

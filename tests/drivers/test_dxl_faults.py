@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import DeviceFault, DriverTimeout, ProtocolError
 from servoid.recording import RecordingWriter, read_recording
 
@@ -26,7 +26,7 @@ FAULT_AT = 60
 
 def run(emu, path, inject, samples=120):
     """Excite servo 1, recording each sample, with ``inject(emu)`` called before sample FAULT_AT."""
-    u = np.random.default_rng(5).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, samples)
+    u = np.random.default_rng(5).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, samples)
     with RecordingWriter(path, ["t", "u", "y"], metadata={"unit": "rad"}) as rec:
         with driver_from_url(url(emu)) as servo:
             servo.enable()
@@ -64,7 +64,14 @@ def corrupt_requests(emu):
     ],
     ids=["stops answering", "hardware error", "corrupted replies", "corrupted requests"],
 )
-def test_a_fault_is_named_the_recording_kept_and_the_torque_left_off(emulator, tmp_path, inject, error, message, caplog):  # noqa: F811
+def test_a_fault_is_named_the_recording_kept_and_the_torque_left_off(
+    emulator,  # noqa: F811 - the fixture imported above
+    tmp_path,
+    inject,
+    error,
+    message,
+    caplog,
+):
     path = tmp_path / "run.csv"
     with caplog.at_level(logging.WARNING, logger="servoid.drivers"), pytest.raises(error, match=message):
         run(emulator, path, inject)

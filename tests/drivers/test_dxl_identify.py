@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE, BENCH_PLANT
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, EmulatorProcess
+from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
 from servoid.ident import MRGIAConfig, identify, simulate
 
 from .dxl_helpers import TEST_LATENCY_MS, url
@@ -29,7 +29,7 @@ def parameters(model) -> np.ndarray:
     return np.array([*model.a, *model.b, model.m2, model.c1, model.c2])
 
 
-def relative_errors(model, truth=BENCH_PLANT) -> np.ndarray:
+def relative_errors(model, truth=MODEL_PLANT) -> np.ndarray:
     return np.abs(parameters(model) - parameters(truth)) / np.abs(parameters(truth))
 
 
@@ -46,20 +46,20 @@ def quantised(x: np.ndarray) -> np.ndarray:
 
 
 def test_the_emulated_servo_is_the_bench_plant_seen_through_a_12_bit_encoder():
-    u = np.random.default_rng(11).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 500)
+    u = np.random.default_rng(11).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 500)
     with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
         command, y = live_run(url(emu), u)
     np.testing.assert_allclose(command, quantised(u), rtol=0, atol=1e-12)
-    np.testing.assert_allclose(y, quantised(simulate(BENCH_PLANT, command).y), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(y, quantised(simulate(MODEL_PLANT, command).y), rtol=0, atol=1e-12)
 
 
 def test_live_identification_matches_direct_simulation():
-    u = np.random.default_rng(3).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 3000)
+    u = np.random.default_rng(3).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 3000)
     with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
         command, y = live_run(url(emu), u)
     live = identify(command, y, CONFIG)
-    direct = identify(u, simulate(BENCH_PLANT, u).y, CONFIG)
-    through_encoder = identify(command, quantised(simulate(BENCH_PLANT, command).y), CONFIG)
+    direct = identify(u, simulate(MODEL_PLANT, u).y, CONFIG)
+    through_encoder = identify(command, quantised(simulate(MODEL_PLANT, command).y), CONFIG)
     live_err, direct_err = relative_errors(live.model), relative_errors(direct.model)
     assert not live.warnings
     # noise-free simulation identifies exactly; the live run is limited by the encoder's
@@ -71,19 +71,19 @@ def test_live_identification_matches_direct_simulation():
 
 def test_current_mode_identifies_the_spring_of_the_emulated_servo():
     """In current mode the emulated joint settles at CURRENT_GAIN rad per A: the DC gain found."""
-    amplitude_a = BENCH_AMPLITUDE / CURRENT_GAIN
+    amplitude_a = MODEL_AMPLITUDE / CURRENT_GAIN
     u = np.random.default_rng(4).uniform(-amplitude_a, amplitude_a, 3000)
     with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
         command, y = live_run(url(emu, mode="current"), u)
     model = identify(command, y, CONFIG).model
     dc_gain = sum(model.b) / (1 + sum(model.a))
     assert dc_gain == pytest.approx(CURRENT_GAIN, rel=0.01)
-    assert (model.c1, model.c2) == pytest.approx((BENCH_PLANT.c1, BENCH_PLANT.c2), rel=0.05)
+    assert (model.c1, model.c2) == pytest.approx((MODEL_PLANT.c1, MODEL_PLANT.c2), rel=0.05)
 
 
 @pytest.mark.slow
 def test_the_emulator_in_another_process_serves_the_driver():
-    u = np.random.default_rng(9).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 1500)
+    u = np.random.default_rng(9).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 1500)
     with EmulatorProcess([1, 2]) as emu:
         command, y = live_run(emu.url(2, latency_ms=TEST_LATENCY_MS), u)
     assert relative_errors(identify(command, y, CONFIG).model).max() < 0.02

@@ -6,7 +6,7 @@ process of its own, the CiA 402 drive and the ODrive axis on python-can's
 ``virtual`` bus in this process (a virtual bus reaches only its own process).
 Each runs the same excitation (seed, rate, length) through the sampling
 session and the identification, as ``servoid identify --driver sim://`` does
-on the same plant, :data:`~servoid.drivers.bench.BENCH_PLANT`.
+on the same plant, :data:`~servoid.drivers.model_plant.MODEL_PLANT`.
 
 Known truth. The simulated driver identifies the plant to rounding error;
 what each emulator adds is its device's resolution and, for a device that
@@ -50,12 +50,14 @@ import numpy as np
 import pytest
 
 from servoid.cli import main
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import BacklashModel
 from servoid.modelfile import load_model
 
-from .can_helpers import private_bus
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+)
 
 RATE_HZ = 500
 SAMPLES = 2000
@@ -71,7 +73,7 @@ def identify(capsys: pytest.CaptureFixture[str], url: str, out) -> dict:  # type
 
 
 def max_relative_error(result: dict) -> float:
-    return BacklashModel.from_dict(result["model"]).max_relative_error(BENCH_PLANT)
+    return BacklashModel.from_dict(result["model"]).max_relative_error(MODEL_PLANT)
 
 
 @contextlib.contextmanager
@@ -110,7 +112,9 @@ def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, to
         live = identify(capsys, url, tmp_path / "live")
     acquisition = live["acquisition"]
     assert live["source"] == url and acquisition["samples"] == SAMPLES and acquisition["rate_hz"] == RATE_HZ
-    assert acquisition["counts"]["ok"] > SAMPLES // 2, acquisition["counts"]  # most slots on time, even on a busy machine
+    assert acquisition["counts"]["ok"] > SAMPLES // 2, acquisition[
+        "counts"
+    ]  # most slots on time, even on a busy machine
     assert load_model(tmp_path / "live" / "model.json").servo["driver"] == url.split(":")[0]
     if servo is odrive and acquisition["late_share"] >= 0.01:
         tolerance = TIMING_TOLERANCE  # see the module docstring

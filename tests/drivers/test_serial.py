@@ -18,7 +18,7 @@ import pytest
 import serial
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial import build
 from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
 from servoid.drivers.serial.protocol import FrameSplitter, check, crc16, encode, parse_reply
@@ -35,7 +35,7 @@ def firmware():
 # ---- the plant in C ----------------------------------------------------------------------
 @pytest.mark.parametrize(
     "model",
-    [BENCH_PLANT, PAPER_PLANT, BacklashModel(a=(-1.2, 0.5, -0.06), b=(0.2, 0.15), delay=3, m2=0.7, c1=0.1, c2=0.05)],
+    [MODEL_PLANT, PAPER_PLANT, BacklashModel(a=(-1.2, 0.5, -0.06), b=(0.2, 0.15), delay=3, m2=0.7, c1=0.1, c2=0.05)],
     ids=["bench", "paper", "na3-nb1-d3"],
 )
 def test_the_firmware_plant_matches_simulate_sample_by_sample(firmware, model):

@@ -20,21 +20,26 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from collections.abc import Callable, Iterator
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any, Callable, ContextManager, Iterator
+from typing import Any
 
 import numpy as np
 import pytest
 
 from servoid.drivers import Driver, driver_from_url
-from servoid.drivers.bench import BENCH_AMPLITUDE
 from servoid.drivers.dynamixel.control_table import HardwareError
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import DeviceFault, DriverError, DriverTimeout
 from servoid.recording import read_recording
 from servoid.session import SessionConfig, run_session
 
-from .can_helpers import PATIENT_S, private_bus
-from .can_helpers import buses_closed  # noqa: F401 - autouse fixture
+from .can_helpers import (
+    PATIENT_S,
+    buses_closed,  # noqa: F401 - autouse fixture
+    private_bus,
+)
 
 FAULT_AT = 40
 RATE_HZ = 500.0
@@ -80,7 +85,7 @@ class Fault:
     """One fault: how to set up the device, inject the fault, and what must come out."""
 
     name: str
-    device: Callable[[], ContextManager[tuple[Driver, Any]]]
+    device: Callable[[], AbstractContextManager[tuple[Driver, Any]]]
     inject: Callable[[Any], None]
     error: type[DriverError]
     message: str
@@ -128,7 +133,7 @@ def inject_before_exchange(n: int, inject: Callable[[], None]) -> Callable[[floa
 @pytest.mark.parametrize("fault", FAULTS, ids=lambda f: f.name)
 def test_a_fault_stops_the_session_with_a_clear_error_the_recording_kept_and_torque_off(fault, tmp_path, caplog):
     path = tmp_path / "recording.csv"
-    u = np.random.default_rng(7).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 400)
+    u = np.random.default_rng(7).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 400)
     with caplog.at_level(logging.WARNING), fault.device() as (servo, device):
         with pytest.raises(fault.error, match=fault.message) as info:
             run_session(servo, u, SessionConfig(period_s=1 / RATE_HZ, give_up_after_s=0.1), recording=path,
@@ -152,7 +157,7 @@ def test_a_fault_stops_the_session_with_a_clear_error_the_recording_kept_and_tor
 
 
 def test_one_crc_error_costs_one_sample_and_the_session_goes_on(tmp_path):
-    u = np.random.default_rng(8).uniform(-BENCH_AMPLITUDE, BENCH_AMPLITUDE, 200)
+    u = np.random.default_rng(8).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 200)
     with dxl() as (servo, emu):
         inject = inject_before_exchange(FAULT_AT, lambda: setattr(emu.faults(1), "corrupt_replies", 1))
         result = run_session(servo, u, SessionConfig(period_s=1 / RATE_HZ), recording=tmp_path / "r.csv",

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from servoid.drivers import driver_from_url
-from servoid.drivers.bench import BENCH_PLANT
 from servoid.drivers.clock import VirtualClock
+from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
 from servoid.drivers.sim import SIM_PLANTS, SimDriver, reference_output_std
 from servoid.errors import ConfigError, DriverError
@@ -17,7 +17,7 @@ MS = 1_000_000
 
 
 def test_each_command_is_one_sample_and_silence_holds_the_last_one():
-    sampled, ref = SampledPlant(BENCH_PLANT, period_ns=MS), Plant(BENCH_PLANT)
+    sampled, ref = SampledPlant(MODEL_PLANT, period_ns=MS), Plant(MODEL_PLANT)
     sampled.enable()
     # commands at 0, 1.3, 2.2 ms are one sample each (jitter < half a period); at 4.6 ms
     # two periods passed (nearest): one sample on the held command first
@@ -35,8 +35,8 @@ def test_each_command_is_one_sample_and_silence_holds_the_last_one():
 
 
 def test_slot_numbers_and_a_wrapping_counter_say_how_many_samples_passed():
-    by_slot, by_counter = SampledPlant(BENCH_PLANT), SampledPlant(BENCH_PLANT, period_ns=MS, slot_modulus=4)
-    ref, ref_u = Plant(BENCH_PLANT), 0.0
+    by_slot, by_counter = SampledPlant(MODEL_PLANT), SampledPlant(MODEL_PLANT, period_ns=MS, slot_modulus=4)
+    ref, ref_u = Plant(MODEL_PLANT), 0.0
     for plant in (by_slot, by_counter):
         plant.enable()
     # slots 0, 1, 4, 13 at times that say nothing (all at 0 ns, or one period apart): the slots decide;
@@ -56,7 +56,7 @@ def test_slot_numbers_and_a_wrapping_counter_say_how_many_samples_passed():
 
 
 def test_torque_off_freezes_the_plant_and_refuses_commands():
-    sampled = SampledPlant(BENCH_PLANT, period_ns=MS)
+    sampled = SampledPlant(MODEL_PLANT, period_ns=MS)
     with pytest.raises(DriverError, match="torque is off"):
         sampled.command(0.1, 0)
     sampled.enable()
@@ -104,3 +104,14 @@ def test_url_options():
     ]:
         with pytest.raises(ConfigError, match=fragment):
             driver_from_url(url)
+
+
+def test_the_simulated_servo_declares_its_extra_members_and_a_real_driver_does_not_have_them():
+    from servoid.drivers.serial.driver import SerialDriver
+    from servoid.drivers.simulated import SimulatedServo
+
+    sim = SimDriver(plant="paper", snr=40, clock="virtual", drift=1.5, drift_samples=100)
+    assert isinstance(sim, SimulatedServo)
+    assert sim.truth == PAPER_PLANT and sim.truth_at(100).dead_zone == pytest.approx(1.5 * PAPER_PLANT.dead_zone)
+    assert isinstance(sim.clock, VirtualClock) and sim.noise_std > 0 and sim.reference_amplitude > 0
+    assert not isinstance(SerialDriver(port="/dev/null"), SimulatedServo)

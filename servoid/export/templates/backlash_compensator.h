@@ -22,7 +22,7 @@
  * The smoothing band: after a reversal of y_d, x_d crosses the play while y_d travels
  * `band` back, so a reversal shorter than the band (an overshoot, noise) moves x_d by
  * that share of the play instead of across all of it. band = 0 is the naive inverse.
- * The arithmetic mirrors servoid.ident.compensate.BacklashInverse operation for
+ * The arithmetic mirrors servoid.ident.control.compensate.BacklashInverse operation for
  * operation (servoid's tests compile this file and compare sample by sample).
  */
 

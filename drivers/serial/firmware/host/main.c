@@ -103,7 +103,7 @@ static int plant_only(const bl_model_t *model)
 
 int main(int argc, char **argv)
 {
-    /* BENCH_PLANT (servoid.drivers.bench) unless told otherwise */
+    /* MODEL_PLANT (servoid.drivers.model_plant) unless told otherwise */
     bl_model_t model = {2, 0, 1, {-0.8, 0.15}, {0.35}, 1.0, 0.02, 0.03};
     hal_host_config_t hc;
     sim_motor_t motor;

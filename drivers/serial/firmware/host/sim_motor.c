@@ -29,7 +29,7 @@ void bl_plant_reset(bl_plant_t *p)
 
 static double backlash(double x, double x_prev, double y_prev, double m2, double c1, double c2)
 {
-    /* the direction of motion picks the line (servoid.ident.backlash.backlash_step) */
+    /* the direction of motion picks the line (servoid.ident.models.kernels.backlash_step) */
     if (x > x_prev) {
         if (x > y_prev + c1) return x - c1;
     } else if (x < x_prev) {

@@ -4,7 +4,7 @@
  * bl_plant_t is servoid's BacklashModel stepped one sample at a time: the
  * linear block x(k) = -sum a_i x(k-i) + sum b_j u(k-d-j) followed by the
  * backlash (up line y = x - c1, down line y = m2 (x + c2), memory zone in
- * between), exactly as servoid.ident.Plant and servoid.ident.simulate (tested
+ * between), exactly as servoid.ident.Plant and servoid.ident.models.simulate (tested
  * sample by sample against them).
  *
  * sim_motor_t runs it as a position loop triggered by the host's set points,

@@ -1,0 +1,33 @@
+"""The estimator's own plant: a servo that is exactly the pseudo-Wiener model, for exact-recovery tests.
+
+The simulated servo (``sim://``, ``plant=bench``) and, until the physical
+servo twins take their place, the serial firmware emulator, the CAN drives and
+the Dynamixel emulator all run this plant, so that they move the same way and
+their identification results can be compared with its true parameters.
+
+A position-controlled servo with gear backlash, in radians, at the sample
+rate of the session: the closed position loop is a linear block with DC gain
+1 (poles 0.5 and 0.3, one sample of delay), the gear a backlash with dead
+zones of 0.02 rad up and 0.03 rad down and equal slopes (``m2 = 1``).
+
+Why these numbers: the MRGIA converges only while ``|A(e^jw) - 1| < 1`` for
+the linear block's denominator (the positive-realness condition of Ljung
+1977b that the paper cites); a position loop sampled much faster than its
+bandwidth (poles near 1) breaks it. This plant keeps it (margin 0.05), so
+the online estimate converges on every transport, and the refinement has
+something to refine.
+"""
+
+from servoid.ident.models.pseudo_wiener import BacklashModel
+
+__all__ = ["MODEL_PLANT", "MODEL_UNIT", "MODEL_AMPLITUDE"]
+
+#: The bench servo: x(k) = 0.8 x(k-1) - 0.15 x(k-2) + 0.35 u(k-1), backlash 0.02 / 0.03 rad.
+MODEL_PLANT = BacklashModel(a=(-0.8, 0.15), b=(0.35,), delay=1, m2=1.0, c1=0.02, c2=0.03)
+
+#: Unit of the bench servo's command and position.
+MODEL_UNIT = "rad"
+
+#: Half-width (rad) of a uniform input that visits every zone of MODEL_PLANT
+#: (about 31 % of samples on each line, 38 % in the play).
+MODEL_AMPLITUDE = 0.2

@@ -1,0 +1,184 @@
+"""The backlash operator and the simulation loop of the pseudo-Wiener model.
+
+These are the compiled kernels behind :func:`servoid.ident.models.simulate`; they
+take plain arrays so that the estimator, the refinement and the drivers'
+simulated plant all run the very same arithmetic.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from servoid.ident._jit import jit
+
+__all__ = ["backlash_step", "simulate_kernel", "extended_kernel", "schur_stable", "ZONE_UP", "ZONE_DOWN", "ZONE_MEMORY"]
+
+#: Zone codes returned per sample by :func:`simulate_kernel`.
+ZONE_UP = 1
+ZONE_DOWN = -1
+ZONE_MEMORY = 0
+
+
+@jit
+def backlash_step(x: float, x_prev: float, y_prev: float, m2: float, c1: float, c2: float) -> tuple[float, int]:
+    """One step of the backlash of eqs (2)-(8) with ``m1 = 1``.
+
+    Parameters
+    ----------
+    x, x_prev : float
+        Input of the backlash now and one sample before.
+    y_prev : float
+        Output one sample before.
+    m2, c1, c2 : float
+        Down-line slope and the two dead zones.
+
+    Returns
+    -------
+    y : float
+        ``y(k)``: ``x - c1`` on the up line (rising ``x`` past ``y(k-1) + c1``,
+        eq. 6), ``m2 (x + c2)`` on the down line (falling ``x`` below
+        ``y(k-1)/m2 - c2``, eq. 7), else ``y(k-1)`` (the memory zone, eq. 8).
+    zone : int
+        ``ZONE_UP``, ``ZONE_DOWN`` or ``ZONE_MEMORY``: which of the three held.
+
+    Notes
+    -----
+    The direction of motion picks the line: rising ``x`` can only reach the
+    up line and falling ``x`` only the down line. Where the lines do not cross
+    this equals eq. (8) exactly; beyond the crossing point (``m2 != 1``,
+    large ``|x|``), where eq. (8) would have ``g1 = g2 = 1``, it keeps the
+    output single-valued.
+    """
+    if x > x_prev:
+        if x > y_prev + c1:
+            return x - c1, ZONE_UP
+    elif x < x_prev:
+        if x < y_prev / m2 - c2:
+            return m2 * (x + c2), ZONE_DOWN
+    return y_prev, ZONE_MEMORY
+
+
+@jit
+def extended_kernel(
+    a: np.ndarray,
+    b: np.ndarray,
+    delay: int,
+    m2: float,
+    c1: float,
+    c2: float,
+    saturation: float,
+    dead_band: float,
+    friction: float,
+    u: np.ndarray,
+    y0: float,
+    x_out: np.ndarray,
+    y_out: np.ndarray,
+    zone_out: np.ndarray,
+) -> None:
+    """Free-run simulation of the extended model (the blocks of :mod:`servoid.ident.models.effects`).
+
+    Per sample: the input blocks turn ``u`` into ``w`` (saturation, then dead
+    band); the linear block computes
+    ``x(k) = -sum a_i x(k-i) + sum b_j (w(k-d-j) - friction s(k-j))`` with
+    ``s(k) = sign(x(k-1) - x(k-2))``; the backlash of
+    :func:`backlash_step` gives ``y``. Inputs and
+    ``x`` before the first sample are zero, the backlash output ``y0``.
+    With ``saturation = inf``, ``dead_band = 0`` and ``friction = 0`` this is
+    :func:`simulate_kernel` (which calls it so).
+    """
+    na = a.shape[0]
+    nb = b.shape[0] - 1
+    n = u.shape[0]
+    shaped = saturation < np.inf or dead_band > 0.0
+    # Only the effects in use get their arrays: the plain model (simulate_kernel)
+    # then runs as fast as before the effects existed.
+    w = np.empty(n if shaped else 0)
+    s = np.zeros(n if friction != 0.0 else 0)
+    x_prev = 0.0
+    x_prev2 = 0.0
+    y_prev = y0
+    for k in range(n):
+        if shaped:
+            v = u[k]
+            if v > saturation:
+                v = saturation
+            elif v < -saturation:
+                v = -saturation
+            if v > dead_band:
+                v -= dead_band
+            elif v < -dead_band:
+                v += dead_band
+            else:
+                v = 0.0
+            w[k] = v
+        if friction != 0.0:
+            if x_prev > x_prev2:
+                s[k] = 1.0
+            elif x_prev < x_prev2:
+                s[k] = -1.0
+        x = 0.0
+        for i in range(1, na + 1):
+            if k - i >= 0:
+                x -= a[i - 1] * x_out[k - i]
+        for j in range(nb + 1):
+            idx = k - delay - j
+            if idx >= 0:
+                x += b[j] * (w[idx] if shaped else u[idx])
+            if friction != 0.0 and k - j >= 0:
+                x -= b[j] * friction * s[k - j]
+        y, zone = backlash_step(x, x_prev, y_prev, m2, c1, c2)
+        zone_out[k] = zone
+        x_out[k] = x
+        y_out[k] = y
+        x_prev2 = x_prev
+        x_prev = x
+        y_prev = y
+
+
+@jit
+def simulate_kernel(
+    a: np.ndarray,
+    b: np.ndarray,
+    delay: int,
+    m2: float,
+    c1: float,
+    c2: float,
+    u: np.ndarray,
+    y0: float,
+    x_out: np.ndarray,
+    y_out: np.ndarray,
+    zone_out: np.ndarray,
+) -> None:
+    """Free-run simulation of eq. (1) followed by :func:`backlash_step`.
+
+    Inputs before the first sample and the initial ``x`` are zero; the
+    backlash output before the first sample is ``y0``.
+    Fills ``x_out``, ``y_out`` and ``zone_out`` (``ZONE_UP``, ``ZONE_DOWN``
+    or ``ZONE_MEMORY``) in place.
+    """
+    extended_kernel(a, b, delay, m2, c1, c2, np.inf, 0.0, 0.0, u, y0, x_out, y_out, zone_out)
+
+
+@jit
+def schur_stable(a: np.ndarray) -> bool:
+    """Whether all roots of ``z^na + a_1 z^(na-1) + ... + a_na`` lie strictly inside the unit circle.
+
+    The Schur-Cohn step-down recursion: O(na^2), no root finding, so it is
+    cheap enough to run on every estimator update.
+    """
+    na = a.shape[0]
+    poly = np.empty(na + 1)
+    poly[0] = 1.0
+    for i in range(na):
+        poly[i + 1] = a[i]
+    for m in range(na, 0, -1):
+        k = poly[m]
+        if not abs(k) < 1.0:
+            return False
+        denom = 1.0 - k * k
+        low = np.empty(m)
+        for i in range(m):
+            low[i] = (poly[i] - k * poly[m - i]) / denom
+        for i in range(m):
+            poly[i] = low[i]
+    return True

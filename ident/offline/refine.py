@@ -1,0 +1,288 @@
+"""Offline output-error refinement of a backlash model (servoid's addition to the paper).
+
+The MRGIA is an online method: its estimate is a good start, not the end.
+Given a whole record, :func:`refine` minimises the simulation error
+``sum (y - y_hat(theta))^2`` of the free-run model over all its parameters
+with :func:`scipy.optimize.least_squares`, starting from a given model
+(usually the MRGIA estimate), and returns standard errors from the Jacobian at
+the optimum. On the paper's example at SNR 43 this takes the maximum relative
+parameter error from ~4e-3 (MRGIA) to ~1e-3 at 5000 samples.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from servoid import validation
+from servoid.errors import ConfigError
+from servoid.ident.metrics import nrmse
+from servoid.ident.models.kernels import schur_stable, simulate_kernel
+from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
+from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
+
+__all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
+
+#: Smallest dead zone and down-line slope the search may reach, relative to std(y).
+_LOWER_BOUND_REL = 1e-9
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """Result of :func:`refine`.
+
+    Attributes
+    ----------
+    model : BacklashModel
+        The refined model.
+    initial : BacklashModel
+        Where the search started.
+    stderr : tuple of float
+        Standard error of each parameter, in the order of ``model.names``
+        (``m2`` itself, not ``m2 - 1``); NaN where the data do not determine it.
+    covariance : ndarray
+        Their covariance matrix ``s^2 (J^T J)^-1``.
+    nrmse, initial_nrmse : float
+        Free-run NRMSE of the refined and of the initial model on the record.
+    residual_std : float
+        Standard deviation of ``y - y_hat`` at the optimum (an estimate of the noise).
+    nfev : int
+        Number of simulations of the model used by the search.
+    success : bool
+        Whether the optimiser reported convergence.
+    message : str
+        The optimiser's message.
+    """
+
+    model: BacklashModel
+    initial: BacklashModel
+    stderr: tuple[float, ...]
+    covariance: np.ndarray
+    nrmse: float
+    initial_nrmse: float
+    residual_std: float
+    nfev: int
+    success: bool
+    message: str
+
+    def stderr_dict(self) -> dict[str, float]:
+        """``{name: standard error}`` for every parameter."""
+        return dict(zip(self.model.names, self.stderr))
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: the model, its standard errors (null where the data do not determine one), the fit, the search."""
+        return {
+            "model": self.model.to_dict(), "stderr": self.stderr_dict(), "nrmse": self.nrmse,
+            "initial_nrmse": self.initial_nrmse, "residual_std": self.residual_std, "nfev": self.nfev,
+            "success": self.success, "message": self.message,
+        }  # fmt: skip
+
+
+class _OutputError:
+    """Residual ``y_hat(p) - y`` of the free-run model, for the optimiser."""
+
+    def __init__(
+        self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float, valid: np.ndarray | None = None
+    ) -> None:
+        self.u, self.y, self.y0 = u, y, y0
+        # lost samples (valid False) are simulated through but left out of the residual
+        self.keep = valid
+        self.na, self.nb, self.delay = template.na, template.nb, template.delay
+        self.x = np.empty_like(u)
+        self.y_hat = np.empty_like(u)
+        self.zone = np.empty(u.shape, dtype=np.int8)
+        # Outside the stable region the simulation explodes.
+        self.y_used = y if valid is None else y[valid]
+        self.penalty = failure_residual(self.y_used)
+
+    def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
+        lay = ThetaLayout(self.na, self.nb)  # p holds the model's values (m2 itself)
+        return p[lay.a], p[lay.b], float(p[lay.m2]), float(p[lay.c1]), float(p[lay.c2])
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        a, b, m2, c1, c2 = self.split(p)
+        if not schur_stable(np.ascontiguousarray(a)):
+            return self.penalty
+        simulate_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), self.delay, m2, c1, c2,
+                        self.u, self.y0, self.x, self.y_hat, self.zone)  # fmt: skip
+        out: np.ndarray = self.y_hat - self.y
+        if self.keep is not None:
+            out = out[self.keep]
+        if not np.all(np.isfinite(out)):
+            return self.penalty
+        return out
+
+    def model(self, p: np.ndarray) -> BacklashModel:
+        a, b, m2, c1, c2 = self.split(p)
+        return BacklashModel(a=tuple(a), b=tuple(b), delay=self.delay, m2=m2, c1=c1, c2=c2)
+
+
+def output_error_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance and standard errors ``s^2 (J^T J)^+`` of a least-squares fit.
+
+    See :func:`servoid.ident.offline._oefit.covariance_from_jacobian` (kept here for
+    callers of this module).
+    """
+    return covariance_from_jacobian(residual, jac, n_params)
+
+
+def refine(
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    initial: BacklashModel,
+    *,
+    y0: float | None = None,
+    max_nfev: int | None = None,
+    valid: Sequence[bool] | np.ndarray | None = None,
+) -> Refinement:
+    """Fit all parameters of ``initial`` to ``(u, y)`` by simulation-error least squares.
+
+    Parameters
+    ----------
+    u, y : array_like
+        The record: input and measured output, same length, finite.
+    initial : BacklashModel
+        Start of the search and template for the orders and delay (kept fixed).
+    y0 : float, optional
+        Backlash output before the first sample; default ``y[0]``.
+    max_nfev : int, optional
+        Cap on the number of simulations (default: scipy's, 100 per parameter).
+    valid : array_like of bool, optional
+        ``False`` marks samples whose measurement was lost (a live session's
+        late, missed or timed-out samples): the model is simulated through
+        them with their ``u``, but their ``y`` (which may be NaN) is not fitted.
+
+    Returns
+    -------
+    Refinement
+
+    Notes
+    -----
+    The free-run error is piecewise smooth in the parameters (a change of a
+    parameter moves the switching instants of the backlash only in jumps), so
+    the trust-region search uses forward differences with a small relative
+    step. Bounds keep ``m2``, ``c1`` and ``c2`` positive; stability of the
+    linear block is kept by a penalty.
+    """
+    valid_arr: np.ndarray | None = None
+    if valid is None:
+        u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
+    else:
+        u_arr, y_arr, start_y, valid_arr = _masked_record(u, y, valid, initial.n_params, y0)
+    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr)
+
+    p0 = initial.values()
+    lower = np.full(p0.size, -np.inf)
+    floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
+    lower[initial.layout.backlash] = floor
+    p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
+
+    fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)
+    model = problem.model(fit.x)
+    y_used = problem.y_used
+    return Refinement(
+        model=model,
+        initial=initial,
+        stderr=tuple(float(s) for s in fit.stderr),
+        covariance=fit.covariance,
+        nrmse=nrmse(y_used, fit.residual + y_used),
+        initial_nrmse=nrmse(y_used, problem(p0) + y_used),
+        residual_std=float(np.std(fit.residual)),
+        nfev=fit.nfev,
+        success=fit.success,
+        message=fit.message,
+    )
+
+
+def _masked_record(
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    valid: Sequence[bool] | np.ndarray,
+    n_params: int,
+    y0: float | None,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`fit_record` for a record with lost samples: their ``y`` (maybe NaN) becomes 0, never fitted."""
+    u_arr = validation.signal("u", u)
+    valid_arr = np.asarray(valid, dtype=np.bool_)
+    y_raw = np.asarray(y, dtype=np.float64)
+    if valid_arr.shape != u_arr.shape or y_raw.shape != u_arr.shape:
+        raise ConfigError(f"u, y and valid differ in shape: {u_arr.shape}, {y_raw.shape}, {valid_arr.shape}")
+    y_arr = validation.signal("y (valid samples)", np.where(valid_arr, y_raw, 0.0))
+    used = int(valid_arr.sum())
+    if used <= n_params:
+        raise ConfigError(f"{used} samples cannot determine {n_params} parameters")
+    start_y = float(y_arr[int(np.argmax(valid_arr))]) if y0 is None else validation.real("y0", y0)
+    return u_arr, y_arr, start_y, valid_arr
+
+
+def arx_start(
+    u: Sequence[float] | np.ndarray,
+    y: Sequence[float] | np.ndarray,
+    *,
+    na: int,
+    nb: int,
+    delay: int,
+    valid: Sequence[bool] | np.ndarray | None = None,
+) -> BacklashModel:
+    """A starting model that does not depend on the MRGIA: ARX for the linear block, a small backlash.
+
+    The linear block comes from the least-squares (equation-error) fit of
+    ``y(k) = -sum a_i y(k-i) + sum b_j u(k-d-j) + offset``, treating the
+    backlash as a disturbance (the offset absorbs ``c1 != c2``); it is
+    biased, but lands close enough for the output-error search where the
+    MRGIA does not converge (see
+    :func:`servoid.ident.online.mrgia.convergence_margin`). An unstable fit is
+    pulled inside the unit circle. The backlash starts with ``m2 = 1`` and
+    dead zones of 5 % of ``std(y)``.
+
+    With ``valid`` (False: a lost sample, whose ``y`` may be NaN), only the
+    equations whose ``y`` terms were all measured are used.
+
+    Parameters
+    ----------
+    u, y : array_like
+        The record: input and measured output, same length.
+    na, nb, delay : int
+        Orders and delay of the model to start.
+    valid : array_like of bool, optional
+        Which samples were measured.
+
+    Returns
+    -------
+    BacklashModel
+
+    Raises
+    ------
+    ConfigError
+        For records too short or arrays of different length.
+    """
+    if valid is None:
+        u_arr, y_arr = validation.signal("u", u), validation.signal("y", y)
+        keep = np.ones(u_arr.size, dtype=np.bool_)
+    else:
+        u_arr, y_arr, _, keep = _masked_record(u, y, valid, na + nb + 2, None)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    k0 = max(na, delay + nb)
+    rows = y_arr.size - k0
+    usable = keep[k0:].copy()
+    for i in range(1, na + 1):
+        usable &= keep[k0 - i : keep.size - i]
+    if int(usable.sum()) <= na + nb + 2:
+        raise ConfigError(f"{y_arr.size} samples are too few for an ARX start with na={na}, nb={nb}, delay={delay}")
+    cols = [-y_arr[k0 - i : y_arr.size - i] for i in range(1, na + 1)]
+    cols += [u_arr[k0 - delay - j : u_arr.size - delay - j] for j in range(nb + 1)]
+    cols.append(np.ones(rows))
+    theta, *_ = np.linalg.lstsq(np.column_stack(cols)[usable], y_arr[k0:][usable], rcond=None)
+    a = theta[:na]
+    b = theta[na : na + nb + 1]
+    while np.max(np.abs(np.roots(np.r_[1.0, a]))) >= 0.995:
+        a = a * 0.95 ** np.arange(1, na + 1)  # scales every pole by 0.95
+    y_std = float(np.std(y_arr[keep]))
+    if not np.any(b):
+        b = np.r_[max(y_std / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
+    dead = max(0.05 * y_std, 1e-9)
+    return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)

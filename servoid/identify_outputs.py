@@ -1,0 +1,198 @@
+"""What an identification run leaves behind: files, a summary table, a JSON object.
+
+Shared by every way of getting a record (simulated servo, a CSV recording, a
+live driver), so that all of them write the same outputs:
+
+``recording.csv``
+    The record (``t`` when known, ``u``, ``y``, plus any extra columns).
+``model.json``
+    The best model, versioned (:mod:`servoid.modelfile`), with the fit's
+    residual RMS as the noise the smoothing band of its inverse is set for.
+``convergence.png``, ``fit.png``, ``backlash.png``
+    Parameter estimates against samples; measured against simulated output;
+    the identified backlash loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from servoid.ident.identify import Identification
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.simulate import free_run, simulate
+from servoid.ident.online.mrgia import MRGIAResult
+from servoid.modelfile import ModelFile, save_model
+from servoid.recording import write_recording
+
+__all__ = ["Record", "write_outputs", "summary_rows", "result_json"]
+
+
+@dataclass(frozen=True)
+class Record:
+    """A record to identify, with what is known about where it came from.
+
+    Attributes
+    ----------
+    u, y : ndarray
+        Input and measured output.
+    source : str
+        ``sim://...``, a file path or a driver URL.
+    t : ndarray or None
+        Sample times in seconds, when known.
+    input_unit, output_unit : str
+        Units of ``u`` and ``y``.
+    truth : BacklashModel or None
+        The true plant, for simulated records.
+    servo : dict or None
+        Identity reported by the driver.
+    extra : dict of ndarray
+        Further columns to keep in ``recording.csv`` (for example ``y_clean``).
+    written_to : Path or None
+        Where the record is already on disk (a live session writes as it
+        measures); ``recording.csv`` is then not written again.
+    valid : ndarray of bool or None
+        Samples to identify from (a live record's late, missed and timed-out
+        samples are False: their ``y`` may be NaN); None: all.
+    acquisition : dict or None
+        How a live record was sampled (rate, counts per status, driver
+        counters), for the ``--json`` output.
+    online : MRGIAResult or None
+        The MRGIA's result of a live run over this record (the session ran it
+        as the samples came); identification refines it rather than running
+        the MRGIA again.
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    source: str
+    t: np.ndarray | None = None
+    input_unit: str = "unit"
+    output_unit: str = "unit"
+    truth: BacklashModel | None = None
+    servo: dict[str, Any] | None = None
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    written_to: Path | None = None
+    valid: np.ndarray | None = None
+    acquisition: dict[str, Any] | None = None
+    online: MRGIAResult | None = None
+
+    @property
+    def y_used(self) -> np.ndarray:
+        """The measured outputs identification uses: all of ``y``, or its valid samples."""
+        return self.y if self.valid is None else self.y[self.valid]
+
+    @property
+    def sample_period_s(self) -> float | None:
+        if self.t is None or self.t.size < 2:
+            return None
+        return float(np.median(np.diff(self.t)))
+
+
+def write_outputs(out_dir: Path, record: Record, result: Identification, *, plots: bool = True) -> dict[str, str]:
+    """Write the recording, ``model.json`` and the plots; return ``{name: path}``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, str] = {}
+    if record.written_to is None:
+        cols: dict[str, np.ndarray] = {}
+        if record.t is not None:
+            cols["t"] = record.t
+        cols["u"] = record.u
+        cols["y"] = record.y
+        cols.update(record.extra)
+        meta = {"servoid recording": "", "source": record.source,
+                "input_unit": record.input_unit, "unit": record.output_unit}  # fmt: skip
+        paths["recording"] = str(write_recording(out_dir / "recording.csv", cols, metadata=meta))
+    else:
+        paths["recording"] = str(record.written_to)
+    content = ModelFile(
+        model=result.model,
+        stderr=result.stderr,
+        input_unit=record.input_unit,
+        output_unit=record.output_unit,
+        sample_period_s=record.sample_period_s,
+        method=result.method,
+        fit_nrmse=result.fit_nrmse,
+        source=record.source,
+        samples=result.samples,
+        servo=record.servo,
+        noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
+    )
+    paths["model"] = str(save_model(out_dir / "model.json", content))
+    if plots:
+        from servoid import plots as _plots
+
+        refined = result.model if result.refinement is not None else None
+        paths["convergence_plot"] = str(
+            _plots.plot_convergence(result.mrgia, out_dir / "convergence.png", truth=record.truth, refined=refined)
+        )
+        y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
+        simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, record.u, y0=y0)}
+        if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
+            simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
+        paths["fit_plot"] = str(
+            _plots.plot_fit(
+                record.y, simulated, out_dir / "fit.png", u=record.u, t=record.t, output_unit=record.output_unit
+            )  # fmt: skip
+        )
+        x_hat = simulate(result.model, record.u, y0=y0).x
+        paths["backlash_plot"] = str(
+            _plots.plot_backlash(
+                result.model,
+                x_hat,
+                record.y,
+                out_dir / "backlash.png",
+                output_unit=record.output_unit,
+                truth=record.truth,
+            )  # fmt: skip
+        )
+    return paths
+
+
+def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[list[str], list[list[str]]]:
+    """Columns and rows of the parameter table (values in the record's units)."""
+    names = result.model.names
+    cols = ["parameter"]
+    if truth is not None:
+        cols.append("true")
+    cols.append("MRGIA")
+    if result.refinement is not None:
+        cols += ["refined", "std err"]
+    if truth is not None:
+        cols.append("rel. error")
+    mrgia_vals = result.mrgia.values()
+    stderr = result.stderr or {}
+    rows = []
+    for i, name in enumerate(names):
+        row = [name]
+        if truth is not None:
+            row.append(f"{truth.values()[i]:.6g}")
+        row.append(f"{mrgia_vals[i]:.6g}")
+        if result.refinement is not None:
+            row += [f"{result.model.values()[i]:.6g}", f"{stderr.get(name, float('nan')):.2g}"]
+        if truth is not None:
+            ref = truth.values()[i]
+            row.append(f"{abs(result.model.values()[i] - ref) / abs(ref):.2e}")
+        rows.append(row)
+    return cols, rows
+
+
+def result_json(record: Record, result: Identification, paths: dict[str, str]) -> dict[str, Any]:
+    """The ``--json`` object of ``servoid identify``."""
+    out: dict[str, Any] = {
+        **result.to_dict(),
+        "source": record.source,
+        "units": {"input": record.input_unit, "output": record.output_unit},
+        "outputs": paths,
+    }
+    if record.acquisition is not None:
+        out["acquisition"] = record.acquisition
+    if record.truth is not None:
+        out["truth"] = record.truth.to_dict()
+        out["max_relative_error"] = result.model.max_relative_error(record.truth)
+        if result.mrgia_model is not None:
+            out["mrgia"]["max_relative_error"] = result.mrgia_model.max_relative_error(record.truth)
+    return out
