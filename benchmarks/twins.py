@@ -32,15 +32,13 @@ import os
 import time
 
 import numpy as np
+from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers.twin import Twin, preset, preset_names
-from servoid.drivers.twin import _layout as L
 from servoid.drivers.twin._jit import jit
 from servoid.drivers.twin.kernel import run
 from servoid.errors import ServoidError
 from servoid.ident import MRGIAConfig, identify
-
-from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 HOST_RATE_HZ = 100.0
 AMPLITUDE_RAD = 0.1
@@ -48,8 +46,16 @@ CALLS = 2000
 
 
 @jit
-def _noop(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, n_sub: int,
-          noise_m: np.ndarray, noise_l: np.ndarray, noise_at: int) -> int:
+def _noop(
+    phys: np.ndarray,
+    fw: np.ndarray,
+    state: np.ndarray,
+    mem: np.ndarray,
+    n_sub: int,
+    noise_m: np.ndarray,
+    noise_l: np.ndarray,
+    noise_at: int,
+) -> int:
     """The floor: a compiled function with the kernel's arguments that does nothing."""
     return noise_at
 
@@ -106,8 +112,19 @@ def ident_row(name: str, samples: int, seed: int) -> list[str]:
     try:
         result = identify(rec.u, rec.y, MRGIAConfig())
     except ServoidError as exc:
-        return [name, f"{play:.5f}", "failed", "-", "-", "-", "-", f"{counters.saturated_share:.2f}",
-                f"{limited:.2f}", f"{counters.stuck_motor_s / counters.time_s:.2f}", str(exc)[:40]]
+        return [
+            name,
+            f"{play:.5f}",
+            "failed",
+            "-",
+            "-",
+            "-",
+            "-",
+            f"{counters.saturated_share:.2f}",
+            f"{limited:.2f}",
+            f"{counters.stuck_motor_s / counters.time_s:.2f}",
+            str(exc)[:40],
+        ]
     m = result.model
     width = m.c1 + m.c2
     return [
@@ -137,8 +154,18 @@ def main() -> None:
     rows = [speed_row(name, args.repeat) for name in preset_names()]
     table(
         "Cost of servo time (Twin.advance(0.001), i.e. an emulator at 1 kHz)",
-        ["preset", "control Hz", "current Hz", "sub-step us", "sub-steps/ms", "us per ms",
-         "kernel us", "floor us", "x floor", "<= 50 us"],
+        [
+            "preset",
+            "control Hz",
+            "current Hz",
+            "sub-step us",
+            "sub-steps/ms",
+            "us per ms",
+            "kernel us",
+            "floor us",
+            "x floor",
+            "<= 50 us",
+        ],
         rows,
     )
 
@@ -146,8 +173,19 @@ def main() -> None:
     table(
         f"Offline identification: white set point +-{AMPLITUDE_RAD} rad at {HOST_RATE_HZ:g} Hz, "
         f"{args.samples} samples, identify(u, y, MRGIAConfig())",
-        ["preset", "true play rad", "c1+c2 rad", "error rad", "rel. error", "m2", "fit NRMSE",
-         "duty sat.", "current lim.", "motor stuck", "online"],
+        [
+            "preset",
+            "true play rad",
+            "c1+c2 rad",
+            "error rad",
+            "rel. error",
+            "m2",
+            "fit NRMSE",
+            "duty sat.",
+            "current lim.",
+            "motor stuck",
+            "online",
+        ],
         rows,
     )
 

@@ -50,11 +50,19 @@ def steps(name: str, ax_pos, ax_drive) -> None:
         ax_pos.plot(t, rec.true_gear_side_rad / amp, style, color="C1", lw=0.8, label=f"motor side / {amp:g} rad")
         if amp == large:
             ax_drive.plot(t, rec.duty, color="C2", label="duty")
-            ax_drive.plot(t, rec.current_a / max(1e-9, np.max(np.abs(rec.current_a))), color="C3", lw=0.8,
-                          label=f"current / {np.max(np.abs(rec.current_a)):.2g} A")
+            ax_drive.plot(
+                t,
+                rec.current_a / max(1e-9, np.max(np.abs(rec.current_a))),
+                color="C3",
+                lw=0.8,
+                label=f"current / {np.max(np.abs(rec.current_a)):.2g} A",
+            )
             c = twin.counters
-            ax_drive.set_title(f"{large:g} rad step: saturated {c.saturated_share:.0%} of ticks, "
-                               f"current-limited {c.current_limited_ticks}", fontsize=8)
+            ax_drive.set_title(
+                f"{large:g} rad step: saturated {c.saturated_share:.0%} of ticks, "
+                f"current-limited {c.current_limited_ticks}",
+                fontsize=8,
+            )
     ax_pos.axhline(1.0, color="k", lw=0.5)
     ax_pos.set_title("steps (normalised)", fontsize=9)
     ax_pos.set_xlabel("ms")

@@ -15,8 +15,13 @@ single-turn register (0..4095) is the protocol's business.
 from __future__ import annotations
 
 import math
+from typing import TypeVar
+
+import numpy as np
 
 from servoid.drivers.twin._jit import jit
+
+T = TypeVar("T", float, np.ndarray)
 
 __all__ = ["quantise", "counts_to_rad", "rad_per_count"]
 
@@ -49,6 +54,6 @@ def rad_per_count(cpr: float) -> float:
     return _TWO_PI / cpr
 
 
-def counts_to_rad(counts: float, cpr: float) -> float:
-    """The nominal angle of a count, rad."""
+def counts_to_rad(counts: T, cpr: float) -> T:
+    """The nominal angle of a count (or an array of counts), rad."""
     return counts * _TWO_PI / cpr

@@ -64,8 +64,14 @@ def no_load_speed(params: TwinParams, *, settle_s: float = 0.25, window_s: float
         Time to reach speed, and the window the speed is averaged over, s.
     """
     # a tenth of the inertia, and the gear's damping scaled to keep its damping ratio
-    horn = params.replace(load_inertia_kgm2=0.1 * params.load_inertia_kgm2, load_coulomb_nm=0.0, load_breakaway_nm=0.0,
-                          load_viscous_nms=0.0, load_mass_kg=0.0, gear_damping_nms=params.gear_damping_nms / math.sqrt(10.0))
+    horn = params.replace(
+        load_inertia_kgm2=0.1 * params.load_inertia_kgm2,
+        load_coulomb_nm=0.0,
+        load_breakaway_nm=0.0,
+        load_viscous_nms=0.0,
+        load_mass_kg=0.0,
+        gear_damping_nms=params.gear_damping_nms / math.sqrt(10.0),
+    )
     twin = Twin(horn)
     twin.enable()
     twin.command(_far(params))

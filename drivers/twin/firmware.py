@@ -68,7 +68,9 @@ def _clip(x: float, limit: float) -> float:
 
 
 @jit
-def control_tick(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, noise_m: float, noise_l: float) -> None:
+def control_tick(
+    phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, noise_m: float, noise_l: float
+) -> None:
     """Run one control tick: sample, latch, estimate, control; refresh the registers.
 
     Parameters
@@ -179,7 +181,9 @@ def control_tick(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.nd
 
 
 @jit
-def _cascade(fw: np.ndarray, state: np.ndarray, mem: np.ndarray, pos_fb: float, vel: float, shaft_per_output: float, vsup: float) -> None:
+def _cascade(
+    fw: np.ndarray, state: np.ndarray, mem: np.ndarray, pos_fb: float, vel: float, shaft_per_output: float, vsup: float
+) -> None:
     """Position P and velocity PI of a cascade drive: sets the current command."""
     vel_limit = fw[L.F_VEL_LIMIT]
     if abs(vel) > fw[L.F_OVERSPEED] * vel_limit:

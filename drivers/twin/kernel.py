@@ -60,12 +60,31 @@ from servoid.drivers.twin.firmware import control_tick, current_tick
 __all__ = ["run", "run_sequence", "RECORD_FIELDS"]
 
 #: Columns of the rows :func:`run_sequence` records at each host instant.
-RECORD_FIELDS = ("motor_counts", "load_counts", "velocity", "current", "duty", "setpoint", "theta_m", "theta_l", "tick_k")
+RECORD_FIELDS = (
+    "motor_counts",
+    "load_counts",
+    "velocity",
+    "current",
+    "duty",
+    "setpoint",
+    "theta_m",
+    "theta_l",
+    "tick_k",
+)
 
 
 @jit
-def _friction_step(w: float, stuck: bool, torque: float, inertia: float, viscous: float,
-                   coulomb: float, breakaway: float, stribeck: float, h: float) -> tuple[float, bool]:
+def _friction_step(
+    w: float,
+    stuck: bool,
+    torque: float,
+    inertia: float,
+    viscous: float,
+    coulomb: float,
+    breakaway: float,
+    stribeck: float,
+    h: float,
+) -> tuple[float, bool]:
     """One sub-step of a body's speed under ``torque`` (everything but friction) with a stick state."""
     if stuck:
         if abs(torque) <= breakaway:
@@ -111,8 +130,16 @@ def _store(state: np.ndarray, th_m: float, w_m: float, th_l: float, w_l: float, 
 
 
 @jit
-def run(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, n_sub: int,
-        noise_m: np.ndarray, noise_l: np.ndarray, noise_at: int) -> int:
+def run(
+    phys: np.ndarray,
+    fw: np.ndarray,
+    state: np.ndarray,
+    mem: np.ndarray,
+    n_sub: int,
+    noise_m: np.ndarray,
+    noise_l: np.ndarray,
+    noise_at: int,
+) -> int:
     """Advance the twin ``n_sub`` sub-steps, running the firmware at its ticks.
 
     Parameters
@@ -236,8 +263,17 @@ def run(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, n_
 
 
 @jit
-def run_sequence(phys: np.ndarray, fw: np.ndarray, state: np.ndarray, mem: np.ndarray, u: np.ndarray,
-                 n_sub: np.ndarray, noise_m: np.ndarray, noise_l: np.ndarray, out: np.ndarray) -> None:
+def run_sequence(
+    phys: np.ndarray,
+    fw: np.ndarray,
+    state: np.ndarray,
+    mem: np.ndarray,
+    u: np.ndarray,
+    n_sub: np.ndarray,
+    noise_m: np.ndarray,
+    noise_l: np.ndarray,
+    out: np.ndarray,
+) -> None:
     """Host sampling in one call: at each host instant record the registers, send ``u[j]``, run ``n_sub[j]``.
 
     Parameters

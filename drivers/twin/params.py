@@ -33,8 +33,8 @@ from typing import Any
 import numpy as np
 
 from servoid import validation
-from servoid.errors import ConfigError
 from servoid.drivers.twin import _layout as L
+from servoid.errors import ConfigError
 
 __all__ = ["TwinParams", "FIRMWARES", "ENCODER_SIDES", "ALIASES", "override"]
 
@@ -262,8 +262,10 @@ class TwinParams:
         """The loop structure in words."""
         where = f"closed on the {self.loop_encoder} encoder"
         if self.firmware == "cascade":
-            return (f"position P ({self.control_rate_hz:g} Hz) -> velocity PI ({self.control_rate_hz:g} Hz) -> "
-                    f"current PI ({self.current_rate_hz:g} Hz) -> voltage, {where}")
+            return (
+                f"position P ({self.control_rate_hz:g} Hz) -> velocity PI ({self.control_rate_hz:g} Hz) -> "
+                f"current PI ({self.current_rate_hz:g} Hz) -> voltage, {where}"
+            )
         vendor = "Dynamixel" if self.firmware == "dynamixel_position" else "Feetech"
         return f"{vendor} position PID ({self.control_rate_hz:g} Hz) -> PWM duty, no current loop, {where}"
 
@@ -338,15 +340,48 @@ class TwinParams:
 
 
 _NON_NEGATIVE = (
-    "motor_viscous_nms", "motor_coulomb_nm", "motor_stribeck_rad_s", "inductance_h", "play_rad",
-    "gear_damping_nms", "load_viscous_nms", "load_coulomb_nm", "load_stribeck_rad_s", "load_mass_kg",
-    "load_arm_m", "motor_encoder_noise_counts", "load_encoder_noise_counts", "velocity_filter_s",
-    "pll_bandwidth_rad_s", "pos_p", "pos_i", "pos_d", "p_scale", "i_scale", "d_scale", "output_limit",
-    "deadband_counts", "min_output", "pos_kv_1_s", "vel_kp_a_rad_s", "vel_ki_a_rad", "cur_kp_v_a", "cur_ki_v_as",
+    "motor_viscous_nms",
+    "motor_coulomb_nm",
+    "motor_stribeck_rad_s",
+    "inductance_h",
+    "play_rad",
+    "gear_damping_nms",
+    "load_viscous_nms",
+    "load_coulomb_nm",
+    "load_stribeck_rad_s",
+    "load_mass_kg",
+    "load_arm_m",
+    "motor_encoder_noise_counts",
+    "load_encoder_noise_counts",
+    "velocity_filter_s",
+    "pll_bandwidth_rad_s",
+    "pos_p",
+    "pos_i",
+    "pos_d",
+    "p_scale",
+    "i_scale",
+    "d_scale",
+    "output_limit",
+    "deadband_counts",
+    "min_output",
+    "pos_kv_1_s",
+    "vel_kp_a_rad_s",
+    "vel_ki_a_rad",
+    "cur_kp_v_a",
+    "cur_ki_v_as",
 )
 _POSITIVE = (
-    "supply_v", "motor_inertia_kgm2", "torque_constant_nm_a", "back_emf_v_s", "resistance_ohm", "gear_ratio",
-    "gear_stiffness_nm_rad", "load_inertia_kgm2", "control_rate_hz", "current_rate_hz", "output_full_scale",
+    "supply_v",
+    "motor_inertia_kgm2",
+    "torque_constant_nm_a",
+    "back_emf_v_s",
+    "resistance_ohm",
+    "gear_ratio",
+    "gear_stiffness_nm_rad",
+    "load_inertia_kgm2",
+    "control_rate_hz",
+    "current_rate_hz",
+    "output_full_scale",
 )
 _POSITIVE_OR_INF = ("range_rad", "vel_limit_rad_s", "overspeed_ratio", "current_limit_a")
 _TEXT = ("name", "description", "loop_encoder", "output_encoder", "firmware")
@@ -369,7 +404,10 @@ def _validate(p: TwinParams) -> None:
         validation.positive(name, getattr(p, name))
     for name in _POSITIVE_OR_INF:
         value = getattr(p, name)
-        if not (isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool)) or not value > 0:
+        if (
+            not (isinstance(value, (int, float, np.floating, np.integer)) and not isinstance(value, bool))
+            or not value > 0
+        ):
             raise ConfigError(f"{name} (={validation.show(value)}) must be > 0 (inf for no limit)")
     _choice("firmware", p.firmware, FIRMWARES)
     _choice("loop_encoder", p.loop_encoder, ENCODER_SIDES)
@@ -378,9 +416,13 @@ def _validate(p: TwinParams) -> None:
     validation.in_unit_interval("gear_efficiency", p.gear_efficiency, open_low=True, open_high=False)
     validation.in_unit_interval("integrator_decay", p.integrator_decay, open_low=True, open_high=False)
     if p.motor_breakaway_nm < p.motor_coulomb_nm:
-        raise ConfigError(f"motor_breakaway_nm (={p.motor_breakaway_nm!r}) must be >= motor_coulomb_nm (={p.motor_coulomb_nm!r})")
+        raise ConfigError(
+            f"motor_breakaway_nm (={p.motor_breakaway_nm!r}) must be >= motor_coulomb_nm (={p.motor_coulomb_nm!r})"
+        )
     if p.load_breakaway_nm < p.load_coulomb_nm:
-        raise ConfigError(f"load_breakaway_nm (={p.load_breakaway_nm!r}) must be >= load_coulomb_nm (={p.load_coulomb_nm!r})")
+        raise ConfigError(
+            f"load_breakaway_nm (={p.load_breakaway_nm!r}) must be >= load_coulomb_nm (={p.load_coulomb_nm!r})"
+        )
     if p.play_rad >= p.range_rad:
         raise ConfigError(f"play_rad (={p.play_rad!r}) must be smaller than the range range_rad (={p.range_rad!r})")
     for side in ENCODER_SIDES:

@@ -62,8 +62,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from servoid.errors import ConfigError
 from servoid.drivers.twin.params import TwinParams, override
+from servoid.errors import ConfigError
 
 __all__ = ["preset", "preset_names", "PRESETS", "Published", "PUBLISHED"]
 

@@ -23,12 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid import validation
-from servoid.errors import ConfigError
 from servoid.drivers.twin import _layout as L
 from servoid.drivers.twin.encoder import counts_to_rad
 from servoid.drivers.twin.firmware import control_tick
 from servoid.drivers.twin.kernel import RECORD_FIELDS, run, run_sequence
 from servoid.drivers.twin.params import TwinParams
+from servoid.errors import ConfigError
 
 __all__ = ["Twin", "TwinReading", "TwinTruth", "TwinCounters", "TwinPhysics", "TwinRecord"]
 
@@ -245,7 +245,9 @@ class Twin:
 
     def __init__(self, params: TwinParams, *, seed: int = 0) -> None:
         if not isinstance(params, TwinParams):
-            raise ConfigError(f"params must be TwinParams (from servoid.drivers.twin.preset), got {type(params).__name__}")
+            raise ConfigError(
+                f"params must be TwinParams (from servoid.drivers.twin.preset), got {type(params).__name__}"
+            )
         self._params = params
         self._seed = validation.integer("seed", seed, minimum=0)
         self._phys, self._fw = params.pack()
@@ -309,7 +311,9 @@ class Twin:
         """
         play = validation.non_negative("play_rad", play_rad)
         if play >= self._params.range_rad:
-            raise ConfigError(f"play_rad (={play!r}) must be smaller than the range range_rad (={self._params.range_rad!r})")
+            raise ConfigError(
+                f"play_rad (={play!r}) must be smaller than the range range_rad (={self._params.range_rad!r})"
+            )
         self._phys[L.P_HALF_PLAY] = 0.5 * play
 
     # -- running ----------------------------------------------------------------
@@ -451,8 +455,14 @@ class Twin:
             load_stuck=bool(s[L.S_STUCK_L] > 0.5),
         )
 
-    def place(self, *, load_rad: float = 0.0, gear_side_rad: float | None = None,
-              load_rad_s: float = 0.0, motor_rad_s: float = 0.0) -> None:
+    def place(
+        self,
+        *,
+        load_rad: float = 0.0,
+        gear_side_rad: float | None = None,
+        load_rad_s: float = 0.0,
+        motor_rad_s: float = 0.0,
+    ) -> None:
         """Put the bodies somewhere (torque off first): for experiments that start in the play.
 
         Parameters
@@ -486,8 +496,8 @@ class Twin:
         """The loop encoder's reading as an output angle."""
         p = self._params
         if p.loop_encoder == "load":
-            return counts_to_rad(self._state[L.S_CNT_L], p.load_encoder_cpr)
-        return counts_to_rad(self._state[L.S_CNT_M], p.motor_encoder_cpr) / p.gear_ratio
+            return counts_to_rad(float(self._state[L.S_CNT_L]), p.load_encoder_cpr)
+        return counts_to_rad(float(self._state[L.S_CNT_M]), p.motor_encoder_cpr) / p.gear_ratio
 
     def _record(self, t: np.ndarray, u: np.ndarray, out: np.ndarray) -> TwinRecord:
         p = self._params

@@ -22,8 +22,16 @@ RPM = 2.0 * math.pi / 60.0
 def frictionless(name: str, **more) -> TwinParams:
     """A preset with every friction, damping and gear loss removed (for conservation checks)."""
     return preset(
-        name, load_coulomb_nm=0, load_breakaway_nm=0, load_viscous_nms=0, gear_damping_nms=0, gear_efficiency=1.0,
-        motor_coulomb_nm=0, motor_breakaway_nm=0, motor_viscous_nms=0, **more,
+        name,
+        load_coulomb_nm=0,
+        load_breakaway_nm=0,
+        load_viscous_nms=0,
+        gear_damping_nms=0,
+        gear_efficiency=1.0,
+        motor_coulomb_nm=0,
+        motor_breakaway_nm=0,
+        motor_viscous_nms=0,
+        **more,
     )
 
 
@@ -36,6 +44,7 @@ def steady_speed(twin: Twin, settle_s: float, window_s: float) -> float:
 
 
 # --- the vendors' published figures ------------------------------------------------------------
+
 
 @pytest.mark.parametrize("name", ["xm430", "sts3215"])
 def test_no_load_speed_stall_torque_and_resolution_match_the_datasheet(name):
@@ -101,6 +110,7 @@ def test_odrive_runs_at_its_velocity_limit_and_cia402_at_its_current_limit():
 
 # --- physics -----------------------------------------------------------------------------------
 
+
 def test_a_free_load_coasts_through_the_play_with_its_momentum():
     twin = Twin(frictionless("xm430"))  # torque off: the motor is free too
     twin.place(load_rad=0.0, gear_side_rad=0.0, load_rad_s=0.4)
@@ -130,8 +140,11 @@ def test_contact_keeps_the_energy_without_losses():
     def energy() -> float:
         ph = twin.physics()
         pen = max(0.0, abs(ph.gear_side_rad - ph.load_rad) - params.play_rad / 2)
-        return (0.5 * params.motor_inertia_kgm2 * ph.motor_rad_s**2 + 0.5 * params.load_inertia_kgm2 * ph.load_rad_s**2
-                + 0.5 * params.gear_stiffness_nm_rad * pen**2)
+        return (
+            0.5 * params.motor_inertia_kgm2 * ph.motor_rad_s**2
+            + 0.5 * params.load_inertia_kgm2 * ph.load_rad_s**2
+            + 0.5 * params.gear_stiffness_nm_rad * pen**2
+        )
 
     e0 = energy()
     values = []
@@ -222,6 +235,7 @@ def test_torque_off_cuts_the_current_and_the_motor_coasts():
 
 # --- firmware and host timing ------------------------------------------------------------------
 
+
 def test_a_command_waits_for_the_next_tick_and_readings_belong_to_ticks():
     twin = Twin(preset("sts3215"))  # 1 kHz firmware
     twin.enable()
@@ -308,6 +322,7 @@ def test_wear_changes_the_play_while_running():
 
 # --- parameters and presets --------------------------------------------------------------------
 
+
 def test_every_preset_knows_its_ground_truth():
     for name in preset_names():
         truth = Twin(preset(name)).truth
@@ -326,19 +341,25 @@ def test_overrides_by_human_names_and_text():
     assert preset("XM430") is preset("xm430")
 
 
-@pytest.mark.parametrize("call, message", [
-    (lambda: preset("xm431"), r"unknown twin preset 'xm431'; valid: xm430, sts3215, cia402, odrive"),
-    (lambda: preset("xm430", frobnicate=1), r"unknown twin parameter 'frobnicate'"),
-    (lambda: preset("xm430", load_inertia_kgm2=-1e-4), r"load_inertia_kgm2 \(=-0\.0001\) must be > 0"),
-    (lambda: preset("xm430", play_deg=400), r"play_rad \(=6\.98.*\) must be smaller than the range range_rad"),
-    (lambda: preset("xm430", play_deg="lots"), r"play_deg \(='lots'\) must be a number"),
-    (lambda: preset("xm430", gear_efficiency=1.5), r"gear_efficiency \(=1\.5\) must lie in \(0, 1\]"),
-    (lambda: preset("xm430", load_encoder_cpr=0), r"loop_encoder \(='load'\) needs a load encoder"),
-    (lambda: preset("xm430", firmware="magic"), r"firmware \(='magic'\) must be one of"),
-    (lambda: preset("xm430", motor_breakaway_nm=0.0), r"motor_breakaway_nm \(=0\.0\) must be >= motor_coulomb_nm"),
-    (lambda: preset("xm430", gear_stiffness_nm_rad=1e9), r"gear_stiffness_nm_rad \(=1000000000\.0\).*raise substeps"),
-    (lambda: preset("cia402", current_rate_hz=3000), r"current_rate_hz \(=3000\.0\) must be a whole multiple"),
-])
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: preset("xm431"), r"unknown twin preset 'xm431'; valid: xm430, sts3215, cia402, odrive"),
+        (lambda: preset("xm430", frobnicate=1), r"unknown twin parameter 'frobnicate'"),
+        (lambda: preset("xm430", load_inertia_kgm2=-1e-4), r"load_inertia_kgm2 \(=-0\.0001\) must be > 0"),
+        (lambda: preset("xm430", play_deg=400), r"play_rad \(=6\.98.*\) must be smaller than the range range_rad"),
+        (lambda: preset("xm430", play_deg="lots"), r"play_deg \(='lots'\) must be a number"),
+        (lambda: preset("xm430", gear_efficiency=1.5), r"gear_efficiency \(=1\.5\) must lie in \(0, 1\]"),
+        (lambda: preset("xm430", load_encoder_cpr=0), r"loop_encoder \(='load'\) needs a load encoder"),
+        (lambda: preset("xm430", firmware="magic"), r"firmware \(='magic'\) must be one of"),
+        (lambda: preset("xm430", motor_breakaway_nm=0.0), r"motor_breakaway_nm \(=0\.0\) must be >= motor_coulomb_nm"),
+        (
+            lambda: preset("xm430", gear_stiffness_nm_rad=1e9),
+            r"gear_stiffness_nm_rad \(=1000000000\.0\).*raise substeps",
+        ),
+        (lambda: preset("cia402", current_rate_hz=3000), r"current_rate_hz \(=3000\.0\) must be a whole multiple"),
+    ],
+)
 def test_bad_parameters_get_one_line_naming_the_value(call, message):
     with pytest.raises(ConfigError, match=message) as info:
         call()
@@ -361,12 +382,23 @@ def test_every_public_argument_is_documented():
     mod = importlib.import_module("servoid.drivers.twin")
     for name in mod.__all__:
         obj = getattr(mod, name)
-        doc = "\n".join(inspect.getdoc(c) or "" for c in obj.__mro__ if c is not object) if inspect.isclass(obj) else inspect.getdoc(obj)
+        doc = (
+            "\n".join(inspect.getdoc(c) or "" for c in obj.__mro__ if c is not object)
+            if inspect.isclass(obj)
+            else inspect.getdoc(obj)
+        )
         if inspect.isclass(obj):
-            params = [f.name for f in dataclasses.fields(obj)] if dataclasses.is_dataclass(obj) else \
-                list(inspect.signature(obj.__init__).parameters)[1:]
+            params = (
+                [f.name for f in dataclasses.fields(obj)]
+                if dataclasses.is_dataclass(obj)
+                else list(inspect.signature(obj.__init__).parameters)[1:]
+            )
         else:
             params = list(inspect.signature(obj).parameters)
-        missing = [p for p in params if p not in ("self", "overrides")
-                   and not re.search(rf"(^|[\s,`(]){re.escape(p)}([\s,`:)]|$)", doc or "", re.M)]
+        missing = [
+            p
+            for p in params
+            if p not in ("self", "overrides")
+            and not re.search(rf"(^|[\s,`(]){re.escape(p)}([\s,`:)]|$)", doc or "", re.M)
+        ]
         assert not missing, f"{name}: undocumented {missing}"
