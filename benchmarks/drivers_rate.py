@@ -67,7 +67,7 @@ def main() -> None:
 
     with FirmwareEmulator() as emu:
         rows = []
-        for name, url in (("serial pty (pyserial <-> C firmware)", emu.url), ("sim (same process)", "sim://")):
+        for name, url in (("serial pty (pyserial <-> C firmware)", emu.url), ("sim (same process)", "sim://model")):
             lat = latency(url, 3000)
             rows.append([name, f"{np.median(lat):.0f}", f"{np.percentile(lat, 90):.0f}",
                          f"{np.percentile(lat, 99):.0f}", f"{1e6 / np.median(lat):.0f}"])  # fmt: skip
@@ -92,8 +92,8 @@ def main() -> None:
     u = np.random.default_rng(2).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, args.samples)
     rows = []
     for name, url, rate in (
-        ("sim, virtual time", "sim://?clock=virtual", 500.0),
-        ("sim, real time", "sim://", 500.0),
+        ("sim, virtual time", "sim://model?clock=virtual", 500.0),
+        ("sim, real time", "sim://model", 500.0),
         ("serial pty", "serial", 500.0),
         ("serial pty", "serial", 1000.0),
     ):

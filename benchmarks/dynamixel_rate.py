@@ -39,7 +39,7 @@ LOOP_LATENCY_MS = 1.0
 
 def run(poll: str, rate: float, seconds: float) -> list[str]:
     u = np.random.default_rng(0).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, int(rate * seconds))
-    with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate) as emu:
+    with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate, servo="model") as emu:
         with driver_from_url(emu.url(1, latency_ms=LOOP_LATENCY_MS)) as servo:
             servo._port.poll = poll  # the SDK's own busy-polling, or the driver's select() wait
             cpu0, wall0 = time.process_time(), time.perf_counter()

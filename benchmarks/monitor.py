@@ -6,7 +6,7 @@ so no real-time waiting), the sampling session keeping no samples, the
 wear estimator, the alarm rule and the files (:func:`servoid.monitor_run.run_monitor`),
 at 1 kHz, checking every 100 samples and writing a row at every check.
 
-The servo is ``sim://?plant=gear&snr=40``: the paper's linear block and
+The servo is ``sim://gear?snr=40``: the paper's linear block and
 m2 = 1.5 with a new gear's dead zones c1 0.4, c2 0.6 (c1 + c2 = 1.0), driven
 by the paper's uniform input (|u| <= 2.406), output noise at SNR 40
 (std 0.0337). The monitor starts from the unworn model; its bounds are
@@ -69,7 +69,7 @@ from servoid.session import SessionConfig, run_session
 
 RATE = 1000.0
 CHECK = 100
-GEAR = "sim://?plant=gear&snr=40&clock=virtual"
+GEAR = "sim://gear?snr=40&clock=virtual"
 SWAP_AT, SWAP_RUN = 50_000, 60_000
 QUIET = 1_000_000
 SHARE = 0.10  # bounds: +/- 10 % of the model's c1 + c2 and m2
@@ -275,7 +275,7 @@ def other_servos(tmp: Path) -> None:
         ("bench servo, operating multisine +/-0.15 rad + uniform +/-0.05", "multisine:amplitude=0.15,bands=0.002-0.02,period=5000"),
     ]  # fmt: skip
     for label, operating in cases:
-        url = f"sim://?plant=bench&snr=40&clock=virtual&drift=1.5&drift_samples={RAMP}&drift_start={BEFORE}"
+        url = f"sim://model?snr=40&clock=virtual&drift=1.5&drift_samples={RAMP}&drift_start={BEFORE}"
         if operating is None:
             inputs = stream(UniformSpec(amplitude=0.2), seed=1, n=n)
         else:

@@ -44,7 +44,7 @@ from servoid.drivers import driver_from_url
 from servoid.ident import MRGIA, PAPER_PLANT, MRGIAConfig, noise_epsilon, simulate
 from servoid.session import SessionConfig, run_session
 
-URL = "sim://?clock=virtual&snr=40&seed=1"
+URL = "sim://model?clock=virtual&snr=40&seed=1"
 PERIOD_S = 1e-3
 
 

@@ -19,7 +19,7 @@ answered, the share of ok / late / missed / timed-out slots, and the exchange
 time (median, 99th percentile).
 
 Table 2: ``servoid identify --driver URL --rate 500 --json`` on each
-transport and on the simulated servo (``sim://?clock=virtual``, the same
+transport and on the simulated servo (``sim://model?clock=virtual``, the same
 plant in simulated time), with the same seeded excitation: the largest
 relative error of the online MRGIA's and of the refined parameters against
 MODEL_PLANT, and the share of samples used.
@@ -62,7 +62,7 @@ IDENTIFY_RATE_HZ = 500.0
 def dxl_pty(rate: float) -> Iterator[str]:
     from servoid.drivers.dynamixel.emulator import EmulatorProcess
 
-    with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate) as emu:
+    with EmulatorProcess([1], return_delay_us=0, period_s=1 / rate, servo="model") as emu:
         yield emu.url(1)
 
 
@@ -73,7 +73,7 @@ def can_virtual(protocol: str, rate: float) -> Iterator[str]:
 
     options = {"period_s": 1 / rate} if protocol == "odrive" else {}
     bus = BusAddress("virtual", f"bench-{uuid.uuid4().hex[:8]}")
-    with simulated_drive(protocol, bus=bus, **options) as drive:
+    with simulated_drive(protocol, bus=bus, servo="model", **options) as drive:
         yield drive.url()
 
 
@@ -155,7 +155,7 @@ def main() -> int:
         timing,
     )
     with tempfile.TemporaryDirectory() as tmp:
-        ident = [identification_row("sim (virtual time)", "sim://?clock=virtual", args.samples, Path(tmp) / "sim")]
+        ident = [identification_row("sim (virtual time)", "sim://model?clock=virtual", args.samples, Path(tmp) / "sim")]
         for name, transport in TRANSPORTS.items():
             with transport(IDENTIFY_RATE_HZ) as url:
                 ident.append(identification_row(name, url, args.samples, Path(tmp) / name.replace(" / ", "-")))

@@ -30,6 +30,13 @@ points and keeps running on its own when the host falls silent:
 Without a period (``period_ns=None``) every command is one sample, whatever
 the time between them.
 
+The plant is either a pseudo-Wiener model (stepped by :class:`~servoid.ident.Plant`)
+or a physical twin (:class:`~servoid.drivers.twin.TwinPlant`: one sample is one
+period of servo time, the period the host announces). A twin has a drive
+stage: the torque requests switch it, and with the torque off it coasts --
+reads then run the samples due with the stage open, where the model plant
+stands still.
+
 The serial firmware's simulated motor (``drivers/serial/firmware/host/sim_motor.c``)
 implements the same rules in C; the simulated CAN drives and the emulated
 Dynamixel servos use this class.
@@ -43,7 +50,8 @@ import numpy as np
 
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S
-from servoid.errors import DriverError
+from servoid.drivers.twin.plant import TwinPlant
+from servoid.errors import ConfigError, DriverError
 from servoid.ident.models.plant import Plant
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.wear import Wear, WearingPlant
@@ -64,11 +72,14 @@ class PlantSample:
     time_ns : int
         Time of that sample (the command's arrival; for held samples, the
         previous sample's time plus whole periods).
+    fault : str or None
+        A twin whose drive turned its stage off by itself says why (``"overspeed"``).
     """
 
     position: float
     index: int
     time_ns: int
+    fault: str | None = None
 
 
 class SampledPlant:
@@ -76,8 +87,11 @@ class SampledPlant:
 
     Parameters
     ----------
-    model : BacklashModel
-        The plant (unit of its input and output: the device's).
+    model : BacklashModel or TwinPlant
+        The plant (unit of its input and output: the device's): a
+        pseudo-Wiener model, or a physical twin (built with ``torque=False``:
+        its drive stage follows :meth:`enable` and :meth:`disable`; its
+        sample length follows ``period_ns`` when one is set).
     period_ns : int, optional
         Sample period; None: one sample per command.
     noise_std : float
@@ -88,7 +102,7 @@ class SampledPlant:
     wear : Wear, optional
         Dead zones that change with the plant's age in samples
         (:class:`~servoid.ident.models.wear.WearingPlant`); :attr:`model` is then
-        the plant as it is now.
+        the plant as it is now. A twin's wear is its own (``TwinPlant(wear=)``).
     slot_modulus : int, optional
         The slot numbers given to :meth:`command` count modulo this (a
         CiA 301 SYNC counter: 2..240); None: they are plain sample numbers.
@@ -96,7 +110,7 @@ class SampledPlant:
 
     def __init__(
         self,
-        model: BacklashModel,
+        model: BacklashModel | TwinPlant,
         *,
         period_ns: int | None = None,
         noise_std: float = 0.0,
@@ -104,7 +118,14 @@ class SampledPlant:
         wear: Wear | None = None,
         slot_modulus: int | None = None,
     ) -> None:
-        self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
+        self.twin: TwinPlant | None = model if isinstance(model, TwinPlant) else None
+        self.plant: Plant | TwinPlant
+        if isinstance(model, TwinPlant):
+            if wear is not None and wear.active:
+                raise ConfigError("a twin wears by its own clock: give wear to TwinPlant(wear=), not to SampledPlant")
+            self.plant = model
+        else:
+            self.plant = Plant(model) if wear is None or not wear.active else WearingPlant(model, wear)
         self.slot_modulus = (
             None if slot_modulus is None else validation.integer("slot_modulus", slot_modulus, minimum=2)
         )
@@ -124,26 +145,36 @@ class SampledPlant:
 
     @property
     def model(self) -> BacklashModel:
+        """The pseudo-Wiener plant as it is now (a twin has none)."""
+        if isinstance(self.plant, TwinPlant):
+            raise ConfigError("a physical twin is not a pseudo-Wiener model: see its truth (TwinPlant.truth)")
         return self.plant.model
 
     def set_period(self, period_ns: int | None) -> None:
-        """Change the sample period; the next command starts the count afresh."""
+        """Change the sample period; the next command starts the count afresh (a twin's samples get this length)."""
         if period_ns is not None:
             period_ns = validation.integer("period_ns", period_ns, minimum=1)
+            if self.twin is not None:
+                self.twin.set_period(period_ns / NS_PER_S)
         self.period_ns = period_ns
         self._last_ns = None
         self._last_slot = None
 
     def enable(self) -> None:
         """Torque on: the plant follows commands from the next one on."""
+        if self.twin is not None:
+            self.twin.enable()  # also re-arms a twin that turned its stage off by itself
         if not self.enabled:
             self.enabled = True
             self._last_ns = None
             self._last_slot = None
 
     def disable(self) -> None:
-        """Torque off: the plant stays where it is."""
+        """Torque off: the model plant stays where it is; a twin's stage opens and it coasts."""
         self.enabled = False
+        if self.twin is not None:
+            self.twin.disable()
+            self._last_ns = None  # the coasting samples count from the next read
 
     def reset(self) -> None:
         """Back to rest, torque off (a power cycle)."""
@@ -197,8 +228,8 @@ class SampledPlant:
         return self._reading(t_ns)
 
     def read(self, t_ns: int) -> PlantSample:
-        """The reading of the latest sample at or before ``t_ns`` (running the held samples due)."""
-        if self.enabled and self.period_ns is not None:
+        """The reading of the latest sample at or before ``t_ns`` (running the held samples due; a twin coasts)."""
+        if (self.enabled or self.twin is not None) and self.period_ns is not None:
             if self._last_ns is None:
                 self._last_ns = t_ns  # sample times count from the first request, command or read
             due = max((t_ns - self._last_ns) // self.period_ns, 0)
@@ -236,7 +267,8 @@ class SampledPlant:
         y = self.plant.y
         if self.noise_std > 0 and self._rng is not None:
             y += float(self._rng.normal(0.0, self.noise_std))
-        return PlantSample(position=y, index=self.index, time_ns=int(time_ns))
+        fault = self.twin.twin.read().fault if self.twin is not None else None
+        return PlantSample(position=y, index=self.index, time_ns=int(time_ns), fault=fault)
 
 
 def _nearest(offset_ns: int, period_ns: int) -> int:

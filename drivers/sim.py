@@ -1,9 +1,16 @@
-"""The simulated servo: the backlash plant behind the driver interface, ``sim://``.
+"""The simulated servo behind the driver interface, ``sim://``: a physical twin, or the estimator's own plant.
 
 URL::
 
-    sim://?plant=bench&snr=40&latency=0.0002&drop=0.01&seed=1
-    sim://?plant=gear&snr=40&clock=virtual&drift=1.5&drift_samples=200000   (a wearing gear)
+    sim://xm430?play_deg=0.8&snr=40&latency=0.0002&drop=0.01&seed=1   a Dynamixel XM430 twin, its play overridden
+    sim://?clock=virtual                                              the default servo (xm430)
+    sim://model?snr=40                                                the pseudo-Wiener bench plant (exact tests)
+    sim://gear?snr=40&clock=virtual&drift=1.5&drift_samples=200000    a wearing gear
+
+The URL's host names the servo (:mod:`servoid.drivers.servos`: ``xm430``,
+``sts3215``, ``cia402``, ``odrive``, ``model``, ``paper``, ``gear``;
+default ``xm430``); options that are not the driver's own override a
+twin's parameters by name (``play_deg=0.8``, ``motor_coulomb_nm=...``).
 
 It is a driver like any other (same registry, same contract tests, same
 failure behaviour) with its time taken from an injected
@@ -14,64 +21,49 @@ late, missed and timed-out samples, is reproducible on any machine.
 The device side (:class:`SimDevice`) is kept apart from the driver side, as
 on a real link: the device has a boot id and a clock that restart when it
 restarts, drops replies, goes silent; the driver only sees replies (or their
-absence) and detects the restart from the boot id.
+absence) and detects the restart from the boot id. A twin that turns its
+drive stage off by itself (the ODrive's overspeed) is reported as a
+:class:`~servoid.errors.DeviceFault`, as a real drive's error is.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 
 from servoid import validation
 from servoid.drivers import options as opt
-from servoid.drivers.base import Driver, Option, Reading, UnitConversion
+from servoid.drivers.base import Driver, DriverURL, Option, Reading, UnitConversion
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
-from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
 from servoid.drivers.sampled import PlantSample, SampledPlant
-from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
+from servoid.drivers.servos import DEFAULT_RATE_HZ, DEFAULT_SERVO, Servo, servo_names, twin_option_names
+from servoid.drivers.servos import servo as make_servo
+from servoid.drivers.twin import Twin, TwinParams, TwinPlant, TwinTruth
+from servoid.errors import ConfigError, DeviceFault, DeviceRestarted, DriverError, DriverTimeout
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import simulate
-from servoid.ident.models.wear import GEAR_PLANT, Wear
-from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
+from servoid.ident.models.wear import Wear
 
-__all__ = ["SimDriver", "SimDevice", "SimPlant", "SIM_PLANTS"]
+__all__ = ["SimDriver", "SimDevice", "reference_output_std"]
 
 
-@dataclass(frozen=True)
-class SimPlant:
-    """A plant the simulated servo can be.
+def reference_output_std(servo: Servo) -> float:
+    """Standard deviation of the servo's output under its reference input (the base of ``snr``).
 
-    Attributes
-    ----------
-    model : BacklashModel
-        Its parameters.
-    unit : str
-        Unit of command and position.
-    amplitude : float
-        Half-width of the uniform input it is meant to be excited with (it
-        visits both backlash lines); also the reference of ``snr``.
+    For a pseudo-Wiener plant, its simulated output under a uniform input of
+    its reference amplitude; for a twin, that input's own standard deviation
+    (``amplitude / sqrt(3)``): a position servo's output follows its set
+    point, and a twin's output depends on the host's rate, which is not
+    known when the noise is set.
     """
-
-    model: BacklashModel
-    unit: str
-    amplitude: float
-
-
-#: ``plant=`` choices of the URL.
-SIM_PLANTS: dict[str, SimPlant] = {
-    "bench": SimPlant(MODEL_PLANT, MODEL_UNIT, MODEL_AMPLITUDE),
-    "paper": SimPlant(PAPER_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
-    "gear": SimPlant(GEAR_PLANT, "unit", PAPER_INPUT_AMPLITUDE),
-}
-
-
-def reference_output_std(plant: SimPlant) -> float:
-    """Standard deviation of the plant's output under its reference input (the base of ``snr``)."""
-    u = np.random.default_rng(0).uniform(-plant.amplitude, plant.amplitude, 20_000)
-    return float(np.std(simulate(plant.model, u).y_clean))
+    if servo.model is None:
+        return servo.amplitude / math.sqrt(3.0)
+    u = np.random.default_rng(0).uniform(-servo.amplitude, servo.amplitude, 20_000)
+    return float(np.std(simulate(servo.model, u).y_clean))
 
 
 class SimDevice:
@@ -148,19 +140,28 @@ class SimDevice:
 
 
 class SimDriver(Driver):
-    """The simulated bench servo (``sim://``).
+    """The simulated servo (``sim://``).
 
     Parameters
     ----------
-    plant : {"bench", "paper", "gear"}
-        ``bench``: :data:`~servoid.drivers.model_plant.MODEL_PLANT` in rad;
-        ``paper``: the paper's Section 4 plant, unitless; ``gear``: the paper's
-        plant with a new gear, ``c1 + c2 = 1`` (:data:`~servoid.ident.models.wear.GEAR_PLANT`).
+    servo : str or Servo
+        Which servo (:mod:`servoid.drivers.servos`): a twin preset (``xm430``,
+        the default; ``sts3215``, ``cia402``, ``odrive``) or a pseudo-Wiener
+        plant (``model``: :data:`~servoid.drivers.model_plant.MODEL_PLANT` in rad;
+        ``paper``: the paper's Section 4 plant, unitless; ``gear``: the
+        paper's plant with a new gear, ``c1 + c2 = 1``).
+    twin_options : mapping, optional
+        A twin's parameters overridden by name (``{"play_deg": "0.8"}``;
+        text accepted); the URL's options that are not the driver's own.
     snr : float, optional
         Measurement noise as a signal-to-noise ratio: noise standard deviation
-        = std of the output under the plant's reference input / ``snr``.
+        = std of the output under the servo's reference input / ``snr``
+        (:func:`reference_output_std`).
     noise : float, optional
-        Measurement noise standard deviation, plant unit (instead of ``snr``).
+        Measurement noise standard deviation, the servo's unit (instead of
+        ``snr``). A twin's noise is its output encoder's, before quantisation
+        (``encoder_noise_counts`` = noise / resolution): it enters the drive's
+        loop as it does on a real servo.
     latency, jitter : float
         Reply delay and mean exponential extra delay, seconds.
     drop : float
@@ -176,10 +177,10 @@ class SimDriver(Driver):
         runs in simulated time: a session takes no wall time and repeats exactly.
     drift, drift_samples, drift_start, swap_at, swap_factor : optional
         Simulated wear (:class:`~servoid.ident.models.wear.Wear`): the dead zones
-        ``c1`` and ``c2`` ramp by the factor ``drift`` over ``drift_samples``
-        samples from sample ``drift_start``, and are multiplied by
-        ``swap_factor`` from sample ``swap_at`` on (a gear swap). Samples are
-        the plant's own, so the wear follows time, not the host's requests.
+        ``c1`` and ``c2`` (a twin: its play) ramp by the factor ``drift`` over
+        ``drift_samples`` samples from sample ``drift_start``, and are
+        multiplied by ``swap_factor`` from sample ``swap_at`` on (a gear swap).
+        Samples are the servo's own, so the wear follows time, not the host's requests.
     **kwargs
         Limits and units for :class:`~servoid.drivers.base.Driver`.
     """
@@ -187,11 +188,10 @@ class SimDriver(Driver):
     scheme: ClassVar[str] = "sim"
     carries_slots: ClassVar[bool] = True  # the simulated plant steps on the session's slots
     options: ClassVar[Mapping[str, Option]] = {
-        "plant": Option(opt.choice(*SIM_PLANTS), f"simulated plant: {' or '.join(SIM_PLANTS)} (default bench)"),
         "snr": Option(
             opt.number(low=0, low_open=True), "measurement noise as sqrt(var(y)/var(noise)) under the reference input"
         ),
-        "noise": Option(opt.number(low=0), "measurement noise standard deviation (plant unit)"),
+        "noise": Option(opt.number(low=0), "measurement noise standard deviation (the servo's unit)"),
         "latency": Option(opt.number(low=0), "reply delay (s)"),
         "jitter": Option(opt.number(low=0), "mean exponential extra reply delay (s)"),
         "drop": Option(opt.number(low=0, high=1, what="a probability"), "probability that a reply is lost, in [0, 1]"),
@@ -204,18 +204,22 @@ class SimDriver(Driver):
             "real (default) or virtual: simulated time, a run takes no wall time and repeats exactly",
         ),
         "drift": Option(
-            opt.number(low=0, low_open=True), "wear: factor on c1 and c2 at the end of a ramp of drift_samples samples"
+            opt.number(low=0, low_open=True),
+            "wear: factor on c1 and c2 (a twin: its play) at the end of a ramp of drift_samples samples",
         ),
         "drift_samples": Option(opt.integer(minimum=1), "wear: length of the ramp (samples)"),
         "drift_start": Option(opt.integer(), "wear: sample at which the ramp begins (default 0)"),
-        "swap_at": Option(opt.integer(), "wear: sample of a gear swap that multiplies c1 and c2 by swap_factor"),
-        "swap_factor": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 from swap_at on"),
+        "swap_at": Option(
+            opt.integer(), "wear: sample of a gear swap that multiplies c1 and c2 (the play) by swap_factor"
+        ),
+        "swap_factor": Option(opt.number(low=0, low_open=True), "wear: factor on c1 and c2 (the play) from swap_at on"),
     }
 
     def __init__(
         self,
         *,
-        plant: str = "bench",
+        servo: str | Servo = DEFAULT_SERVO,
+        twin_options: Mapping[str, Any] | None = None,
         snr: float | None = None,
         noise: float | None = None,
         latency: float = 0.0,
@@ -233,23 +237,28 @@ class SimDriver(Driver):
         swap_factor: float = 1.0,
         **kwargs: Any,
     ) -> None:
-        if plant not in SIM_PLANTS:
-            raise ConfigError(f"plant (={plant!r}) must be one of {', '.join(SIM_PLANTS)}")
+        if isinstance(servo, Servo):
+            if twin_options:
+                raise ConfigError("give twin_options with a servo name, not with a Servo (it has its parameters)")
+            self.servo = servo
+        else:
+            self.servo = make_servo(servo, **dict(twin_options or {}))
         if snr is not None and noise is not None:
             raise ConfigError(f"give snr (={snr!r}) or noise (={noise!r}), not both")
-        self.sim_plant = SIM_PLANTS[plant]
-        kwargs.setdefault("position_unit", UnitConversion(self.sim_plant.unit))
+        kwargs.setdefault("position_unit", UnitConversion(self.servo.unit))
         super().__init__(**kwargs)
-        self.plant_name = plant
         self.noise_std = 0.0 if noise is None else validation.non_negative("noise", noise)
         if snr is not None:
-            self.noise_std = reference_output_std(self.sim_plant) / validation.positive("snr", snr)
+            self.noise_std = reference_output_std(self.servo) / validation.positive("snr", snr)
+        if self.servo.twin is not None:
+            self._twin_params = self._with_noise(self.servo, self.noise_std, given=snr is not None or noise is not None)
+            self.noise_std = self._twin_params.output_encoder_noise_counts * self._resolution()
         self.latency_ns = int(round(validation.non_negative("latency", latency) * NS_PER_S))
         self.jitter_ns = int(round(validation.non_negative("jitter", jitter) * NS_PER_S))
         self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)
         self.timeout_ns = int(round(validation.positive("timeout", timeout) * NS_PER_S))
         self.mute_after, self.restart_after = mute_after, restart_after
-        self.seed = seed
+        self.seed = validation.integer("seed", seed, minimum=0)
         self.wear = Wear(drift=drift, drift_samples=drift_samples, drift_start=drift_start,
                          swap_at=swap_at, swap_factor=swap_factor)  # fmt: skip
         if clock == "virtual":
@@ -262,25 +271,74 @@ class SimDriver(Driver):
         self.device: SimDevice | None = None
         self._boot_id: int | None = None
         self._last_slot: int | None = None
+        self._truth_new: TwinTruth | None = None
+
+    @classmethod
+    def from_url(cls, url: DriverURL) -> Driver:
+        """``sim://SERVO?options``: the host names the servo, options not the driver's own override a twin's."""
+        if url.path not in ("", "/"):
+            raise ConfigError(f"{url.raw}: a sim:// URL has no path; the servo is its host: sim://xm430?...")
+        options = dict(url.options)
+        if "plant" in options:
+            name = {"bench": "model"}.get(options["plant"], options["plant"])
+            raise ConfigError(
+                f"{url.raw}: plant= is gone: the servo is the URL's host, sim://{name}?... "
+                "(sim://model is the former bench plant)"
+            )
+        accepted = cls.accepted_options()
+        name = url.host or DEFAULT_SERVO
+        twin = make_servo(name).is_twin if name.lower() in servo_names() else False
+        twin_options = {k: v for k, v in options.items() if k not in accepted and twin}
+        unknown = sorted(set(options) - set(accepted) - set(twin_option_names() if twin else ()))
+        if unknown:
+            valid = ", ".join(sorted(accepted))
+            extra = f"; and a twin's parameters: {', '.join(twin_option_names())}" if twin else ""
+            raise ConfigError(f"{url.raw}: unknown option(s) {', '.join(unknown)}; sim:// accepts {valid}{extra}")
+        driver_options = dataclasses.replace(url, options={k: v for k, v in options.items() if k in accepted})
+        driver = cls(servo=name, twin_options=twin_options, **cls.parse_options(driver_options))
+        driver.url = url.raw
+        return driver
 
     @property
-    def truth(self) -> BacklashModel:
-        """The simulated plant's true parameters (when new: see :meth:`truth_at` for a wearing one)."""
-        return self.sim_plant.model
+    def truth(self) -> BacklashModel | None:
+        """The pseudo-Wiener model the servo is (when new); None for a twin, of which no such model is true."""
+        return self.servo.model
 
-    def truth_at(self, sample: int) -> BacklashModel:
-        """The true parameters at the plant's sample ``sample``, wear included."""
-        return self.wear.model(self.sim_plant.model, sample)
+    def truth_at(self, sample: int) -> BacklashModel | None:
+        """The pseudo-Wiener model at the servo's sample ``sample``, wear included (None for a twin)."""
+        if self.servo.model is None:
+            return None
+        return self.wear.model(self.servo.model, sample)
+
+    @property
+    def twin_truth(self) -> TwinTruth | None:
+        """A twin's ground truth when new: play, gear ratio, encoders, loop structure (None for a model plant)."""
+        return self.twin_truth_at(0)
+
+    def twin_truth_at(self, sample: int) -> TwinTruth | None:
+        """A twin's ground truth at the servo's sample ``sample``: its play as worn by then."""
+        if self.servo.twin is None:
+            return None
+        if self._truth_new is None:
+            self._truth_new = Twin(self._twin_params).truth
+        return dataclasses.replace(self._truth_new, play_rad=self._truth_new.play_rad * self.wear.factor(sample))
 
     @property
     def reference_amplitude(self) -> float:
-        """Half-width of the uniform input the plant is meant to be excited with (plant unit)."""
-        return self.sim_plant.amplitude
+        """Half-width of the uniform input the servo is meant to be excited with (its unit)."""
+        return self.servo.amplitude
 
     # ---- primitives -------------------------------------------------------------------
     def _open(self) -> None:
         rng = np.random.default_rng(self.seed)
-        plant = SampledPlant(self.sim_plant.model, noise_std=self.noise_std, rng=rng, wear=self.wear)
+        if self.servo.twin is None:
+            assert self.servo.model is not None
+            plant = SampledPlant(self.servo.model, noise_std=self.noise_std, rng=rng, wear=self.wear)
+        else:
+            twin = TwinPlant(
+                Twin(self._twin_params, seed=self.seed), 1.0 / DEFAULT_RATE_HZ, torque=False, wear=self.wear
+            )
+            plant = SampledPlant(twin)
         self.device = SimDevice(
             plant, clock=self.clock, latency_ns=self.latency_ns, jitter_ns=self.jitter_ns, drop=self.drop,
             mute_after=self.mute_after, restart_after=self.restart_after, rng=rng,
@@ -306,17 +364,41 @@ class SimDriver(Driver):
         return self._request(None, None)
 
     def _identity(self) -> dict[str, Any]:
-        return {
-            "driver": "sim",
-            "plant": self.plant_name,
-            "model": self.sim_plant.model.to_dict(),
-            "unit": self.sim_plant.unit,
-            "noise_std": self.noise_std,
-            "boot_id": self._boot_id,
-            **({"wear": self.wear.describe()} if self.wear.active else {}),
-        }
+        servo = self.servo
+        out: dict[str, Any] = {"driver": "sim", "servo": servo.name}
+        if servo.model is not None:
+            out["model"] = servo.model.to_dict()
+        else:
+            truth = self.twin_truth
+            assert truth is not None
+            out["twin"] = dataclasses.asdict(truth)
+            if servo.overrides:
+                out["overrides"] = {k: str(v) for k, v in servo.overrides.items()}
+        out.update(unit=servo.unit, noise_std=self.noise_std, boot_id=self._boot_id)
+        if self.wear.active:
+            out["wear"] = self.wear.describe()
+        return out
 
     # ---- helpers ----------------------------------------------------------------------
+    @staticmethod
+    def _with_noise(servo: Servo, noise_std: float, *, given: bool) -> TwinParams:
+        """The twin's parameters with ``noise_std`` (rad) as its output encoder's noise (in counts)."""
+        params = servo.twin
+        assert params is not None
+        if not given:
+            return params
+        if (
+            "encoder_noise_counts" in servo.overrides
+            or f"{params.output_encoder}_encoder_noise_counts" in servo.overrides
+        ):
+            raise ConfigError("give the noise as snr=/noise= or as the twin's encoder_noise_counts=, not both")
+        counts = noise_std / (2.0 * math.pi / params.output_counts_per_rev)
+        return params.replace(**{f"{params.output_encoder}_encoder_noise_counts": counts})
+
+    def _resolution(self) -> float:
+        """Output rad per count of the twin's output encoder."""
+        return 2.0 * math.pi / self._twin_params.output_counts_per_rev
+
     def _device(self) -> SimDevice:
         if self.device is None:
             raise DriverError(f"{self.describe()} is not open")
@@ -342,5 +424,10 @@ class SimDriver(Driver):
             raise DeviceRestarted(
                 f"{self.describe()}: the servo restarted (boot id {self._boot_id} -> {boot_id}); "
                 "its torque is off and its configuration is lost"
+            )
+        if sample.fault is not None and command is not None:
+            raise DeviceFault(
+                f"{self.describe()}: the drive turned its output stage off by itself ({sample.fault} error); "
+                "the servo coasts"
             )
         return Reading(position=sample.position, device_time=device.device_time(sample))

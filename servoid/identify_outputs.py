@@ -180,6 +180,12 @@ def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[l
     return cols, rows
 
 
+def twin_truth(record: Record) -> dict[str, Any] | None:
+    """What is true of a simulated twin the record came from (its play, encoders, loop), if it did."""
+    twin = (record.servo or {}).get("twin")
+    return twin if isinstance(twin, dict) else None
+
+
 def result_json(record: Record, result: Identification, paths: dict[str, str]) -> dict[str, Any]:
     """The ``--json`` object of ``servoid identify``."""
     out: dict[str, Any] = {
@@ -190,6 +196,9 @@ def result_json(record: Record, result: Identification, paths: dict[str, str]) -
     }
     if record.acquisition is not None:
         out["acquisition"] = record.acquisition
+    twin = twin_truth(record)
+    if twin is not None:
+        out["twin_truth"] = twin
     if record.truth is not None:
         out["truth"] = record.truth.to_dict()
         out["max_relative_error"] = result.model.max_relative_error(record.truth)

@@ -26,7 +26,7 @@ def run_json(capsys, *argv):
 
 
 def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp_path, capsys):
-    code, obj, _ = run_json(capsys, "--driver", "sim://?clock=virtual&seed=1&jitter=0.0002", "--rate", "1000",
+    code, obj, _ = run_json(capsys, "--driver", "sim://model?clock=virtual&seed=1&jitter=0.0002", "--rate", "1000",
                             "--samples", "3000", "--out", str(tmp_path))  # fmt: skip
     assert code == 0
     acq = obj["acquisition"]
@@ -43,6 +43,17 @@ def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp
                               "--no-plots")  # fmt: skip
     assert code == 0 and again["warnings"] == obj["warnings"]
     np.testing.assert_allclose(again["model"]["c2"], obj["model"]["c2"], rtol=1e-9)
+
+
+def test_a_live_run_on_the_default_twin_says_what_is_true_of_it(tmp_path, capsys):
+    code, obj, _ = run_json(capsys, "--driver", "sim://?clock=virtual", "--samples", "300", "--out", str(tmp_path),
+                            "--no-plots")  # fmt: skip
+    assert code == 0 and "truth" not in obj and "max_relative_error" not in obj  # no pseudo-Wiener model is true of it
+    twin = obj["twin_truth"]
+    assert twin["name"] == "xm430" and twin["play_rad"] == pytest.approx(np.radians(0.25))
+    assert (twin["loop_encoder"], twin["output_encoder"]) == ("load", "load")
+    main(["identify", "--driver", "sim://?clock=virtual", "--samples", "300", "--out", str(tmp_path), "--no-plots"])
+    assert "the twin xm430: true play 0.00436332 rad at the output" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize(
@@ -68,7 +79,7 @@ def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):
 @pytest.mark.slow
 def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
     """The issue's "done when": the emulated bench servo, identified over its pseudo-terminal."""
-    emulator = subprocess.Popen([sys.executable, "-m", "servoid", "emulate", "serial"], stdout=subprocess.PIPE,
+    emulator = subprocess.Popen([sys.executable, "-m", "servoid", "emulate", "serial", "--servo", "model"], stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE)  # fmt: skip
     try:
         # Raw reads: a buffered readline() after select() can pull several lines

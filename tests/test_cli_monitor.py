@@ -14,7 +14,7 @@ from servoid.ident.models.wear import GEAR_PLANT
 from servoid.modelfile import ModelFile, save_model
 from servoid.monitor_run import EXIT_ALARM, read_estimates
 
-GEAR = "sim://?plant=gear&snr=40&clock=virtual"
+GEAR = "sim://gear?snr=40&clock=virtual"
 
 
 @pytest.fixture

@@ -123,7 +123,7 @@ def monitor(url: str, n: int, tmp_path, *, share: float = 0.1, stop: bool = Fals
 
 def test_the_monitor_raises_the_alarm_when_the_worn_dead_zone_crosses_its_bound(tmp_path):
     # c1 + c2 from 1.0 to 1.5 over 40 000 samples from sample 5000: the truth crosses 1.1 at sample 13 000
-    url = "sim://?plant=gear&snr=40&clock=virtual&seed=2&drift=1.5&drift_samples=40000&drift_start=5000"
+    url = "sim://gear?snr=40&clock=virtual&seed=2&drift=1.5&drift_samples=40000&drift_start=5000"
     result, events = monitor(url, 50_000, tmp_path)
     alarm = result.first_alarm
     assert alarm is not None and alarm.bound.quantity == "dead_zone" and alarm.side == "above"
@@ -149,13 +149,13 @@ def test_the_monitor_raises_the_alarm_when_the_worn_dead_zone_crosses_its_bound(
 
 
 def test_no_alarm_without_drift_even_with_tight_bounds(tmp_path):
-    result, events = monitor("sim://?plant=gear&snr=40&clock=virtual&seed=7", 100_000, tmp_path, share=0.03)
+    result, events = monitor("sim://gear?snr=40&clock=virtual&seed=7", 100_000, tmp_path, share=0.03)
     assert result.events == () and not [e for e in events if e[0] == "alarm"]
     assert abs(result.estimate.dead_zone - 1.0) < 0.02
 
 
 def test_stop_on_alarm_ends_the_run_soon_after_a_gear_swap(tmp_path):
-    url = "sim://?plant=gear&snr=40&clock=virtual&seed=1&swap_at=20000&swap_factor=1.2"
+    url = "sim://gear?snr=40&clock=virtual&seed=1&swap_at=20000&swap_factor=1.2"
     result, _ = monitor(url, 60_000, tmp_path, stop=True)
     assert result.stopped == "alarm" and 20_000 < result.first_alarm.sample < 22_000
     assert result.samples == result.first_alarm.sample + 1  # stopped at once: the input ends there
@@ -170,9 +170,9 @@ def test_memory_stays_flat_over_a_long_run(tmp_path):
 
     tracemalloc.start()
     try:
-        monitor("sim://?plant=gear&snr=40&clock=virtual", 41_000, tmp_path, on_progress=sample)
+        monitor("sim://gear?snr=40&clock=virtual", 41_000, tmp_path, on_progress=sample)
         # the measurement can see growth: a session that keeps its samples grows by ~100 bytes each
-        with driver_from_url("sim://?clock=virtual") as servo:
+        with driver_from_url("sim://gear?clock=virtual") as servo:
             before = tracemalloc.get_traced_memory()[0]
             kept = run_session(servo, np.zeros(5000), SessionConfig(period_s=1e-3))
             grown = tracemalloc.get_traced_memory()[0] - before
@@ -231,7 +231,7 @@ def test_ctrl_c_ends_the_run_with_every_output_complete(tmp_path):
         yield from stream(UniformSpec(amplitude=2.406), seed=3, n=12_345)
         raise KeyboardInterrupt
 
-    with driver_from_url("sim://?plant=gear&snr=40&clock=virtual") as servo:
+    with driver_from_url("sim://gear?snr=40&clock=virtual") as servo:
         config = MonitorConfig(
             estimator=WearEstimatorConfig(reference=GEAR_PLANT, noise_std=servo.noise_std), row_every=1000
         )

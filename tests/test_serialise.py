@@ -43,7 +43,7 @@ def test_results_say_why_a_number_is_null():
 
 def test_a_monitor_run_too_short_for_a_fit_prints_strict_json(tmp_path, capsys):
     model = save_model(tmp_path / "model.json", ModelFile(model=GEAR_PLANT, noise_std=0.0337, sample_period_s=0.001))
-    code = main(["monitor", "--driver", "sim://?plant=gear&snr=40&clock=virtual", "--model", str(model),
+    code = main(["monitor", "--driver", "sim://gear?snr=40&clock=virtual", "--model", str(model),
                  "--duration", "0.5", "--fit", "0.05", "--json", "--out", str(tmp_path / "run")])  # fmt: skip
     out = capsys.readouterr().out
     summary = strict(out)

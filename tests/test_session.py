@@ -19,7 +19,7 @@ T = 0.001  # s
 
 
 def servo(**options) -> SimDriver:
-    return SimDriver(clock=VirtualClock(), seed=3, **options)
+    return SimDriver(servo="model", clock=VirtualClock(), seed=3, **options)
 
 
 def excitation(n: int, seed: int = 0) -> np.ndarray:
@@ -179,7 +179,7 @@ def test_the_guard_defaults_by_whether_the_protocol_carries_the_slot():
     cfg = SessionConfig(period_s=0.002)
     by_class = {cls: cls.carries_slots for cls in (SimDriver, SerialDriver, OdriveDriver, DynamixelDriver)}
     assert by_class == {SimDriver: True, SerialDriver: True, OdriveDriver: False, DynamixelDriver: False}
-    with SimDriver() as sim:
+    with SimDriver(servo="model") as sim:
         assert cfg.resolved(sim).guard_samples == 0
     assert SessionConfig(period_s=0.002, guard_samples=3).resolved(sim).guard_samples == 3
     assert DEFAULT_GUARD_SAMPLES == 10

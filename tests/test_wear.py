@@ -63,7 +63,7 @@ def test_a_plant_without_wear_gives_the_same_numbers():
 
 
 def test_the_simulated_servo_wears_on_its_own_sample_grid():
-    url = "sim://?plant=gear&clock=virtual&drift=1.5&drift_samples=2000&drift_start=500&swap_at=3000&swap_factor=1.2"
+    url = "sim://gear?clock=virtual&drift=1.5&drift_samples=2000&drift_start=500&swap_at=3000&swap_factor=1.2"
     with driver_from_url(url) as servo:
         assert servo.identity["wear"] == {"drift": 1.5, "drift_samples": 2000, "drift_start": 500, "swap_at": 3000,
                                           "swap_factor": 1.2}  # fmt: skip

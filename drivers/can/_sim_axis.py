@@ -1,4 +1,4 @@
-"""The mechanics behind both simulated CAN drives: the bench plant, sampled by the drive's cycles.
+"""The mechanics behind both simulated CAN drives: a twin or the bench plant, sampled by the drive's cycles.
 
 The plant is a :class:`~servoid.drivers.sampled.SampledPlant`: one sample per
 cyclic command of the protocol, and held samples for the cycles the host
@@ -21,12 +21,20 @@ receive time for ``udp_multicast``), as a CAN controller stamps frames in
 hardware: how late the drive's own thread gets to a frame does not move it
 to another sample.
 
-Position mode: the command is the target position (rad) fed to
-:data:`~servoid.drivers.model_plant.MODEL_PLANT`. Torque mode: the same plant, with
-the command read as a torque (Nm) times :data:`TORQUE_GAIN` (rad per Nm) --
-a joint held by a torsion spring of ``1 / TORQUE_GAIN`` Nm/rad, so that a
-torque moves it to a position proportional to it, through the same dynamics
-and the same backlash.
+The servo (:mod:`servoid.drivers.servos`) is a physical twin (the default
+of each drive: ``cia402``, ``odrive``) or a pseudo-Wiener plant
+(``model``: :data:`~servoid.drivers.model_plant.MODEL_PLANT`). A twin's sample
+is one period of servo time: the period the drive is told (0x1006, its own
+clock), else one at :data:`~servoid.drivers.servos.DEFAULT_RATE_HZ`; its
+drive stage follows the power stage, and with the power off it coasts.
+
+Position mode: the command is the target position, output rad. Torque
+mode, on the pseudo-Wiener plant only: the same plant, with the command
+read as a torque (Nm) times :data:`TORQUE_GAIN` (rad per Nm) -- a joint
+held by a torsion spring of ``1 / TORQUE_GAIN`` Nm/rad, so that a torque
+moves it to a position proportional to it, through the same dynamics and
+the same backlash. The twins run their position loops only (the drives
+refuse torque mode with a twin behind them).
 """
 
 from __future__ import annotations
@@ -35,10 +43,10 @@ import math
 
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
+from servoid.drivers.servos import DEFAULT_RATE_HZ, Servo
+from servoid.drivers.twin import Twin, TwinPlant, TwinReading
 from servoid.ident.models.plant import Plant
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimAxis", "TORQUE_GAIN"]
 
@@ -51,8 +59,8 @@ class SimAxis:
 
     Parameters
     ----------
-    model : BacklashModel
-        Plant behind the drive (rad in, rad out).
+    servo : Servo
+        The servo behind the drive (:func:`servoid.drivers.servos.servo`): rad in, rad out.
     torque_gain : float
         rad per Nm in torque mode (:data:`TORQUE_GAIN`).
     period_s : float, optional
@@ -68,22 +76,35 @@ class SimAxis:
 
     def __init__(
         self,
-        model: BacklashModel = MODEL_PLANT,
+        servo: Servo,
         *,
         torque_gain: float = TORQUE_GAIN,
         period_s: float | None = None,
     ) -> None:
-        # the backlash step is compiled on first use (numba, ~0.1-1 s): do it now, not in a drive's first reply
-        Plant(model).step(0.0)
-        self.sampled = SampledPlant(model)
+        self.servo = servo
+        # the kernels are compiled on first use (numba, ~0.1-1 s): do it now, not in a drive's first reply
+        if servo.twin is None:
+            assert servo.model is not None
+            Plant(servo.model).step(0.0)
+            self.sampled = SampledPlant(servo.model)
+            self.twin: TwinPlant | None = None
+        else:
+            Twin(servo.twin).advance(1e-3)
+            self.twin = TwinPlant(Twin(servo.twin), 1.0 / DEFAULT_RATE_HZ, torque=False)
+            self.sampled = SampledPlant(self.twin)
         self.set_period(period_s)
         self.torque_gain = validation.positive("torque_gain", torque_gain)
         self._last_input = 0.0
 
     @property
     def position(self) -> float:
-        """Output of the plant's latest sample, rad."""
+        """Output of the plant's latest sample, rad (a twin: its output encoder's reading)."""
         return self.sampled.plant.y
+
+    @property
+    def reading(self) -> TwinReading | None:
+        """A twin's registers as of the latest sample (None for the pseudo-Wiener plant)."""
+        return self.twin.reading if self.twin is not None else None
 
     @property
     def velocity(self) -> float:

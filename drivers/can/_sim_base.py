@@ -11,7 +11,7 @@ import numpy as np
 from servoid import validation
 from servoid.drivers.can._bus import BusAddress
 from servoid.drivers.can._sim_axis import SimAxis
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.drivers.servos import Servo
 
 __all__ = ["SimDrive"]
 
@@ -25,8 +25,8 @@ class SimDrive(abc.ABC):
         Node id (validated by the subclass).
     bus : BusAddress, optional
         Where to listen; default python-can's ``virtual`` channel ``"ch0"``.
-    model : BacklashModel
-        The plant (rad in, rad out).
+    servo : Servo
+        The servo behind the drive (:mod:`servoid.drivers.servos`).
     torque_gain : float
         rad per Nm of the plant in torque mode.
     period_s : float, optional
@@ -51,7 +51,7 @@ class SimDrive(abc.ABC):
         *,
         node: int,
         bus: BusAddress | None,
-        model: BacklashModel,
+        servo: Servo,
         torque_gain: float,
         period_s: float | None = None,
         mute_after: int | None = None,
@@ -61,7 +61,7 @@ class SimDrive(abc.ABC):
     ) -> None:
         self.node = node
         self.bus = bus if bus is not None else BusAddress("virtual", "ch0")
-        self.axis = SimAxis(model, torque_gain=torque_gain, period_s=period_s)
+        self.axis = SimAxis(servo, torque_gain=torque_gain, period_s=period_s)
         self.mute_after = None if mute_after is None else validation.integer("mute_after", mute_after, minimum=0)
         self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)
         self.restart_after = (

@@ -8,10 +8,15 @@ PRE-OPERATIONAL:
 2. check the mode is supported (0x6502), switch a drive left enabled off,
    set the mode of operation (0x6060: 8 CSP or 10 CST) and read it back (0x6061);
 3. read the encoder resolution (0x608F) unless ``counts_per_rev`` is given,
-   and in torque mode the rated torque (0x6076);
+   the gear ratio (0x6091, 1:1 if the drive has none), the second encoder
+   (0x60E4 sub 0; its resolution 0x60E6 / 0x60EB sub 1) if it has one, and
+   in torque mode the rated torque (0x6076);
 4. map RPDO1 = controlword + target position (or target torque) and
-   TPDO1 = statusword + position actual value, both synchronous (transmission
-   type 1), and switch PDOs 2-4 off;
+   TPDO1 = statusword + the measured position (``encoder``: the additional
+   position actual value 0x60E4 sub 1, a load encoder on the output, when
+   the drive has one; else the position actual value 0x6064, the encoder
+   the drive's loop closes on), both synchronous (transmission type 1), and
+   switch PDOs 2-4 off;
 5. configure the SYNC counter (0x1019 = 240; a drive without one gets plain SYNCs);
 6. NMT start (OPERATIONAL).
 
@@ -35,9 +40,12 @@ code and 0x603F error code); no TPDO within ``timeout`` after a SYNC is
 :class:`~servoid.errors.DeviceRestarted`. Closing switches the torque off and
 sends the drive back to PRE-OPERATIONAL.
 
-Units: positions in encoder increments (native), radians for the user;
-torques in per mille of the rated torque (native), Nm for the user. The
-driver has no device clock to offer (``device_time`` is None).
+Units: positions in encoder increments (native), radians at the driving
+(output) shaft for the user: increments through the encoder's resolution
+(per motor revolutions) and the gear ratio; the target position counts
+increments of the loop's encoder (0x607A, as 0x6064), which may not be the
+one read. Torques in per mille of the rated torque (native), Nm for the
+user. The driver has no device clock to offer (``device_time`` is None).
 """
 
 from __future__ import annotations
@@ -76,11 +84,21 @@ _INT16 = (-(1 << 15), (1 << 15) - 1)
 _NMT_OPERATIONAL, _NMT_PRE_OPERATIONAL = 0x01, 0x80
 
 
+#: ``encoder=`` choices: which position the driver reads.
+ENCODERS = ("auto", "main", "additional")
+
+
 def _counts(text: str) -> int:
     value = int(text)
     if value < 1:
         raise ValueError("must be >= 1")
     return value
+
+
+def _encoder(text: str) -> str:
+    if text not in ENCODERS:
+        raise ValueError(f"choose one of {', '.join(ENCODERS)}")
+    return text
 
 
 class Cia402Driver(CanDriver):
@@ -91,7 +109,13 @@ class Cia402Driver(CanDriver):
     interface, channel, node, mode, bitrate, port, timeout, limits
         As for :class:`~servoid.drivers.can.driver.CanDriver`; node 1..127.
     counts_per_rev : int, optional
-        Encoder increments per revolution; default: read from the drive (0x608F).
+        Increments per revolution of the loop's encoder; default: read from the drive (0x608F).
+    encoder : {"auto", "main", "additional"}
+        The position read: ``main`` the position actual value (0x6064, the
+        encoder the drive's loop closes on), ``additional`` the additional
+        position actual value 1 (0x60E4 sub 1, a second encoder, e.g. on the
+        load behind the gear), ``auto`` (default) the additional one when the
+        drive has it: the output is what identification wants to see.
     fault_reset : bool
         Reset a drive found in FAULT when switching the torque on (controlword
         bit 7); default False, which reports the fault instead.
@@ -102,6 +126,9 @@ class Cia402Driver(CanDriver):
     options: ClassVar[Mapping[str, Option]] = {
         **CanDriver.options,
         "counts_per_rev": Option(_counts, "encoder increments per revolution (default: the drive's 0x608F)"),
+        "encoder": Option(
+            _encoder, "position read: auto (default: 0x60E4 sub 1 if the drive has it, else 0x6064), main or additional"
+        ),
         "fault_reset": Option(parse_bool, "reset a drive found in FAULT on enable: 1 or 0 (default 0)"),
     }
 
@@ -116,6 +143,7 @@ class Cia402Driver(CanDriver):
         port: int | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         counts_per_rev: int | None = None,
+        encoder: str = "auto",
         fault_reset: bool = False,
         limits: Limits | None = None,
     ) -> None:
@@ -128,10 +156,13 @@ class Cia402Driver(CanDriver):
         self.counts_per_rev = (
             None if counts_per_rev is None else validation.integer("counts_per_rev", counts_per_rev, minimum=1)
         )
+        if encoder not in ENCODERS:
+            raise ConfigError(f"encoder (={encoder!r}) must be one of {', '.join(ENCODERS)}")
+        self.encoder = encoder
         self.fault_reset = bool(fault_reset)
         self.command_step = 1.0  # targets are whole increments, or whole per mille of the rated torque
         if self.counts_per_rev is not None:
-            self._set_units(self.counts_per_rev, rated_torque_mnm=None)
+            self._set_units((self.counts_per_rev, 1), rated_torque_mnm=None)
         self._network: Any = None
         self._node: Any = None
         self._cw: Any = None
@@ -148,15 +179,30 @@ class Cia402Driver(CanDriver):
         self._counter = 0  # the last SYNC's counter
         self._last_slot: int | None = None  # the session's slot of the last exchange
         self._restarted = False  # set by canopen's thread on a boot-up message
+        self._position_object = (0x6064, 0)  # what TPDO1 carries as the position
 
     # ---- units -----------------------------------------------------------------------------
-    def _set_units(self, counts_per_rev: int, *, rated_torque_mnm: int | None) -> None:
-        self.position_unit = UnitConversion("rad", scale=2 * math.pi / counts_per_rev)
+    def _set_units(
+        self,
+        main: tuple[int, int],
+        *,
+        rated_torque_mnm: int | None,
+        gear: tuple[int, int] = (1, 1),
+        read: tuple[int, int] | None = None,
+    ) -> None:
+        """Units from (increments, motor revolutions) of the main encoder and of the one read, and the gear."""
+
+        def rad_per_increment(resolution: tuple[int, int]) -> float:
+            increments, revolutions = resolution
+            return 2 * math.pi * revolutions * gear[1] / (increments * gear[0])
+
+        loop = UnitConversion("rad", scale=rad_per_increment(main))
+        self.position_unit = loop if read is None else UnitConversion("rad", scale=rad_per_increment(read))
         if self.mode == "torque" and rated_torque_mnm is not None:
             # target torque is in per mille of the rated torque: 1 unit = rated/1000 mNm
             self.command_unit = UnitConversion("Nm", scale=rated_torque_mnm / 1e6)
         elif self.mode == "position":
-            self.command_unit = self.position_unit
+            self.command_unit = loop
 
     # ---- primitives ------------------------------------------------------------------------
     def _open(self) -> None:
@@ -204,27 +250,62 @@ class Cia402Driver(CanDriver):
         shown = self._sdo_read(0x6061, what="the mode of operation display")
         if shown != mode_code:
             raise DeviceFault(f"{self._who()} did not take mode of operation {mode_code}: 0x6061 shows {shown}")
-        counts = self.counts_per_rev
-        if counts is None:
-            increments = self._sdo_read(0x608F, 1, what="the encoder resolution", optional=True)
-            revolutions = self._sdo_read(0x608F, 2, what="the encoder resolution", optional=True) or 1
-            if not increments:
-                raise ConfigError(
-                    f"{self._who()} does not report its encoder resolution (0x608F): "
-                    "give counts_per_rev=<increments per revolution> in the URL"
-                )
-            counts = max(round(increments / revolutions), 1)
+        main: tuple[int, int]
+        if self.counts_per_rev is None:
+            main = self._resolution(
+                (0x608F, 1), (0x608F, 2), "the encoder resolution",
+                "does not report its encoder resolution (0x608F): give counts_per_rev=<increments per revolution> in the URL",
+            )  # fmt: skip
+        else:
+            main = (self.counts_per_rev, 1)
+        gear = (
+            self._sdo_read(0x6091, 1, what="the gear ratio", optional=True) or 1,
+            self._sdo_read(0x6091, 2, what="the gear ratio", optional=True) or 1,
+        )
+        read = self._additional_resolution()
         rated = None
         if self.mode == "torque":
             rated = self._sdo_read(0x6076, what="the motor rated torque", optional=True)
             if not rated:
                 raise ConfigError(f"{self._who()} reports no motor rated torque (0x6076): torque mode cannot scale Nm")
-        self._set_units(counts, rated_torque_mnm=rated)
+        self._set_units(main, rated_torque_mnm=rated, gear=gear, read=read)
+        self._position_object = (0x6064, 0) if read is None else (0x60E4, 1)
         self._sdo_call(lambda: self._map_pdos(0x607A if self.mode == "position" else 0x6071), "map the PDOs")
         self._counter_overflow = self._sdo_write_optional(0x1019, profile.SYNC_COUNTER_OVERFLOW)
         node.emcy.add_callback(self._on_emcy)
-        self._info = self._read_identity(counts, rated)
+        self._info = self._read_identity(round(main[0] / main[1]), rated)
+        self._info.update(
+            encoder="additional position actual value 1 (0x60E4 sub 1)" if read else "position actual value (0x6064)",
+            gear_ratio=gear[0] / gear[1],
+        )
         node.nmt.send_command(_NMT_OPERATIONAL)
+
+    def _additional_resolution(self) -> tuple[int, int] | None:
+        """(increments, motor revolutions) of the second encoder if it is the one to read, else None."""
+        if self.encoder == "main":
+            return None
+        count = self._sdo_read(0x60E4, 0, what="the number of additional encoders", optional=True)
+        if not count:
+            if self.encoder == "additional":
+                raise ConfigError(
+                    f"{self._who()} has no additional position actual value (0x60E4): "
+                    "read its position actual value with encoder=main"
+                )
+            return None
+        return self._resolution(
+            (0x60E6, 1), (0x60EB, 1), "the additional encoder's resolution",
+            "reports an additional encoder (0x60E4) but not its resolution (0x60E6 sub 1): "
+            "read its position actual value with encoder=main",
+        )  # fmt: skip
+
+    def _resolution(
+        self, increments: tuple[int, int], revolutions: tuple[int, int], what: str, missing: str
+    ) -> tuple[int, int]:
+        """(increments, motor revolutions) from the objects at ``increments`` and ``revolutions`` (index, sub)."""
+        count = self._sdo_read(*increments, what=what, optional=True)
+        if not count:
+            raise ConfigError(f"{self._who()} {missing}")
+        return int(count), int(self._sdo_read(*revolutions, what=what, optional=True) or 1)
 
     def _map_pdos(self, target_index: int) -> None:
         node = self._node
@@ -238,7 +319,7 @@ class Cia402Driver(CanDriver):
         node.rpdo[1].add_variable(0x6040)
         node.rpdo[1].add_variable(target_index)
         node.tpdo[1].add_variable(0x6041)
-        node.tpdo[1].add_variable(0x6064)
+        node.tpdo[1].add_variable(*self._position_object)
         node.tpdo[1].add_callback(self._on_tpdo)
         for maps in (node.rpdo, node.tpdo):
             for n in range(1, 5):
@@ -320,7 +401,8 @@ class Cia402Driver(CanDriver):
         return Reading(position=float(position))
 
     def _read(self) -> Reading:
-        return Reading(position=float(self._sdo_read(0x6064, what="the actual position")))
+        index, subindex = self._position_object
+        return Reading(position=float(self._sdo_read(index, subindex or None, what="the actual position")))
 
     def _identity(self) -> dict[str, Any]:
         return dict(self._info)
@@ -366,11 +448,14 @@ class Cia402Driver(CanDriver):
         """The target that keeps the drive where it is: the actual position, or zero torque."""
         if self.mode == "torque":
             return 0.0
-        return float(self._position if self._replies else self._sdo_read(0x6064, what="the actual position"))
+        if self._replies and self._position_object == (0x6064, 0):
+            return float(self._position)
+        # the target counts the loop's encoder; the position read may be another's
+        return float(self._sdo_read(0x6064, what="the actual position"))
 
     # ---- callbacks (canopen's notifier thread) --------------------------------------------------
     def _on_tpdo(self, pdo: Any) -> None:
-        statusword, position = int(pdo[0x6041].raw), int(pdo[0x6064].raw)
+        statusword, position = int(pdo.map[0].raw), int(pdo.map[1].raw)  # as mapped: statusword, position
         with self._reply:
             self._statusword, self._position = statusword, position
             self._replies += 1

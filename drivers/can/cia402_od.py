@@ -30,11 +30,23 @@ Objects (index, meaning, type)::
     0x6077 torque actual value   I16  per mille of the rated torque
     0x607A target position       I32  increments
     0x608F position encoder resolution: increments (sub 1) per motor revolutions (sub 2)
+    0x6091 gear ratio            motor shaft revolutions (sub 1) per driving shaft revolutions (sub 2)
+    0x60E4 additional position actual value  I32  (sub 1: a second encoder's increments)
+    0x60E6 / 0x60EB additional position encoder resolution: increments (sub 1) / motor revolutions (sub 1)
     0x6502 supported drive modes U32  (bit 7 CSP, bit 9 CST)
+
+Units: 0x6064 and 0x607A count the increments of the encoder the position
+loop closes on, 0x608F says how many there are per motor revolutions; a
+drive with a gear between motor and load says its ratio in 0x6091; a drive
+with a second encoder (a load encoder behind the gear) reports it in 0x60E4
+sub 1, its resolution in 0x60E6 / 0x60EB sub 1. Position in radians at the
+driving (output) shaft is ``increments * 2 pi * motor revolutions /
+(increments per those revolutions * gear ratio)``.
 """
 
 from __future__ import annotations
 
+from fractions import Fraction
 from typing import Any
 
 from servoid.drivers.can._bus import import_vendor
@@ -47,6 +59,7 @@ __all__ = [
     "EMCY_COMMUNICATION",
     "CW_FAULT_RESET",
     "object_dictionary",
+    "gear_fraction",
     "state_of",
     "statusword_of",
     "emcy_text",
@@ -99,8 +112,29 @@ def emcy_text(code: int, register: int | None = None) -> str:
     return text
 
 
-def object_dictionary(node: int) -> Any:
+def gear_fraction(ratio: float) -> tuple[int, int]:
+    """A gear ratio as whole motor shaft and driving shaft revolutions (0x6091): 353.5 -> (707, 2).
+
+    Parameters
+    ----------
+    ratio : float
+        Motor revolutions per driving shaft revolution, > 0.
+    """
+    fraction = Fraction(ratio).limit_denominator(1000)
+    return fraction.numerator, fraction.denominator
+
+
+def object_dictionary(node: int, *, additional: bool = True) -> Any:
     """The object dictionary of a CiA 402 drive with ``node`` as its node id.
+
+    Parameters
+    ----------
+    node : int
+        Node id.
+    additional : bool
+        Include the objects of a second encoder (0x60E4, 0x60E6, 0x60EB): a
+        master's dictionary lists them so that it can map them; a drive has
+        them only when it has the encoder.
 
     Returns
     -------
@@ -194,5 +228,18 @@ def object_dictionary(node: int) -> Any:
     add(record("Position encoder resolution", 0x608F, [
         ("Encoder increments", U32, "rw", 0), ("Motor revolutions", U32, "rw", 1),
     ]))  # fmt: skip
+    add(record("Gear ratio", 0x6091, [
+        ("Motor shaft revolutions", U32, "rw", 1), ("Driving shaft revolutions", U32, "rw", 1),
+    ]))  # fmt: skip
+    if additional:
+        actual = record(
+            "Additional position actual value", 0x60E4, [("Additional position actual value 1", I32, "ro", 0)]
+        )
+        actual[1].pdo_mappable = True
+        add(actual)
+        add(record("Additional position encoder resolution - encoder increments", 0x60E6,
+                   [("Encoder increments 1", U32, "rw", 0)]))  # fmt: skip
+        add(record("Additional position encoder resolution - motor revolutions", 0x60EB,
+                   [("Motor revolutions 1", U32, "rw", 1)]))  # fmt: skip
     add(var("Supported drive modes", 0x6502, 0, U32, "ro", sum(SUPPORTED_MODE_BITS.values())))
     return dictionary

@@ -1,4 +1,4 @@
-"""A simulated CiA 402 servo drive: a canopen LocalNode with the bench plant behind it.
+"""A simulated CiA 402 servo drive: a canopen LocalNode with a twin (or the bench plant) behind it.
 
 The drive is what a CANopen master meets on a real bus: an SDO server on its
 object dictionary (:mod:`servoid.drivers.can.cia402_od`), NMT slave, boot-up
@@ -12,8 +12,19 @@ controlword, runs its control cycle with the latched target (only in
 Operation Enabled: one sample of the plant, after the held samples of any
 cycles whose SYNC never came, which the SYNC counter shows), and answers
 with its TPDOs (statusword, actual position). Positions are in encoder
-increments, ``counts_per_rev`` per revolution (0x608F); torques in per mille
-of the rated torque (0x6071, 0x6076).
+increments; torques in per mille of the rated torque (0x6071, 0x6076).
+
+The servo (:mod:`servoid.drivers.servos`, default the ``cia402`` twin: an
+EPOS4-class drive, its loop on a motor encoder, a load encoder behind a
+planetary gear) is reported as such a drive reports it: 0x6064 (position
+actual value) and 0x607A (target position) in increments of the encoder the
+position loop closes on, 0x608F their resolution per motor revolutions,
+0x6091 the gear ratio, and the other encoder -- the load encoder, on the
+output -- in 0x60E4 sub 1 (additional position actual value, resolution in
+0x60E6 / 0x60EB). With the pseudo-Wiener plant (``servo="model"``) the drive
+has one encoder of ``counts_per_rev`` increments on the output, no gear, and
+torque mode as well. A twin runs its position loop only: the drive offers
+cyclic synchronous position mode (0x6502), not torque.
 
 SYNC counter (CiA 301): with a synchronous counter overflow value (0x1019,
 2..240) configured, each SYNC carries a counter 1..overflow; the difference
@@ -54,19 +65,21 @@ from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
-from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.drivers.servos import Servo, parse_servo
 from servoid.errors import ConfigError
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimCia402Drive", "SIM_COUNTS_PER_REV", "SIM_RATED_TORQUE_MNM"]
 
 log = logging.getLogger("servoid.drivers.can.sim")
 
-#: Encoder increments per revolution of the simulated drive (a 17-bit encoder).
+#: Encoder increments per revolution of the simulated drive with the pseudo-Wiener plant (a 17-bit encoder).
 SIM_COUNTS_PER_REV = 1 << 17
 
 #: Rated torque of the simulated drive, mNm (target torque 1000 per mille = 1 Nm).
 SIM_RATED_TORQUE_MNM = 1000
+
+#: EMCY code of a twin that turned its output off on overspeed (CiA 301/402: speed controller).
+_EMCY_SPEED = 0x8400
 
 _OE = "OPERATION ENABLED"
 _QSA = "QUICK STOP ACTIVE"
@@ -122,10 +135,16 @@ class SimCia402Drive(SimDrive):
     ----------
     node : int
         CANopen node id, 1..127.
-    bus, model, torque_gain
+    bus, torque_gain
         As for :class:`~servoid.drivers.can._sim_base.SimDrive`.
-    counts_per_rev : int
-        Encoder increments per revolution, reported in 0x608F.
+    servo : Servo or str
+        The servo behind the drive (default the ``cia402`` twin; text as
+        :func:`~servoid.drivers.servos.parse_servo` reads it: ``"model"``,
+        ``"cia402?play_arcmin=3"``).
+    counts_per_rev : int, optional
+        With the pseudo-Wiener plant: encoder increments per revolution,
+        reported in 0x608F (default :data:`SIM_COUNTS_PER_REV`). A twin's
+        encoders are its own (``motor_encoder_cpr``, ``load_encoder_cpr``).
     rated_torque_mnm : int
         Motor rated torque (0x6076), mNm.
     device_type : int
@@ -142,8 +161,8 @@ class SimCia402Drive(SimDrive):
         *,
         node: int = DEFAULT_NODES["cia402"],
         bus: BusAddress | None = None,
-        model: BacklashModel = MODEL_PLANT,
-        counts_per_rev: int = SIM_COUNTS_PER_REV,
+        servo: Servo | str = "cia402",
+        counts_per_rev: int | None = None,
         rated_torque_mnm: int = SIM_RATED_TORQUE_MNM,
         torque_gain: float = TORQUE_GAIN,
         device_type: int = profile.DEVICE_TYPE_402,
@@ -155,11 +174,12 @@ class SimCia402Drive(SimDrive):
         node = validation.integer("node", node, minimum=1)
         if node > 127:
             raise ConfigError(f"node (={node}) must be 1..127 for a CANopen drive")
+        servo = servo if isinstance(servo, Servo) else parse_servo(servo)
         super().__init__(
-            node=node, bus=bus, model=model, torque_gain=torque_gain, mute_after=mute_after, drop=drop,
+            node=node, bus=bus, servo=servo, torque_gain=torque_gain, mute_after=mute_after, drop=drop,
             restart_after=restart_after, seed=seed,
         )  # fmt: skip
-        self.counts_per_rev = validation.integer("counts_per_rev", counts_per_rev, minimum=1)
+        self.encoders = _Encoders.of(servo, counts_per_rev)
         self.rated_torque_mnm = validation.integer("rated_torque_mnm", rated_torque_mnm, minimum=1)
         self.device_type = validation.integer("device_type", device_type, minimum=0)
         self._state = _SOD
@@ -183,7 +203,8 @@ class SimCia402Drive(SimDrive):
         if self._network is not None:
             return self
         canopen = import_vendor("canopen")
-        dictionary = profile.object_dictionary(self.node)
+        enc = self.encoders
+        dictionary = profile.object_dictionary(self.node, additional=enc.additional is not None)
         dictionary[0x1000].default = self.device_type
         dictionary[0x1008].default = "servoid simulated CiA 402 drive"
         dictionary[0x1009].default = "sim"
@@ -191,7 +212,12 @@ class SimCia402Drive(SimDrive):
         dictionary[0x1018][2].default = 0x0402
         dictionary[0x1018][4].default = self.node
         dictionary[0x6076].default = self.rated_torque_mnm
-        dictionary[0x608F][1].default = self.counts_per_rev
+        dictionary[0x608F][1].default, dictionary[0x608F][2].default = enc.main
+        dictionary[0x6091][1].default, dictionary[0x6091][2].default = enc.gear
+        if enc.additional is not None:
+            dictionary[0x60E6][1].default, dictionary[0x60EB][1].default = enc.additional
+        if self.axis.twin is not None:
+            dictionary[0x6502].default = profile.SUPPORTED_MODE_BITS[profile.MODES["position"]]
         network = _network_class(canopen)(self.bus.open())
         network.NOTIFIER_CYCLE = 0.05  # so that stop() does not wait a second for the reader thread
         network.drive = self
@@ -244,7 +270,21 @@ class SimCia402Drive(SimDrive):
 
     @property
     def position_counts(self) -> int:
-        return round(self.axis.position / (2 * math.pi) * self.counts_per_rev)
+        """Position actual value (0x6064): increments of the encoder the position loop closes on."""
+        reading = self.axis.reading
+        if reading is None:
+            return round(self.axis.position / (2 * math.pi) * self.encoders.main[0])
+        loop = self.axis.servo.twin.loop_encoder  # type: ignore[union-attr]
+        return _counts(reading.motor_counts if loop == "motor" else reading.load_counts)
+
+    @property
+    def additional_counts(self) -> int:
+        """Additional position actual value 1 (0x60E4 sub 1): the other encoder's increments (0 without one)."""
+        reading = self.axis.reading
+        if reading is None or self.encoders.additional is None:
+            return 0
+        loop = self.axis.servo.twin.loop_encoder  # type: ignore[union-attr]
+        return _counts(reading.load_counts if loop == "motor" else reading.motor_counts)
 
     def status(self) -> str:
         """One line for a terminal."""
@@ -266,6 +306,8 @@ class SimCia402Drive(SimDrive):
 
     # ---- bus callbacks (the canopen notifier thread) ------------------------------------------
     def _on_read(self, *, index: int, subindex: int, od: Any) -> Any:  # noqa: ARG002 - canopen's signature
+        if index == 0x60E4:
+            return self.additional_counts if subindex == 1 else None
         live = {
             0x1001: 0x01 if self.state == "FAULT" else 0,
             0x603F: self.error_code,
@@ -320,6 +362,11 @@ class SimCia402Drive(SimDrive):
                 counter = data[0] if data and self.counter_overflow else None
                 torque = self.mode == profile.MODES["torque"]
                 self.axis.step(self._target(), torque=torque, at=timestamp or time.time(), slot=counter)
+                twin = self.axis.twin
+                if twin is not None and twin.twin.read().fault is not None:
+                    # the twin turned its output off by itself (an overspeed): FAULT, with an EMCY
+                    self.state, self.error_code = "FAULT", _EMCY_SPEED
+                    self._node.emcy.send(_EMCY_SPEED, 0x01)
                 if self._reply_lost():
                     return
             for pdo in self._tx_maps:
@@ -335,7 +382,7 @@ class SimCia402Drive(SimDrive):
             var = self._rx.get(0x6071)
             return 0.0 if var is None else var.raw / 1000.0 * self.rated_torque_mnm / 1000.0
         var = self._rx.get(0x607A)
-        return self.axis.position if var is None else var.raw * 2 * math.pi / self.counts_per_rev
+        return self.axis.position if var is None else var.raw * self.encoders.rad_per_increment
 
     def _apply_controlword(self, controlword: int) -> None:
         rising_reset = controlword & profile.CW_FAULT_RESET and not self._controlword & profile.CW_FAULT_RESET
@@ -385,6 +432,42 @@ class SimCia402Drive(SimDrive):
             if pdo.enabled:
                 # a LocalNode's TPDO subscribes to its own COB-ID; nothing is to be received there
                 self._subscribed.append((pdo.cob_id, pdo.on_message))
+
+
+def _counts(value: int | None) -> int:
+    return 0 if value is None else int(value)
+
+
+class _Encoders:
+    """The drive's encoders as CiA 402 states them (see the module docstring).
+
+    ``main`` and ``additional`` are (increments, motor revolutions) pairs
+    (0x608F; 0x60E6 / 0x60EB sub 1), ``gear`` is (motor shaft, driving shaft)
+    revolutions (0x6091), ``rad_per_increment`` the output angle of one
+    increment of the main encoder (target and actual position).
+    """
+
+    def __init__(self, main: tuple[int, int], gear: tuple[int, int], additional: tuple[int, int] | None) -> None:
+        self.main, self.gear, self.additional = main, gear, additional
+        self.rad_per_increment = 2.0 * math.pi * main[1] * gear[1] / (main[0] * gear[0])
+
+    @classmethod
+    def of(cls, servo: Servo, counts_per_rev: int | None) -> _Encoders:
+        twin = servo.twin
+        if twin is None:
+            cpr = SIM_COUNTS_PER_REV if counts_per_rev is None else counts_per_rev
+            return cls((validation.integer("counts_per_rev", cpr, minimum=1), 1), (1, 1), None)
+        if counts_per_rev is not None:
+            raise ConfigError(
+                f"counts_per_rev (={counts_per_rev!r}) sets the encoder of the pseudo-Wiener plant (servo model); "
+                f"the twin {servo.name!r} has its own: motor_encoder_cpr, load_encoder_cpr"
+            )
+        p, q = profile.gear_fraction(twin.gear_ratio)
+        motor = (twin.motor_encoder_cpr, 1) if twin.motor_encoder_cpr else None
+        load = (twin.load_encoder_cpr * q, p) if twin.load_encoder_cpr else None
+        main, other = (motor, load) if twin.loop_encoder == "motor" else (load, motor)
+        assert main is not None  # TwinParams checks the loop has its encoder
+        return cls(main, (p, q), other)
 
 
 _NETWORK_CLASS: Any = None

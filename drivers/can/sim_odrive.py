@@ -1,4 +1,4 @@
-"""A simulated ODrive axis speaking CAN Simple, with the bench plant behind it.
+"""A simulated ODrive axis speaking CAN Simple, with a twin (or the bench plant) behind it.
 
 It answers what :class:`~servoid.drivers.can.odrive.OdriveDriver` and a user's
 own CAN Simple code send: Set_Axis_State (IDLE / CLOSED_LOOP_CONTROL),
@@ -27,6 +27,18 @@ business, as on a real ODrive, whose loop runs on its own clock:
   follows the host's slots exactly, as the CiA 402 drive does from its SYNC
   counter.
 
+The servo (:mod:`servoid.drivers.servos`, default the ``odrive`` twin) is
+reported as an ODrive reports it: positions in turns (Set_Input_Pos,
+Get_Encoder_Estimates) of the shaft whose encoder the loop uses -- the
+motor's, unless the twin closes its loop on the load encoder
+(``loop_encoder=load``, an ODrive 0.6 with ``load_encoder`` set to it) --
+and the estimates are the drive's own encoder PLL's, position and
+velocity. A twin that turns its output off by itself (overspeed, past
+``vel_limit_tolerance`` times ``vel_limit``) disarms the axis with
+VELOCITY_LIMIT_VIOLATION in the heartbeat, as the firmware does. With the
+pseudo-Wiener plant (``servo="model"``) positions are turns of the plant's
+output, as before the twins.
+
 Faults for tests: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms
 to IDLE and says why in the heartbeat, as the firmware does), applied at
 the next Set_Input_* so that tests are deterministic, as is
@@ -49,9 +61,8 @@ from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
 from servoid.drivers.can.driver import DEFAULT_NODES
-from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.drivers.servos import Servo, parse_servo
 from servoid.errors import ConfigError
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["SimOdriveAxis", "SIM_VERSION"]
 
@@ -59,6 +70,9 @@ __all__ = ["SimOdriveAxis", "SIM_VERSION"]
 SIM_VERSION = (2, 0, 0, 0, 0, 6, 10, 0)
 
 _TWO_PI = 2 * math.pi
+
+#: Axis error of a twin that turned its output off on overspeed (ODrive 0.6's name for it).
+_OVERSPEED = next(bit for bit, name in proto.AXIS_ERRORS.items() if name == "VELOCITY_LIMIT_VIOLATION")
 
 
 class SimOdriveAxis(SimDrive):
@@ -68,8 +82,12 @@ class SimOdriveAxis(SimDrive):
     ----------
     node : int
         CAN Simple node id, 0..63.
-    bus, model, torque_gain
+    bus, torque_gain
         As for :class:`~servoid.drivers.can._sim_base.SimDrive`.
+    servo : Servo or str
+        The servo behind the axis (default the ``odrive`` twin; text as
+        :func:`~servoid.drivers.servos.parse_servo` reads it: ``"model"``,
+        ``"odrive?loop_encoder=load"``).
     heartbeat_ms : float
         Period of the cyclic heartbeat, ms (ODrive's default 100).
     period_s : float, optional
@@ -92,7 +110,7 @@ class SimOdriveAxis(SimDrive):
         *,
         node: int = DEFAULT_NODES["odrive"],
         bus: BusAddress | None = None,
-        model: BacklashModel = MODEL_PLANT,
+        servo: Servo | str = "odrive",
         torque_gain: float = TORQUE_GAIN,
         heartbeat_ms: float = 100.0,
         period_s: float | None = None,
@@ -103,10 +121,14 @@ class SimOdriveAxis(SimDrive):
         node = validation.integer("node", node, minimum=0)
         if node > 63:
             raise ConfigError(f"node (={node}) must be 0..63 for ODrive CAN Simple")
+        servo = servo if isinstance(servo, Servo) else parse_servo(servo)
         super().__init__(
-            node=node, bus=bus, model=model, torque_gain=torque_gain, period_s=period_s, mute_after=mute_after,
+            node=node, bus=bus, servo=servo, torque_gain=torque_gain, period_s=period_s, mute_after=mute_after,
             drop=drop, seed=seed,
         )  # fmt: skip
+        twin = servo.twin
+        #: Turns of the shaft the axis counts per turn of the output (its loop encoder's shaft).
+        self.turns_per_output_turn = 1.0 if twin is None or twin.loop_encoder == "load" else twin.gear_ratio
         self.heartbeat_s = validation.positive("heartbeat_ms", heartbeat_ms) / 1000.0
         self.slot_source: Callable[[], int | None] | None = None
         self._axis_state = proto.IDLE
@@ -164,6 +186,19 @@ class SimOdriveAxis(SimDrive):
         beat = proto.Heartbeat(self.axis_error, self.axis_state).describe()
         return f"node {self.node}: {beat}, {self.inputs} inputs, position {self.axis.position:+.4f} rad"
 
+    def estimates(self) -> tuple[float, float]:
+        """Get_Encoder_Estimates: position (turns) and velocity (turns/s) of the loop encoder's shaft.
+
+        A twin's are its encoder PLL's, as of the latest sample; the
+        pseudo-Wiener plant's, its output and the change of it over the
+        time between its last two samples.
+        """
+        reading = self.axis.reading
+        if reading is None:
+            return self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI
+        scale = self.turns_per_output_turn / _TWO_PI
+        return reading.position_estimate_rad * scale, reading.velocity_rad_s * scale
+
     # ---- fault injection -------------------------------------------------------------------
     def inject_axis_error(self, code: int = 0x1000) -> None:
         """At the next Set_Input_*: set axis error ``code`` (default CURRENT_LIMIT_VIOLATION) and disarm."""
@@ -197,7 +232,8 @@ class SimOdriveAxis(SimDrive):
             return
         data = bytes(msg.data)
         if command == proto.SET_INPUT_POS and len(data) >= proto.INPUT_POS_FORMAT.size:
-            self._on_input(proto.INPUT_POS_FORMAT.unpack_from(data)[0] * _TWO_PI, torque=False, at=at)
+            turns = proto.INPUT_POS_FORMAT.unpack_from(data)[0]
+            self._on_input(turns * _TWO_PI / self.turns_per_output_turn, torque=False, at=at)
         elif command == proto.SET_INPUT_TORQUE and len(data) >= proto.INPUT_TORQUE_FORMAT.size:
             self._on_input(proto.INPUT_TORQUE_FORMAT.unpack_from(data)[0], torque=True, at=at)
         elif command == proto.SET_AXIS_STATE and len(data) >= proto.AXIS_STATE_FORMAT.size:
@@ -224,6 +260,9 @@ class SimOdriveAxis(SimDrive):
         if self.axis_state == proto.CLOSED_LOOP_CONTROL and matches:
             slot = self.slot_source() if self.slot_source is not None else None
             self.axis.step(value, torque=torque, at=at, slot=slot)
+            twin = self.axis.twin
+            if twin is not None and twin.twin.read().fault == "overspeed":
+                self._disarm(_OVERSPEED)
 
     def _on_state_request(self, requested: int) -> None:
         if requested == proto.CLOSED_LOOP_CONTROL and not self.axis_error:
@@ -241,7 +280,7 @@ class SimOdriveAxis(SimDrive):
         if command == proto.GET_ENCODER_ESTIMATES:
             if self.power_on and self._reply_lost():
                 return
-            self._send(command, proto.ESTIMATES_FORMAT.pack(self.axis.position / _TWO_PI, self.axis.velocity / _TWO_PI))
+            self._send(command, proto.ESTIMATES_FORMAT.pack(*self.estimates()))
         elif command == proto.HEARTBEAT:
             self._send_heartbeat()
         elif command == proto.GET_ERROR:

@@ -1,4 +1,4 @@
-"""One emulated X-series servo: its control table, its rules, and the backlash plant behind it.
+"""One emulated X-series servo: its control table, its rules, and the servo behind it (a twin, or the bench plant).
 
 :class:`EmulatedServo` knows nothing about bytes on a wire; the emulator
 (:mod:`servoid.drivers.dynamixel.emulator`) decodes packets and calls
@@ -11,8 +11,18 @@ What the emulated servo does
   its initial values; read-only entries, partial writes of an entry, values out
   of range and the EEPROM lock while the torque is on are refused with the
   e-manual's error numbers (Access, Data Length, Data Range, Data Limit).
-* **The plant, sampled**: the plant (:data:`servoid.drivers.model_plant.MODEL_PLANT`
-  unless another is given) is a :class:`~servoid.drivers.sampled.SampledPlant`;
+* **The servo** (:mod:`servoid.drivers.servos`): the ``xm430`` twin unless
+  another is given -- a Dynamixel XM430-W350 with its motor, gear, play,
+  horn encoder and its own position PID at its own rate -- or the
+  pseudo-Wiener bench plant (``servo="model"``). Present Position is the
+  twin's horn encoder (``counts + 2048``), Present Velocity its filtered
+  velocity estimate (0.229 rpm a unit), Present Current the winding current
+  (2.69 mA a unit), Present PWM its duty (885 = 100 %), each as of the latest
+  sample. Torque Enable switches the twin's drive stage: with the torque
+  off it coasts. A twin runs in the position modes (3, 4, 5) only; the
+  current and PWM modes of its own current loop and output stage are not
+  modelled, and Operating Mode refuses them (Data Range Error).
+* **The plant, sampled**: the servo is a :class:`~servoid.drivers.sampled.SampledPlant`;
   each write of the goal of the active operating mode with the torque on is
   one sample of it. Protocol 2.0 carries no sample number, and a real servo's
   loop runs on its own clock; how many samples lie between two goals is
@@ -34,7 +44,7 @@ What the emulated servo does
     room for it; the servo then follows the host's slots exactly.
 
   Present Position, Velocity, Current and PWM change only when the plant does.
-* Operating modes (the plant's input is in rad):
+* Operating modes with the pseudo-Wiener plant (its input is in rad):
 
   - position (3, and 4, 5): the goal position, ``(goal - 2048) * 2 pi / 4096`` rad;
   - current (0): the goal current times :data:`CURRENT_GAIN` rad/A, as if the
@@ -65,10 +75,10 @@ from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import PlantSample, SampledPlant
+from servoid.drivers.servos import DEFAULT_RATE_HZ, Servo, parse_servo
+from servoid.drivers.twin import Twin, TwinPlant
 from servoid.errors import ConfigError
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
 
@@ -103,8 +113,10 @@ class EmulatedServo:
     ----------
     servo_id : int
         Initial ID (0..252).
-    plant : BacklashModel
-        The mechanics behind the servo, in rad.
+    servo : Servo or str
+        The mechanics behind the servo (default the ``xm430`` twin; text as
+        :func:`~servoid.drivers.servos.parse_servo` reads it: ``"model"``,
+        ``"xm430?play_deg=0.8"``).
     model_number, firmware : int
         What Model Number (0) and Firmware Version (6) report.
     return_delay_us : int
@@ -116,7 +128,8 @@ class EmulatedServo:
         :class:`~servoid.drivers.clock.VirtualClock` for deterministic tests.
     period_s : float, optional
         The servo's own sample period (see the module docstring); None: one
-        sample per goal.
+        sample per goal (a twin then runs one period at
+        :data:`~servoid.drivers.servos.DEFAULT_RATE_HZ` per goal).
 
     Attributes
     ----------
@@ -128,7 +141,7 @@ class EmulatedServo:
         self,
         servo_id: int = 1,
         *,
-        plant: BacklashModel = MODEL_PLANT,
+        servo: Servo | str = "xm430",
         model_number: int = ct.MODEL_NUMBER.initial,
         firmware: int = ct.FIRMWARE_VERSION.initial,
         return_delay_us: int = 500,
@@ -143,7 +156,13 @@ class EmulatedServo:
             raise ConfigError(f"return_delay_us (={delay}) must be even and in 0..508 (unit 2 us)")
         self._clock: Clock = clock if clock is not None else MonotonicClock()
         period_ns = None if period_s is None else int(round(validation.positive("period_s", period_s) * NS_PER_S))
-        self._sampled = SampledPlant(plant, period_ns=period_ns)
+        self.servo = servo if isinstance(servo, Servo) else parse_servo(servo)
+        if self.servo.twin is None:
+            assert self.servo.model is not None
+            self._sampled = SampledPlant(self.servo.model, period_ns=period_ns)
+        else:
+            twin = TwinPlant(Twin(self.servo.twin), 1.0 / DEFAULT_RATE_HZ, torque=False)
+            self._sampled = SampledPlant(twin, period_ns=period_ns)
         self.slot_source: Callable[[], int | None] | None = None
         self._memory = bytearray(ct.TABLE_SIZE)
         self._registered: tuple[int, bytes] | None = None
@@ -251,6 +270,8 @@ class EmulatedServo:
             return ErrorNumber.DATA_RANGE
         if field is ct.TORQUE_ENABLE and value == 1 and self.alert:
             return ErrorNumber.RESULT_FAIL  # a servo with a hardware error refuses the torque until rebooted
+        if field is ct.OPERATING_MODE and self.servo.twin is not None and value not in _POSITION_MODES:
+            return ErrorNumber.DATA_RANGE  # the twin's current loop and PWM output mode are not modelled
         mode = self.value(ct.OPERATING_MODE)
         if field is ct.GOAL_POSITION and mode == OperatingMode.POSITION:
             if not self.value(ct.MIN_POSITION_LIMIT) <= value <= self.value(ct.MAX_POSITION_LIMIT):
@@ -287,6 +308,7 @@ class EmulatedServo:
         self._registered = None
         self._follow_torque()
         self._show_plant_output(self._sampled.plant.y, velocity=0.0)
+        self._show_twin()
         self._put(ct.GOAL_POSITION, self.value(ct.PRESENT_POSITION))
         self._boot = self._clock.now_ns()
         self.reboots += 1
@@ -348,6 +370,20 @@ class EmulatedServo:
 
     def _show(self, sample: PlantSample, u: float) -> None:
         self._show_plant_output(sample.position, velocity=self._sampled.velocity, u=u)
+        self._show_twin()
+
+    def _show_twin(self) -> None:
+        """A twin's registers in the control table's units (velocity, current and PWM are its own, not deflections)."""
+        twin = self._sampled.twin
+        if twin is None:
+            return
+        r = twin.reading
+        self._put(
+            ct.PRESENT_VELOCITY, _clip(ct.PRESENT_VELOCITY, round(r.velocity_rad_s / ct.RAD_PER_S_PER_VELOCITY_UNIT))
+        )
+        self._put(ct.MOVING, int(abs(self.value(ct.PRESENT_VELOCITY)) > self.value(ct.MOVING_THRESHOLD)))
+        self._put(ct.PRESENT_CURRENT, _clip(ct.PRESENT_CURRENT, round(r.current_a / ct.AMPERE_PER_UNIT)))
+        self._put(ct.PRESENT_PWM, _clip(ct.PRESENT_PWM, round(r.duty * 100.0 / ct.PERCENT_PER_PWM_UNIT)))
 
     def _show_plant_output(self, y: float, *, velocity: float, u: float | None = None) -> None:
         self._put(ct.PRESENT_POSITION, _clip(ct.PRESENT_POSITION, round(y / ct.RAD_PER_COUNT) + ct.POSITION_CENTRE))

@@ -68,10 +68,10 @@ from servoid.drivers.dynamixel.protocol import (
     status_packet,
     unstuff,
 )
-from servoid.drivers.model_plant import MODEL_PLANT
+from servoid.drivers.servos import Servo, parse_servo
+from servoid.drivers.twin import Twin
 from servoid.errors import ConfigError, DriverError
 from servoid.ident.models.plant import Plant
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "dxl_url"]
 
@@ -326,8 +326,9 @@ class DynamixelEmulator:
     ----------
     ids : iterable of int
         IDs of the servos on the bus.
-    plant : BacklashModel
-        The mechanics behind each servo (rad); default the bench plant.
+    servo : Servo or str
+        The mechanics behind each servo (:mod:`servoid.drivers.servos`);
+        default the ``xm430`` twin, ``"model"`` the bench plant.
     model_number, firmware : int
         What the servos report (default XM430-W350, firmware 48).
     return_delay_us : int
@@ -358,7 +359,7 @@ class DynamixelEmulator:
         self,
         ids: Iterable[int] = (1,),
         *,
-        plant: BacklashModel = MODEL_PLANT,
+        servo: Servo | str = "xm430",
         model_number: int = 1020,
         firmware: int = 48,
         return_delay_us: int = 500,
@@ -372,8 +373,9 @@ class DynamixelEmulator:
         if not id_list or len(set(id_list)) != len(id_list):
             raise ConfigError(f"ids (={id_list}) must be one or more distinct servo IDs")
         self.clock: Clock = clock if clock is not None else MonotonicClock()
+        spec = servo if isinstance(servo, Servo) else parse_servo(servo)
         servos = [
-            EmulatedServo(i, plant=plant, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us,
+            EmulatedServo(i, servo=spec, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us,
                           clock=self.clock, period_s=period_s)
             for i in id_list
         ]  # fmt: skip
@@ -381,7 +383,11 @@ class DynamixelEmulator:
         self._rng = np.random.default_rng(seed)
         self._trace: IO[str] | None = open(trace, "w", encoding="ascii") if trace is not None else None  # noqa: SIM115
         self.bus = DynamixelBus(servos)
-        Plant(plant).step(0.0)  # compile (or load) the plant's kernel now, not while a reply is awaited
+        # compile (or load) the kernels now, not while a reply is awaited
+        if spec.model is not None:
+            Plant(spec.model).step(0.0)
+        else:
+            Twin(spec.twin).advance(1e-3)  # type: ignore[arg-type]
         self._faults = {id(s): LinkFaults() for s in servos}
         self.stats = EmulatorStats()
         self._reader = PacketReader()
@@ -569,7 +575,7 @@ class EmulatorProcess:
     ids : iterable of int
         Servo IDs on the bus.
     **options
-        Passed to :class:`DynamixelEmulator` (all but ``clock``: ``plant``,
+        Passed to :class:`DynamixelEmulator` (all but ``clock``: ``servo``,
         ``model_number``, ``firmware``, ``return_delay_us``, ``period_s``,
         ``flip``, ``seed``, ``trace``).
 

@@ -258,6 +258,11 @@ class TwinParams:
         return self.motor_encoder_cpr * self.gear_ratio
 
     @property
+    def output_encoder_noise_counts(self) -> float:
+        """Noise of the output encoder, counts (standard deviation)."""
+        return self.load_encoder_noise_counts if self.output_encoder == "load" else self.motor_encoder_noise_counts
+
+    @property
     def structure(self) -> str:
         """The loop structure in words."""
         where = f"closed on the {self.loop_encoder} encoder"

@@ -12,24 +12,40 @@ from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.can._bus import UDP_GROUP, UDP_PORT, BusAddress
 from servoid.drivers.can.driver import DEFAULT_NODES, PROTOCOLS
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
+from servoid.drivers.servos import parse_servo, servo_names
 from servoid.errors import ConfigError
 
 HELP = "a simulated CAN servo drive (CANopen CiA 402 or ODrive CAN Simple)"
 
 DESCRIPTION = f"""\
-Start a simulated CAN servo drive with the bench backlash plant behind it, and
-print the can:// URL that reaches it. By default it listens on python-can's
+Start a simulated CAN servo drive with a servo behind it, and print the
+can:// URL that reaches it. By default it listens on python-can's
 udp_multicast interface (group {UDP_GROUP}, port {UDP_PORT}), so that a driver
 in another process -- another terminal, servoid identify, a benchmark -- can
 talk to it as to a drive on a real bus.
 
   cia402   a CANopen CiA 402 drive: SDO server, NMT, PDOs mapped by the
-           master, the 402 state machine, cyclic synchronous position (8) and
-           torque (10) modes, EMCY on faults; {SIM_COUNTS_PER_REV} increments per
-           revolution (0x608F), rated torque {SIM_RATED_TORQUE_MNM} mNm (0x6076)
+           master, the 402 state machine, cyclic synchronous position (8)
+           mode, EMCY on faults; rated torque {SIM_RATED_TORQUE_MNM} mNm (0x6076)
   odrive   an ODrive axis speaking CAN Simple: heartbeat, Set_Axis_State,
            Set_Controller_Mode, Set_Input_Pos / Set_Input_Torque,
            Get_Encoder_Estimates, Get_Error, Get_Version, Clear_Errors
+
+The servo (--servo, default the twin of the protocol: cia402 = a maxon
+EPOS4-class drive with a motor encoder, a planetary gear and a load encoder;
+odrive = an ODrive v3.6 with a reducer, motor and load encoder) is any of
+{", ".join(servo_names())}, with twin parameters overridden
+URL-style: --servo 'cia402?play_arcmin=3&load_inertia_kgm2=0.05'.
+  cia402 twin   0x6064 / 0x607A in motor-encoder increments (the loop's),
+                0x608F their resolution, 0x6091 the gear ratio, the load
+                encoder in 0x60E4 sub 1 (0x60E6 / 0x60EB its resolution);
+                the driver reads the load encoder (encoder=auto)
+  odrive twin   turns of the motor (the loop's encoder), the estimates its
+                encoder PLL's; an overspeed disarms the axis with
+                VELOCITY_LIMIT_VIOLATION, as the firmware does
+  model         the pseudo-Wiener bench plant, one encoder of
+                --counts-per-rev increments (default {SIM_COUNTS_PER_REV}); torque
+                mode too (the plant driven by torque x 1 rad/Nm)
 
 The plant advances one sample per cycle. The CiA 402 drive runs a cycle per
 SYNC, and the SYNC counter the driver sends tells it how many cycles passed
@@ -37,9 +53,9 @@ SYNC, and the SYNC counter the driver sends tells it how many cycles passed
 host's slots exactly, whatever the bus's timing. The ODrive axis, whose
 protocol has no cycle number, runs on its own clock at --rate, as a real
 axis does: sample it at the same rate (servoid identify --rate), or the plant
-seen is another one (--rate 0: one sample per Set_Input_*). Position mode:
-target in rad. Torque mode: the same plant driven by torque x 1 rad/Nm (a
-joint held by a 1 Nm/rad spring).
+seen is another one (--rate 0: one sample per Set_Input_*). A twin's sample
+is one period of servo time: the CiA 402 drive's from the SYNC period the
+driver writes (0x1006), the ODrive's --rate.
 
 The first line on stdout is the URL; status lines go to stderr. The drive
 runs until Ctrl-C (or SIGTERM).
@@ -51,6 +67,8 @@ examples:
   servoid emulate can --protocol odrive --node 3
   servoid emulate can --port 47000                   # a second, separate bus
   servoid emulate can --protocol odrive --rate 500   # an ODrive axis sampled at 500 Hz
+  servoid emulate can --servo 'cia402?play_arcmin=4' # the CiA 402 twin with a worn gear
+  servoid emulate can --servo model                  # the pseudo-Wiener plant (exact transport tests)
 then, in another terminal, with the printed URL:
   servoid identify --driver 'can://udp_multicast/239.74.163.2?protocol=cia402&node=1&port=43113'
 """
@@ -71,8 +89,11 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--channel", default=None, help=f"channel: multicast group for udp_multicast (default {UDP_GROUP}), "
                                                    "can0 / vcan0 for socketcan")  # fmt: skip
     p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
-    p.add_argument("--counts-per-rev", type=int, default=SIM_COUNTS_PER_REV, metavar="N",
-                   help=f"cia402: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
+    p.add_argument("--servo", metavar="NAME[?K=V&...]",
+                   help="the servo behind the drive: a twin preset with overrides, or model "
+                        "(default: the protocol's twin, cia402 or odrive)")  # fmt: skip
+    p.add_argument("--counts-per-rev", type=int, default=None, metavar="N",
+                   help=f"cia402 with --servo model: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
                    help=f"odrive: the axis's own sample rate, Hz (default {DEFAULT_RATE_HZ:g}, that of servoid identify; "
                         "0: one sample per input); cia402 follows the SYNC counter")  # fmt: skip
@@ -91,11 +112,14 @@ def run(args: argparse.Namespace) -> int:
     bus = BusAddress(args.interface, args.channel or "", port=port)
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per input)")
+    servo = parse_servo(args.servo if args.servo is not None else args.protocol)
     if args.protocol == "cia402":
         options: dict[str, object] = {"counts_per_rev": args.counts_per_rev}
     else:
+        if args.counts_per_rev is not None:
+            raise ConfigError("--counts-per-rev applies to --protocol cia402 with --servo model")
         options = {"period_s": 1.0 / args.rate if args.rate else None}
-    drive = simulated_drive(args.protocol, bus=bus, node=args.node, **options)
+    drive = simulated_drive(args.protocol, bus=bus, node=args.node, servo=servo, **options)
     stop = threading.Event()
 
     def _terminate(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - signal handler signature
@@ -107,8 +131,9 @@ def run(args: argparse.Namespace) -> int:
             print(drive.url(), flush=True)
             if not args.quiet:
                 print(
-                    f"simulated {args.protocol} drive on {bus.describe()}; Ctrl-C to stop", file=sys.stderr, flush=True
-                )
+                    f"simulated {args.protocol} drive on {bus.describe()}, servo {servo.describe()}; Ctrl-C to stop",
+                    file=sys.stderr, flush=True,
+                )  # fmt: skip
             last = ""
             while not stop.wait(STATUS_EVERY_S):
                 line = drive.status()

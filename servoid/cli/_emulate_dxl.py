@@ -11,6 +11,7 @@ from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
+from servoid.drivers.servos import parse_servo, servo_names
 from servoid.errors import ConfigError
 
 HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"
@@ -20,16 +21,24 @@ Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
 table) on a pseudo-terminal that the official dynamixel-sdk, and so the dxl://
 driver, talks to as to a U2D2 adapter. Several IDs share one bus.
 
-Behind every servo is the bench backlash plant (servoid.drivers.model_plant), in rad,
-sampled at --rate: like a real servo, whose loop runs on its own clock, it
-takes each goal written with the torque on as the next sample, and when the
-host is silent for n periods it runs n samples on the held goal. Sample at
-the same rate (servoid identify --rate), or the plant seen is another one;
---rate 0 makes every goal one sample, whatever the time between them.
+Behind every servo is --servo (default xm430: the twin of a Dynamixel
+XM430-W350, its motor, gear play, horn encoder and position PID at its own
+rate; any of {", ".join(servo_names())}, twin parameters
+overridden URL-style: --servo 'xm430?play_deg=0.8'), sampled at --rate: like
+a real servo, whose loop runs on its own clock, it takes each goal written
+with the torque on as the next sample (one period of servo time), and when
+the host is silent for n periods it runs n samples on the held goal. Sample
+at the same rate (servoid identify --rate), or the plant seen is another
+one; --rate 0 makes every goal one sample, whatever the time between them.
+A twin reports in the control table's units: Present Position its horn
+encoder (count + 2048, 4096 a turn), Present Velocity its velocity estimate
+(0.229 rpm), Present Current its winding current (2.69 mA), Present PWM its
+duty (885 = 100 %); Torque Enable switches its drive stage (off: it coasts).
+A twin runs the position modes (3, 4, 5) only. With --servo model (the
+pseudo-Wiener bench plant, in rad):
   position mode   input = goal position, (count - 2048) x 2 pi / 4096 rad
   current mode    input = goal current x {CURRENT_GAIN:g} rad/A
   pwm mode        input = goal PWM x {PWM_GAIN:g} rad/%
-Present Position reports the plant's output in encoder counts (4096 a turn).
 
 Emulated: PING, READ, WRITE, REG_WRITE/ACTION, SYNC_READ, SYNC_WRITE,
 BULK_READ, BULK_WRITE, REBOOT, FACTORY_RESET; status packets with the error
@@ -46,6 +55,8 @@ examples:
   servoid emulate dxl                        # one servo, ID 1, sampled at {DEFAULT_RATE_HZ:g} Hz
   servoid emulate dxl --ids 1,2,3 --link /tmp/ttyDXL
   servoid emulate dxl --rate 500
+  servoid emulate dxl --servo 'xm430?play_deg=0.8'   # a worn gear
+  servoid emulate dxl --servo sts3215                # another servo behind the same protocol
   servoid identify --driver 'dxl:///dev/pts/5?id=1&baud=1000000' --rate 500    # in another terminal
 """
 
@@ -75,6 +86,8 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
                         help=f"the servos' own sample rate, Hz: sample them at this rate (default {DEFAULT_RATE_HZ:g}, "
                              "that of servoid identify; 0: one sample per goal)")  # fmt: skip
+    parser.add_argument("--servo", metavar="NAME[?K=V&...]",
+                        help="the servo behind each ID: a twin preset with overrides, or model (default xm430)")  # fmt: skip
     parser.add_argument("--link", type=Path, metavar="PATH",
                         help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts)")  # fmt: skip
 
@@ -83,8 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per goal)")
     period_s = 1.0 / args.rate if args.rate else None
-    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number,
-                                 period_s=period_s)  # fmt: skip
+    servo = parse_servo(args.servo if args.servo is not None else "xm430")
+    emulator = DynamixelEmulator(args.ids, servo=servo, return_delay_us=args.return_delay_us,
+                                 model_number=args.model_number, period_s=period_s)  # fmt: skip
     link: Path | None = args.link
     try:
         if link is not None:
@@ -97,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
         model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
         sampled = f"sampled at {args.rate:g} Hz" if args.rate else "one sample per goal"
         print(f"Dynamixel emulator on {emulator.port} (Protocol 2.0, {model}, any baud rate, {sampled})", flush=True)
+        print(f"  behind each ID: {servo.describe()}", flush=True)
         for servo_id in args.ids:
             print(f"  servo {servo_id}: {dxl_url(port, servo_id)}", flush=True)
         rate = f" --rate {args.rate:g}" if args.rate else ""

@@ -23,6 +23,7 @@ import numpy as np
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.servos import DEFAULT_RATE_HZ
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
@@ -33,10 +34,7 @@ from servoid.recording import Recording
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
 from servoid.session.listeners import EstimatorFeed
 
-__all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
-
-#: Default sample rate of a live run, Hz.
-DEFAULT_RATE_HZ = 200.0
+__all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation", "DEFAULT_RATE_HZ"]
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:

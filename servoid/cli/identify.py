@@ -21,7 +21,7 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
+from servoid.identify_outputs import Record, result_json, summary_rows, twin_truth, write_outputs
 from servoid.recording import read_recording
 
 ORDER = 10
@@ -198,6 +198,10 @@ def run(args: argparse.Namespace) -> int:
         )
     out.print(f"dead zone c1 + c2 = {result.model.dead_zone:.6g} {record.output_unit}, "
               f"down-line slope m2 = {result.model.m2:.6g}")  # fmt: skip
+    twin = twin_truth(record)
+    if twin is not None:
+        out.print(f"the twin {twin['name']}: true play {twin['play_rad']:.6g} rad at the output; its loop closes on "
+                  f"the {twin['loop_encoder']} encoder, the output is read on the {twin['output_encoder']} encoder")  # fmt: skip
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
     return 0

@@ -17,6 +17,7 @@ from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
 from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
+from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
 from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, WearEstimatorConfig
 from servoid.modelfile import ModelFile, load_model
@@ -69,10 +70,10 @@ model's value, or 'none'. Defaults: the dead zone and m2 within +/- 10 %.
 
 EPILOG = """\
 examples:
-  servoid identify --driver "sim://?plant=gear&snr=40&clock=virtual" --rate 1000 --samples 20000 --out gear
-  servoid monitor --driver "sim://?plant=gear&snr=40&clock=virtual&drift=1.5&drift_samples=200000" \\
+  servoid identify --driver "sim://gear?snr=40&clock=virtual" --rate 1000 --samples 20000 --out gear
+  servoid monitor --driver "sim://gear?snr=40&clock=virtual&drift=1.5&drift_samples=200000" \\
       --model gear/model.json --duration 300 --plot monitor.png
-  servoid monitor --driver "sim://?plant=gear&snr=40&clock=virtual&swap_at=30000&swap_factor=1.2" \\
+  servoid monitor --driver "sim://gear?snr=40&clock=virtual&swap_at=30000&swap_factor=1.2" \\
       --model gear/model.json --duration 60 --fail-on-alarm       (exit status 3)
   servoid monitor --driver serial:///dev/ttyUSB0 --model model.json --dead-zone 0.045,0.06 --m2 none \\
       --operating "levels:amplitude=0.5,count=4,dwell=2000" --excitation "uniform:amplitude=0.1"
@@ -86,7 +87,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     )  # fmt: skip
     servo = p.add_argument_group("servo")
     servo.add_argument("--driver", metavar="URL", required=True,
-                       help="the servo: sim://?plant=gear&snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
+                       help="the servo: sim://gear?snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
                             "(docs/drivers.md; sim:// wears with drift=, drift_samples=, swap_at=, swap_factor=)")  # fmt: skip
     servo.add_argument(
         "--model",
@@ -244,6 +245,13 @@ def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
     return 1.0 / float(rate)
 
 
+def _truth_at(driver: Driver) -> Callable[[int], BacklashModel] | None:
+    """The true model by sample, for a simulated pseudo-Wiener plant (a twin has none: it is not such a model)."""
+    if isinstance(driver, SimulatedServo) and driver.truth is not None:
+        return driver.truth_at  # type: ignore[return-value]  # not None for a model plant
+    return None
+
+
 def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:
     operating = None if args.operating is None else parse_spec(args.operating)
     if args.excitation is not None:
@@ -320,7 +328,7 @@ def run(args: argparse.Namespace) -> int:
         with _term.live_progress("monitor", total) as bar:
             result = run_monitor(
                 driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard), config,
-                model_file=model_file, out=args.out, total=total, truth_at=driver.truth_at if isinstance(driver, SimulatedServo) else None,
+                model_file=model_file, out=args.out, total=total, truth_at=_truth_at(driver),
                 on_event=_print_event, on_progress=_progress(bar, unit), plot=args.plot, metadata=meta,
             )  # fmt: skip
     elapsed = time.perf_counter() - started

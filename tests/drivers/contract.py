@@ -13,6 +13,13 @@ fault tests skip it saying so), yields a driver built from a URL (so the URL
 options are exercised) with ``limits``, and stops the emulator on exit; then
 append ``Transport("my", _my_servo, ...)``.
 
+Every device runs a physical twin (the default of its transport: the
+XM430 behind ``sim://`` and the Dynamixel, the CiA 402 drive's and the
+ODrive's own), and the tests hold its readings against the same twin
+stepped in this process on the recorded commands
+(:meth:`Transport.expected`): each transport says how its protocol carries
+a set point to the twin and a reading back (``command``, ``observe``).
+
 How each device learns the host's slots (so that its plant follows the
 session through missed slots): the simulated servo from the driver, the
 serial firmware from the slot number in its set-point request, the CiA 402
@@ -34,13 +41,17 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from servoid.drivers import Driver, Limits, driver_from_url
 from servoid.drivers.clock import VirtualClock
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sim import SimDriver
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.drivers.twin import Twin, TwinPlant, TwinReading, preset
 
-__all__ = ["Faults", "Transport", "TRANSPORTS"]
+__all__ = ["Faults", "Transport", "TRANSPORTS", "RATE_HZ"]
+
+#: The sample rate of the contract tests' sessions, Hz (the devices on their own clock are told it).
+RATE_HZ = 500.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -86,8 +97,8 @@ class Transport:
         ``servo(faults, limits)`` -> context manager yielding a driver (not yet open).
     faults : frozenset of str
         The :class:`Faults` fields this device can inject.
-    plant : BacklashModel
-        The plant behind the driver, in the driver's user unit.
+    servo : str
+        The twin preset behind the driver (its default twin, default seed).
     resolution : float
         Quantisation of positions and commands in the user unit (0: none).
     virtual_time : bool
@@ -100,17 +111,32 @@ class Transport:
     cannot : dict
         Why the device cannot inject a fault it leaves out of ``faults``
         (the skip reason); default "cannot inject <fault>".
+    command : callable
+        A recorded command (user unit) -> the twin's set point (output rad), as the protocol carries it.
+    observe : callable
+        A twin's reading -> the position the driver reports (user unit), as the protocol carries it.
     """
 
     name: str
-    servo: Callable[[Faults, Limits | None], AbstractContextManager[Driver]]
+    open_servo: Callable[[Faults, Limits | None], AbstractContextManager[Driver]]
     faults: frozenset[str] = field(default_factory=frozenset)
-    plant: BacklashModel = MODEL_PLANT
+    servo: str = "xm430"
     resolution: float = 0.0
     virtual_time: bool = False
     bad_url: str = ""
     sent_readings: Callable[[Path], set[tuple[int, int]]] | None = None
     cannot: dict[str, str] = field(default_factory=dict)
+    command: Callable[[float], float] = float
+    observe: Callable[[TwinReading], float] = lambda r: r.position_rad
+
+    def expected(self, u: np.ndarray, period_s: float = 1.0 / RATE_HZ) -> np.ndarray:
+        """What the driver reads at each slot: the twin stepped one period per slot on the commands ``u``."""
+        plant = TwinPlant(Twin(preset(self.servo)), period_s)
+        out = np.empty(u.size)
+        for k, value in enumerate(u):
+            plant.step(self.command(float(value)))
+            out[k] = self.observe(plant.reading)
+        return out
 
 
 @contextlib.contextmanager
@@ -132,7 +158,7 @@ def _sim(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
         opts.append(f"mute_after={faults.mute_after}")
     if faults.restart_after is not None:
         opts.append(f"restart_after={faults.restart_after}")
-    driver = driver_from_url("sim://?" + "&".join(opts))
+    driver = driver_from_url("sim://xm430?" + "&".join(opts))
     assert isinstance(driver, SimDriver)
     driver.clock = VirtualClock()
     with _handed_out(driver, limits):
@@ -186,7 +212,9 @@ def _slots_out_of_band(driver: Driver) -> Callable[[], int | None]:
 def _dxl(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 
-    with DynamixelEmulator(ids=[1], return_delay_us=0, seed=faults.seed, trace=faults.trace) as emu:
+    with DynamixelEmulator(
+        ids=[1], return_delay_us=0, seed=faults.seed, trace=faults.trace, period_s=1 / RATE_HZ
+    ) as emu:
         link = emu.faults(1)
         link.mute_after, link.drop = faults.mute_after, faults.drop
         # the reply timeout is 2 x latency_ms + 2 ms
@@ -240,8 +268,9 @@ def _odrive(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     from servoid.drivers.can.sim_odrive import SimOdriveAxis
 
     with SimOdriveAxis(
-        node=3, bus=_private_bus(), mute_after=faults.mute_after, drop=faults.drop, seed=faults.seed
-    ) as axis:
+        node=3, bus=_private_bus(), mute_after=faults.mute_after, drop=faults.drop, seed=faults.seed,
+        period_s=1 / RATE_HZ,
+    ) as axis:  # fmt: skip
         driver = driver_from_url(axis.url(timeout=faults.timeout))
         axis.slot_source = _slots_out_of_band(driver)  # CAN Simple has no room for it
         with _handed_out(driver, limits):
@@ -254,13 +283,21 @@ _CAN_CRC = (
     "a flipped bit (and python-can's virtual bus has none to flip)"
 )
 
+
+def _float32_turns(rad: float) -> float:
+    """An angle as CAN Simple carries it: float32 turns."""
+    return float(np.float32(rad / (2 * math.pi)))
+
+
+_ODRIVE_RATIO = preset("odrive").gear_ratio
+
 #: Every driver the contract tests run over.
 TRANSPORTS = [
     Transport(
         "sim",
         _sim,
         frozenset({"mute_after", "restart_after", "drop"}),
-        MODEL_PLANT,
+        "xm430",
         0.0,
         True,
         "sim://?bogus=1",
@@ -270,8 +307,8 @@ TRANSPORTS = [
         "serial",
         _serial,
         frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}),
-        MODEL_PLANT,
-        2 * math.pi / 65536,
+        "xm430",
+        2 * math.pi / 4096,
         False,
         "serial:///dev/ttyUSB0?bogus=1",
         _serial_sent,
@@ -280,7 +317,7 @@ TRANSPORTS = [
         "dxl",
         _dxl,
         frozenset({"mute_after", "drop", "flip", "trace"}),
-        MODEL_PLANT,
+        "xm430",
         2 * math.pi / 4096,
         False,
         "dxl:///dev/ttyUSB0?id=1&bogus=1",
@@ -295,8 +332,8 @@ TRANSPORTS = [
         "cia402",
         _cia402,
         frozenset({"mute_after", "restart_after", "drop"}),
-        MODEL_PLANT,
-        2 * math.pi / 2**17,
+        "cia402",
+        2 * math.pi / 2**20,  # the load encoder, 0x60E4 sub 1 (the driver's encoder=auto)
         False,
         "can://virtual/ch0?protocol=cia402&bogus=1",
         cannot={"flip": _CAN_CRC},
@@ -305,8 +342,8 @@ TRANSPORTS = [
         "odrive",
         _odrive,
         frozenset({"mute_after", "drop"}),
-        MODEL_PLANT,
-        2 * math.pi * 2.0**-23,
+        "odrive",
+        2 * math.pi * 2.0**-20,  # float32 turns of the motor
         False,
         "can://virtual/ch0?protocol=odrive&bogus=1",
         cannot={
@@ -314,5 +351,8 @@ TRANSPORTS = [
             "restart_after": "CAN Simple has no boot counter: a rebooted ODrive is an axis that left closed-loop "
             "control, which the driver reports as a DeviceFault (test_session_faults.py)",
         },
+        # the axis counts turns of its motor (its loop's encoder) and reports its encoder PLL's estimate
+        command=lambda u: _float32_turns(u) * 2 * math.pi / _ODRIVE_RATIO,
+        observe=lambda r: float(np.float32(r.position_estimate_rad * (_ODRIVE_RATIO / (2 * math.pi)))) * 2 * math.pi,
     ),
 ]

@@ -29,7 +29,7 @@ def clock() -> VirtualClock:
 @pytest.fixture
 def emulator(clock: VirtualClock) -> Iterator[DynamixelEmulator]:
     """Servos 1 and 2 on one bus, served from a thread, with the virtual clock."""
-    with DynamixelEmulator(ids=[1, 2], clock=clock, return_delay_us=0) as emu:
+    with DynamixelEmulator(ids=[1, 2], clock=clock, return_delay_us=0, servo="model") as emu:
         yield emu
 
 

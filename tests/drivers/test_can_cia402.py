@@ -35,7 +35,7 @@ COUNT = 2 * math.pi / SIM_COUNTS_PER_REV
 
 @pytest.fixture
 def drive():
-    with SimCia402Drive(node=1, bus=private_bus()) as sim:
+    with SimCia402Drive(node=1, bus=private_bus(), servo="model") as sim:
         yield sim
 
 

@@ -102,7 +102,7 @@ def test_socketcan_vcan(protocol):
     if not os.path.exists("/sys/class/net/vcan0"):
         pytest.skip("no vcan0: sudo ip link add vcan0 type vcan && sudo ip link set up vcan0")
     u = bench_input(200, seed=21)
-    with simulated_drive(protocol, bus=BusAddress("socketcan", "vcan0")) as drive:
+    with simulated_drive(protocol, bus=BusAddress("socketcan", "vcan0"), servo="model") as drive:
         with driver_from_url(drive.url()) as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])
@@ -115,7 +115,7 @@ def test_the_emulator_in_another_process_over_udp_multicast(protocol):
     port = free_udp_port()
     # --rate 0: one sample per input, since the exchanges below come as fast as they can, not at a rate
     cmd = [sys.executable, "-m", "servoid", "emulate", "can", "--protocol", protocol, "--port", str(port), "--quiet",
-           "--rate", "0"]  # fmt: skip
+           "--rate", "0", "--servo", "model"]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         url = proc.stdout.readline().strip()
@@ -148,7 +148,7 @@ def test_a_drive_that_stops_answering_times_out_keeps_the_recording_and_ends_swi
     protocol, message, tmp_path, caplog
 ):
     path = tmp_path / "run.csv"
-    with simulated_drive(protocol, bus=private_bus()) as drive:
+    with simulated_drive(protocol, bus=private_bus(), servo="model") as drive:
         with driver_from_url(drive.url(timeout=0.05)) as servo:
             servo.enable()
             with pytest.raises(DriverTimeout, match=message) as info:
@@ -167,7 +167,7 @@ def test_a_reply_that_comes_after_the_timeout_is_not_taken_for_the_next_one(prot
     late = 22
     assert abs(expected[late + 1] - expected[late]) > 0.01  # a stale reply would show
     y = np.full(u.size, np.nan)
-    with simulated_drive(protocol, bus=private_bus()) as drive:
+    with simulated_drive(protocol, bus=private_bus(), servo="model") as drive:
         with driver_from_url(drive.url(timeout=0.1)) as servo:
             servo.enable()
             for k, value in enumerate(u):

@@ -29,7 +29,7 @@ SAMPLES = 2500
 @pytest.mark.parametrize(("protocol", "mode"), [("cia402", "position"), ("odrive", "position"), ("cia402", "torque")])
 def test_a_simulated_drive_identifies_like_the_plant_itself(protocol, mode):
     u = bench_input(SAMPLES, seed=31)
-    with simulated_drive(protocol, bus=private_bus()) as drive:
+    with simulated_drive(protocol, bus=private_bus(), servo="model") as drive:
         with driver_from_url(drive.url(mode=mode, timeout=PATIENT_S)) as servo:
             servo.enable()
             y = np.array([servo.exchange(v).position for v in u])

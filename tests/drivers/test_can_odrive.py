@@ -35,7 +35,7 @@ FLOAT32_TURN = 2 * math.pi * 2.0**-22  # resolution of a float32 position near o
 
 @pytest.fixture
 def axis():
-    with SimOdriveAxis(node=3, bus=private_bus()) as sim:
+    with SimOdriveAxis(node=3, bus=private_bus(), servo="model") as sim:
         yield sim
 
 
@@ -93,7 +93,7 @@ def test_on_its_own_clock_the_axis_holds_the_input_between_samples():
     """With a period, silence is samples on the held input, counted by the axis's clock (CAN Simple has no count)."""
     period = 0.05  # long, so that the host's timing is far inside half a period
     u = bench_input(4, seed=13)
-    with SimOdriveAxis(node=3, bus=private_bus(), period_s=period) as axis:
+    with SimOdriveAxis(node=3, bus=private_bus(), period_s=period, servo="model") as axis:
         with driver_from_url(axis.url(timeout=PATIENT_S)) as servo:
             servo.enable()
             start = time.perf_counter()

@@ -2,7 +2,9 @@
 
 The serial entries run the real pyserial driver against the compiled firmware
 on a pseudo-terminal, in real time; the simulated servo runs in virtual time.
-Fault tests skip a transport that cannot inject the fault.
+Every device runs a physical twin; every reading is held against the same
+twin stepped here on the recorded commands. Fault tests skip a transport
+that cannot inject the fault.
 """
 
 from __future__ import annotations
@@ -16,13 +18,10 @@ import pytest
 from servoid.drivers import Limits, driver_from_url
 from servoid.drivers.clock import MonotonicClock
 from servoid.errors import ConfigError, DeviceRestarted, DriverError, DriverTimeout
-from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 from servoid.session import SessionConfig, run_session
 
-from .contract import TRANSPORTS, Faults, Transport
-
-RATE_HZ = 500.0
+from .contract import RATE_HZ, TRANSPORTS, Faults, Transport
 
 
 @pytest.fixture(params=TRANSPORTS, ids=lambda t: t.name)
@@ -35,7 +34,7 @@ def needs(transport: Transport, fault: str) -> None:
         pytest.skip(f"{transport.name}: {transport.cannot.get(fault, f'cannot inject {fault}')}")
 
 
-def excitation(n: int, amplitude: float = 0.2, seed: int = 0) -> np.ndarray:
+def excitation(n: int, amplitude: float = 0.1, seed: int = 0) -> np.ndarray:
     return np.random.default_rng(seed).uniform(-amplitude, amplitude, n)
 
 
@@ -53,8 +52,8 @@ def stall_at(driver, slot: int, periods: float):
 
 
 def assert_follows_plant(transport: Transport, result, *, after: int | None = None) -> None:
-    """Every measured position equals the plant driven by the recorded commands (up to the encoder)."""
-    y_plant = simulate(transport.plant, result.u).y
+    """Every measured position equals the twin driven by the recorded commands (up to the encoder)."""
+    y_plant = transport.expected(result.u)
     measured = np.isfinite(result.y)
     if after is not None:
         measured[after:] = False
@@ -64,7 +63,7 @@ def assert_follows_plant(transport: Transport, result, *, after: int | None = No
 
 
 def test_life_cycle_and_torque(transport):
-    with transport.servo(Faults(), None) as servo:
+    with transport.open_servo(Faults(), None) as servo:
         with pytest.raises(DriverError, match="not open"):
             servo.exchange(0.0)
         servo.open()
@@ -80,7 +79,7 @@ def test_life_cycle_and_torque(transport):
 
 
 def test_readings_follow_the_plant_sample_by_sample_through_missed_slots(transport):
-    with transport.servo(Faults(), None) as servo:
+    with transport.open_servo(Faults(), None) as servo:
         servo.open()
         result = run_session(servo, excitation(400), SessionConfig(period_s=1 / RATE_HZ),
                              command_filter=stall_at(servo, 150, 3.3))  # fmt: skip
@@ -99,7 +98,7 @@ def test_readings_follow_the_plant_sample_by_sample_through_missed_slots(transpo
 
 def test_commands_outside_the_limits_are_clamped_before_they_reach_the_servo(transport):
     limits = Limits(minimum=-0.05, maximum=0.05, max_step=0.02)
-    with transport.servo(Faults(), limits) as servo:
+    with transport.open_servo(Faults(), limits) as servo:
         servo.open()
         result = run_session(servo, excitation(200), SessionConfig(period_s=1 / RATE_HZ))
         assert servo.stats.clamped > 50
@@ -117,7 +116,7 @@ def test_unknown_url_options_are_rejected_by_name(transport):
 def test_a_servo_that_stops_answering_times_out_and_keeps_the_recording(transport, tmp_path):
     needs(transport, "mute_after")
     path = tmp_path / "rec.csv"
-    with transport.servo(Faults(mute_after=60, timeout=0.02), None) as servo:
+    with transport.open_servo(Faults(mute_after=60, timeout=0.02), None) as servo:
         servo.open()
         with pytest.raises(DriverTimeout, match="stopped answering") as info:
             run_session(servo, excitation(1000), SessionConfig(period_s=1 / RATE_HZ, give_up_after_s=0.15),
@@ -134,7 +133,7 @@ def test_a_servo_that_stops_answering_times_out_and_keeps_the_recording(transpor
 def test_a_restart_mid_run_is_detected(transport, tmp_path):
     needs(transport, "restart_after")
     path = tmp_path / "rec.csv"
-    with transport.servo(Faults(restart_after=80), None) as servo:
+    with transport.open_servo(Faults(restart_after=80), None) as servo:
         servo.open()
         with pytest.raises(DeviceRestarted, match="restarted") as info:
             run_session(servo, excitation(1000), SessionConfig(period_s=1 / RATE_HZ), recording=path)
@@ -146,7 +145,7 @@ def test_a_restart_mid_run_is_detected(transport, tmp_path):
 
 def test_lost_replies_are_timeouts_and_the_run_goes_on(transport):
     needs(transport, "drop")
-    with transport.servo(Faults(drop=0.03, seed=2, timeout=0.02), None) as servo:
+    with transport.open_servo(Faults(drop=0.03, seed=2, timeout=0.02), None) as servo:
         servo.open()
         result = run_session(servo, excitation(600), SessionConfig(period_s=1 / RATE_HZ))
         assert servo.stats.timeouts == result.counts["timeout"]
@@ -157,7 +156,7 @@ def test_lost_replies_are_timeouts_and_the_run_goes_on(transport):
 def test_corrupted_bytes_are_rejected_and_counted_never_accepted(transport, tmp_path):
     needs(transport, "flip")
     trace = tmp_path / "sent.txt"
-    with transport.servo(Faults(flip=0.004, seed=5, trace=trace, timeout=0.01), None) as servo:
+    with transport.open_servo(Faults(flip=0.004, seed=5, trace=trace, timeout=0.01), None) as servo:
         servo.open()
         to_native = servo.position_unit.to_native
         result = run_session(servo, excitation(1500), SessionConfig(period_s=1 / RATE_HZ, give_up_after_s=2.0))

@@ -34,7 +34,7 @@ def test_emulate_dxl_prints_the_port_and_serves_until_interrupted(tmp_path):
         assert urls == [f"dxl://{link}?id=1&baud=1000000", f"dxl://{link}?id=4&baud=1000000"]
         with driver_from_url(f"{urls[1]}&latency_ms={TEST_LATENCY_MS}") as servo:
             servo.enable()
-            positions = [servo.exchange(0.3).position for _ in range(10)]
+            positions = [servo.exchange(0.3).position for _ in range(30)]  # 0.15 s of the XM430 twin
             assert servo.identity["id"] == 4 and positions[-1] > 0.25
     finally:
         proc.send_signal(signal.SIGINT)

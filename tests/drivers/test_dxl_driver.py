@@ -72,7 +72,7 @@ def test_opening_reads_the_servo_and_leaves_the_torque_off(emulator):  # noqa: F
 
 
 def test_return_delay_and_status_return_level_are_set_up_at_open(clock):  # noqa: F811
-    with DynamixelEmulator(ids=[1], clock=clock) as emu:  # factory Return Delay Time: 500 us
+    with DynamixelEmulator(ids=[1], clock=clock, servo="model") as emu:  # factory Return Delay Time: 500 us
         emu.servo(1).write(ct.STATUS_RETURN_LEVEL.address, b"\x01")
         with driver_from_url(url(emu, return_delay_us="keep")) as d:
             assert d.identity["return_delay_us"] == 500 and emu.servo(1).status_return_level == 2

@@ -135,7 +135,7 @@ def test_the_plant_advances_one_step_per_goal_written(bus, emulator, clock):  # 
 def test_on_its_own_clock_the_servo_holds_the_goal_between_samples(clock):  # noqa: F811
     """With a period, the servo's loop runs on: silence is samples on the held goal, counted by its clock."""
     period = 0.01
-    with DynamixelEmulator(ids=[1], clock=clock, return_delay_us=0, period_s=period) as emu:
+    with DynamixelEmulator(ids=[1], clock=clock, return_delay_us=0, period_s=period, servo="model") as emu:
         port = sdk.PortHandler(emu.port)
         assert port.openPort() and port.setBaudRate(1_000_000)
         ph = sdk.PacketHandler(2.0)

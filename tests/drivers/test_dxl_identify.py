@@ -47,7 +47,7 @@ def quantised(x: np.ndarray) -> np.ndarray:
 
 def test_the_emulated_servo_is_the_bench_plant_seen_through_a_12_bit_encoder():
     u = np.random.default_rng(11).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 500)
-    with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
+    with DynamixelEmulator(ids=[1], return_delay_us=0, servo="model") as emu:
         command, y = live_run(url(emu), u)
     np.testing.assert_allclose(command, quantised(u), rtol=0, atol=1e-12)
     np.testing.assert_allclose(y, quantised(simulate(MODEL_PLANT, command).y), rtol=0, atol=1e-12)
@@ -55,7 +55,7 @@ def test_the_emulated_servo_is_the_bench_plant_seen_through_a_12_bit_encoder():
 
 def test_live_identification_matches_direct_simulation():
     u = np.random.default_rng(3).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 3000)
-    with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
+    with DynamixelEmulator(ids=[1], return_delay_us=0, servo="model") as emu:
         command, y = live_run(url(emu), u)
     live = identify(command, y, CONFIG)
     direct = identify(u, simulate(MODEL_PLANT, u).y, CONFIG)
@@ -73,7 +73,7 @@ def test_current_mode_identifies_the_spring_of_the_emulated_servo():
     """In current mode the emulated joint settles at CURRENT_GAIN rad per A: the DC gain found."""
     amplitude_a = MODEL_AMPLITUDE / CURRENT_GAIN
     u = np.random.default_rng(4).uniform(-amplitude_a, amplitude_a, 3000)
-    with DynamixelEmulator(ids=[1], return_delay_us=0) as emu:
+    with DynamixelEmulator(ids=[1], return_delay_us=0, servo="model") as emu:
         command, y = live_run(url(emu, mode="current"), u)
     model = identify(command, y, CONFIG).model
     dc_gain = sum(model.b) / (1 + sum(model.a))
@@ -84,6 +84,6 @@ def test_current_mode_identifies_the_spring_of_the_emulated_servo():
 @pytest.mark.slow
 def test_the_emulator_in_another_process_serves_the_driver():
     u = np.random.default_rng(9).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, 1500)
-    with EmulatorProcess([1, 2]) as emu:
+    with EmulatorProcess([1, 2], servo="model") as emu:
         command, y = live_run(emu.url(2, latency_ms=TEST_LATENCY_MS), u)
     assert relative_errors(identify(command, y, CONFIG).model).max() < 0.02

@@ -1,12 +1,19 @@
-"""``servoid identify --driver dxl://... / can://...``: the emulated servos identify as well as the simulated one.
+"""``servoid identify --driver dxl://... / can://...``: the transports carry the plant exactly; twins run end to end.
 
 End to end through the command line (:func:`servoid.cli.main` in this
 process, ``--json``): the Dynamixel emulator on a pseudo-terminal in a
 process of its own, the CiA 402 drive and the ODrive axis on python-can's
 ``virtual`` bus in this process (a virtual bus reaches only its own process).
-Each runs the same excitation (seed, rate, length) through the sampling
-session and the identification, as ``servoid identify --driver sim://`` does
-on the same plant, :data:`~servoid.drivers.model_plant.MODEL_PLANT`.
+
+Transport test: each emulator runs the estimator's own plant
+(``servo="model"``, :data:`~servoid.drivers.model_plant.MODEL_PLANT`) and the
+same excitation (seed, rate, length) through the sampling session and the
+identification, as ``servoid identify --driver sim://model`` does: what the
+transport adds shows as a difference from the simulated driver's result.
+
+Twins: each emulator with its own default twin runs the whole path (no
+crash, strict JSON, a model written); how well a twin identifies is the
+benchmark's business (``benchmarks/twins.py``), not this test's.
 
 Known truth. The simulated driver identifies the plant to rounding error;
 what each emulator adds is its device's resolution and, for a device that
@@ -77,26 +84,26 @@ def max_relative_error(result: dict) -> float:
 
 
 @contextlib.contextmanager
-def dxl() -> Iterator[str]:
+def dxl(servo: str = "model") -> Iterator[str]:
     from servoid.drivers.dynamixel.emulator import EmulatorProcess
 
-    with EmulatorProcess([1], return_delay_us=0, period_s=1 / RATE_HZ) as emu:
+    with EmulatorProcess([1], return_delay_us=0, period_s=1 / RATE_HZ, servo=servo) as emu:
         yield emu.url(1)  # dxl:///dev/pts/N?id=1&baud=1000000, the driver's defaults otherwise
 
 
 @contextlib.contextmanager
-def cia402() -> Iterator[str]:
+def cia402(servo: str = "model") -> Iterator[str]:
     from servoid.drivers.can.sim_cia402 import SimCia402Drive
 
-    with SimCia402Drive(node=1, bus=private_bus()) as drive:
+    with SimCia402Drive(node=1, bus=private_bus(), servo=servo) as drive:
         yield drive.url()
 
 
 @contextlib.contextmanager
-def odrive() -> Iterator[str]:
+def odrive(servo: str = "model") -> Iterator[str]:
     from servoid.drivers.can.sim_odrive import SimOdriveAxis
 
-    with SimOdriveAxis(node=0, bus=private_bus(), period_s=1 / RATE_HZ) as axis:
+    with SimOdriveAxis(node=0, bus=private_bus(), period_s=1 / RATE_HZ, servo=servo) as axis:
         yield axis.url()
 
 
@@ -107,7 +114,7 @@ TIMING_TOLERANCE = 5e-2
 @pytest.mark.parametrize(("servo", "tolerance"), [(dxl, 5e-2), (cia402, 1e-3), (odrive, 1e-4)],
                          ids=["dxl", "cia402", "odrive"])  # fmt: skip
 def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, tolerance, capsys, tmp_path):
-    simulated = identify(capsys, "sim://?clock=virtual", tmp_path / "sim")
+    simulated = identify(capsys, "sim://model?clock=virtual", tmp_path / "sim")
     with servo() as url:
         live = identify(capsys, url, tmp_path / "live")
     acquisition = live["acquisition"]
@@ -126,3 +133,20 @@ def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, to
         np.testing.assert_allclose(live["model"][name], simulated["model"][name], rtol=tolerance)
     for name in ("m2", "c1", "c2"):
         assert live["model"][name] == pytest.approx(simulated["model"][name], rel=tolerance)
+
+
+@pytest.mark.parametrize("servo", [dxl, cia402, odrive], ids=["dxl", "cia402", "odrive"])
+def test_identify_driver_runs_end_to_end_on_each_emulators_default_twin(servo, capsys, tmp_path):
+    twin = {dxl: "xm430", cia402: "cia402", odrive: "odrive"}[servo]
+    # --guard 0 --use-late: every sample counts, so that a loaded machine's late share cannot leave too few
+    argv = ["identify", "--json", "--driver", "", "--rate", "200", "--samples", "400", "--out", str(tmp_path),
+            "--no-plots", "--guard", "0", "--use-late"]  # fmt: skip
+    with servo(twin) as url:
+        argv[3] = url
+        code = main(argv)
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    result = json.loads(captured.out)
+    assert result["acquisition"]["samples"] == 400 and "truth" not in result
+    assert np.isfinite(result["model"]["c1"]) and np.isfinite(result["fit_nrmse"])
+    assert load_model(tmp_path / "model.json").servo["driver"] == ("dxl" if servo is dxl else "can")

@@ -1,4 +1,4 @@
-"""The simulated servo: the sampled plant's timing rules and the sim:// driver's options."""
+"""The simulated servo: the sampled plant's timing rules, the sim:// driver's options, twins behind it."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.clock import VirtualClock
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.sampled import SampledPlant
-from servoid.drivers.sim import SIM_PLANTS, SimDriver, reference_output_std
-from servoid.errors import ConfigError, DriverError
+from servoid.drivers.sim import SimDriver, reference_output_std
+from servoid.drivers.twin import Twin, TwinPlant, preset
+from servoid.errors import ConfigError, DeviceFault, DriverError
 from servoid.ident import PAPER_PLANT, Plant
 
 MS = 1_000_000
@@ -68,7 +69,7 @@ def test_torque_off_freezes_the_plant_and_refuses_commands():
 
 def test_latency_moves_the_virtual_clock_and_the_run_repeats_exactly():
     def run() -> tuple[list[float], int]:
-        servo = SimDriver(clock=VirtualClock(), latency=200e-6, jitter=100e-6, noise=0.001, seed=4)
+        servo = SimDriver(servo="model", clock=VirtualClock(), latency=200e-6, jitter=100e-6, noise=0.001, seed=4)
         with servo:
             servo.enable()
             ys = [servo.exchange(u).position for u in np.linspace(-0.2, 0.2, 50)]
@@ -80,8 +81,8 @@ def test_latency_moves_the_virtual_clock_and_the_run_repeats_exactly():
 
 
 def test_snr_sets_the_noise_against_the_reference_input():
-    servo = SimDriver(clock=VirtualClock(), snr=20.0, seed=1)
-    assert servo.noise_std == pytest.approx(reference_output_std(SIM_PLANTS["bench"]) / 20.0)
+    servo = SimDriver(servo="model", clock=VirtualClock(), snr=20.0, seed=1)
+    assert servo.noise_std == pytest.approx(reference_output_std(servo.servo) / 20.0)
     with servo:
         servo.enable()
         ys = np.array([servo.exchange(0.0).position for _ in range(4000)])  # at rest: only the noise moves
@@ -90,14 +91,22 @@ def test_snr_sets_the_noise_against_the_reference_input():
 
 
 def test_url_options():
-    servo = driver_from_url("sim://?plant=paper&clock=virtual&latency=0.001")
+    servo = driver_from_url("sim://paper?clock=virtual&latency=0.001")
     assert isinstance(servo, SimDriver) and servo.truth == PAPER_PLANT and servo.position_unit.unit == "unit"
     assert isinstance(servo.clock, VirtualClock) and servo.reference_amplitude > 2
     with servo:
         assert servo.identity["model"] == PAPER_PLANT.to_dict()
     for url, fragment in [
         ("sim://?drop=2", "drop='2' is invalid"),
-        ("sim://?plant=rotor", "choose one of bench, paper"),
+        ("sim://rotor", "unknown servo 'rotor'; valid: xm430, sts3215, cia402, odrive, model, paper, gear"),
+        ("sim://?plant=gear", r"plant= is gone: the servo is the URL's host, sim://gear\?"),
+        ("sim://?plant=bench", r"sim://model\?"),
+        ("sim://model?play_deg=1", "unknown option.*play_deg; sim:// accepts"),
+        (
+            "sim://xm430?play_degs=1",
+            "unknown option.*play_degs; sim:// accepts .*; and a twin's parameters: .*play_deg",
+        ),
+        ("sim://xm430?play_deg=lots", r"play_deg \(='lots'\) must be a number"),
         ("sim://?clock=wall", "choose one of real, virtual"),
         ("sim://?snr=40&noise=0.1", "not both"),
         ("sim://?seed=-1", "seed='-1' is invalid"),
@@ -110,8 +119,103 @@ def test_the_simulated_servo_declares_its_extra_members_and_a_real_driver_does_n
     from servoid.drivers.serial.driver import SerialDriver
     from servoid.drivers.simulated import SimulatedServo
 
-    sim = SimDriver(plant="paper", snr=40, clock="virtual", drift=1.5, drift_samples=100)
+    sim = SimDriver(servo="paper", snr=40, clock="virtual", drift=1.5, drift_samples=100)
     assert isinstance(sim, SimulatedServo)
     assert sim.truth == PAPER_PLANT and sim.truth_at(100).dead_zone == pytest.approx(1.5 * PAPER_PLANT.dead_zone)
+    assert sim.twin_truth is None and sim.twin_truth_at(5) is None
     assert isinstance(sim.clock, VirtualClock) and sim.noise_std > 0 and sim.reference_amplitude > 0
     assert not isinstance(SerialDriver(port="/dev/null"), SimulatedServo)
+
+
+# --- a physical twin behind sim:// ------------------------------------------------------------------
+
+
+def twin_run(url: str, u: np.ndarray, period_s: float = 0.005) -> list[float]:
+    with driver_from_url(url) as sim:
+        sim.set_sample_period(period_s)
+        sim.enable()
+        return [sim.exchange(v).position for v in u]
+
+
+def test_sim_url_opens_a_twin_preset_with_overrides_and_declares_its_ground_truth():
+    sim = driver_from_url("sim://xm430?play_deg=0.8&load_inertia_kgm2=1e-3&clock=virtual&seed=2")
+    assert isinstance(sim, SimDriver) and sim.truth is None and sim.reference_amplitude == 0.1
+    truth = sim.twin_truth
+    assert truth.play_rad == pytest.approx(np.radians(0.8)) and truth.gear_ratio == 353.5
+    assert (truth.loop_encoder, truth.output_encoder) == ("load", "load") and "Dynamixel" in truth.structure
+    with sim:
+        identity = sim.identity
+    assert identity["servo"] == "xm430" and identity["twin"]["play_rad"] == truth.play_rad
+    assert identity["overrides"] == {"play_deg": "0.8", "load_inertia_kgm2": "1e-3"}
+    default = driver_from_url("sim://?clock=virtual")
+    assert default.servo.name == "xm430" and default.twin_truth == Twin(preset("xm430")).truth
+    assert driver_from_url("sim://cia402").twin_truth.loop_encoder == "motor"
+
+
+def test_the_twin_behind_sim_is_the_twin_itself_sample_by_sample():
+    u = np.random.default_rng(5).uniform(-0.1, 0.1, 300)
+    got = twin_run("sim://sts3215?clock=virtual&seed=3", u, period_s=0.004)
+    reference = TwinPlant(Twin(preset("sts3215"), seed=3), 0.004)
+    assert got == [reference.step(v) for v in u]
+
+
+def test_noise_on_a_twin_is_its_output_encoders_and_enters_its_loop():
+    sim = SimDriver(servo="xm430", noise=0.003, clock="virtual")
+    resolution = 2 * np.pi / 4096
+    assert sim.noise_std == pytest.approx(0.003) and sim._twin_params.load_encoder_noise_counts == pytest.approx(
+        0.003 / resolution
+    )
+    assert SimDriver(servo="xm430", snr=10).noise_std == pytest.approx(0.1 / np.sqrt(3) / 10)
+    with pytest.raises(ConfigError, match="not both"):
+        driver_from_url("sim://xm430?noise=0.01&encoder_noise_counts=1")
+
+
+def test_wear_on_a_twin_widens_its_play_on_its_own_clock():
+    url = "sim://xm430?clock=virtual&drift=3&drift_samples=100&swap_at=300&swap_factor=0.5"
+    sim = driver_from_url(url)
+    play = sim.twin_truth.play_rad
+    assert sim.twin_truth_at(50).play_rad == pytest.approx(2 * play)
+    assert sim.twin_truth_at(200).play_rad == pytest.approx(3 * play)
+    assert sim.twin_truth_at(300).play_rad == pytest.approx(1.5 * play)
+    with sim:
+        sim.set_sample_period(0.005)
+        sim.enable()
+        for _ in range(150):
+            sim.exchange(0.05)
+        assert sim.device.plant.twin.truth.play_rad == pytest.approx(3 * play)
+
+
+def test_torque_off_opens_the_twins_drive_stage_and_it_coasts():
+    with driver_from_url("sim://odrive?clock=virtual") as sim:
+        sim.set_sample_period(0.005)
+        sim.enable()
+        for _ in range(40):
+            sim.exchange(2.0)  # moving at its velocity limit
+        twin = sim.device.plant.twin.twin
+        moving, at = twin.physics().load_rad_s, twin.physics().load_rad
+        sim.disable()
+        assert not twin.read().enabled
+        sim.read()  # time passes with the stage open
+        sim.clock.sleep_ns(20_000_000)
+        sim.read()
+        coasting = twin.physics()
+        assert moving > 1.0 and coasting.current_a == 0.0 and twin.read().duty == 0.0
+        assert coasting.load_rad > at and abs(coasting.load_rad_s) < moving  # it ran on, and friction slows it
+        with pytest.raises(DriverError, match="torque is off"):
+            sim.exchange(0.0)
+
+
+def test_an_odrive_twin_that_overspeeds_is_a_device_fault_and_can_be_rearmed():
+    # the ODrive's default gains and velocity limit: quick reversals let the motor cross the play
+    # without the load and overshoot 1.2 x vel_limit (docs/twins.md)
+    with driver_from_url("sim://odrive?clock=virtual&seed=1") as sim:
+        sim.set_sample_period(0.005)
+        sim.enable()
+        with pytest.raises(DeviceFault, match="turned its output stage off by itself \\(overspeed error\\)"):
+            for v in np.random.default_rng(1).uniform(-0.2, 0.2, 200):
+                sim.exchange(v)
+        assert not sim.device.plant.twin.enabled  # the drive's own doing: the host still thinks it on
+        sim.disable()
+        sim.enable()  # re-arms it, as an ODrive's closed-loop request does
+        sim.exchange(0.0)
+        assert sim.device.plant.twin.enabled
