@@ -27,7 +27,7 @@ from _table import table  # benchmarks/, on the path when a benchmark runs as a 
 
 from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT
-from servoid.drivers.serial.emulator import FirmwareEmulator
+from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
 from servoid.ident import MRGIA, MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session
 
@@ -65,7 +65,7 @@ def main() -> None:
     load = os.getloadavg()
     print(f"machine: {os.cpu_count()} CPUs, load average {load[0]:.2f} / {load[1]:.2f} / {load[2]:.2f} (1/5/15 min)")
 
-    with FirmwareEmulator() as emu:
+    with FirmwareEmulator(FirmwareOptions(servo="model")) as emu:
         rows = []
         for name, url in (("serial pty (pyserial <-> C firmware)", emu.url), ("sim (same process)", "sim://model")):
             lat = latency(url, 3000)
@@ -77,7 +77,7 @@ def main() -> None:
     rng = np.random.default_rng(1)
     for rate in (100.0, 500.0, 1000.0):
         n = int(args.seconds * rate)
-        with FirmwareEmulator() as fresh:
+        with FirmwareEmulator(FirmwareOptions(servo="model")) as fresh:
             result, _, stats = session(fresh.url, rate, rng.uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, n))
         c, total = result.counts, len(result)
         sent = np.isfinite(result.t_actual)
@@ -97,7 +97,7 @@ def main() -> None:
         ("serial pty", "serial", 500.0),
         ("serial pty", "serial", 1000.0),
     ):
-        with FirmwareEmulator() as fresh:  # every run starts from a servo at rest
+        with FirmwareEmulator(FirmwareOptions(servo="model")) as fresh:  # every run starts from a servo at rest
             result, est, _ = session(fresh.url if url == "serial" else url, rate, u)
         ident = identify(result.u, result.y, MRGIAConfig(), valid=result.valid)
         online = est.model.max_relative_error(MODEL_PLANT)

@@ -3,8 +3,17 @@
 :class:`FirmwareEmulator` starts the compiled firmware (see
 :mod:`servoid.drivers.serial.build`) as its own process, which opens a
 pseudo-terminal, prints its name and serves it: the real pyserial driver
-talks to the real firmware code, with a simulated motor + gear with backlash
-behind the HAL. It runs in a separate process so that it does not share the
+talks to the real firmware code. Behind the HAL is the servo
+(:mod:`servoid.drivers.servos`): a physical twin in C (``firmware/host/twin_sim.c``,
+the port of the Python twin's physics), whose loop is the firmware's own
+(``firmware/loop.c``, the port of the twin's firmware) running at the
+twin's ticks -- the split of a real board, where the bench controller runs
+the position loop on its encoder and drives PWM through the HAL -- or the
+pseudo-Wiener model (``servo="model"``), which is loop and plant in one. The
+default is the ``xm430`` twin: its structure (a position PID on the output
+encoder driving PWM, no current sensing) is what a bench board with an
+H-bridge and a geared motor runs, and its numbers are the best sourced of
+the presets. It runs in a separate process so that it does not share the
 interpreter lock with the sampler (HARDWARE.md).
 
 Example
@@ -17,6 +26,7 @@ Example
 
 from __future__ import annotations
 
+import math
 import os
 import select
 import signal
@@ -25,10 +35,9 @@ import time
 from dataclasses import dataclass
 
 from servoid import validation
-from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial.build import firmware_binary
+from servoid.drivers.servos import DEFAULT_SERVO, Servo, parse_servo
 from servoid.errors import ConfigError, DriverError
-from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["FirmwareOptions", "FirmwareEmulator"]
 
@@ -42,12 +51,17 @@ class FirmwareOptions:
 
     Parameters
     ----------
-    model : BacklashModel
-        The simulated motor + gear, in rad (default MODEL_PLANT).
-    counts_per_rev : int
-        Encoder resolution.
+    servo : Servo or str
+        The servo behind the HAL (default the ``xm430`` twin; text as
+        :func:`~servoid.drivers.servos.parse_servo` reads it: ``"model"``,
+        ``"xm430?play_deg=0.8"``).
+    counts_per_rev : int, optional
+        With a pseudo-Wiener plant: the encoder's resolution (default 65536).
+        A twin reports its output encoder's.
     noise : float
-        Encoder noise standard deviation, rad (before quantisation).
+        Encoder noise standard deviation, rad (before quantisation); on a twin,
+        its output encoder's noise (noise / resolution counts), drawn by the
+        C firmware's own generator.
     seed : int
         Seed of the noise and of the injected faults.
     flip_tx, flip_rx : float
@@ -70,8 +84,8 @@ class FirmwareOptions:
         A symlink to the pseudo-terminal at a stable name.
     """
 
-    model: BacklashModel = MODEL_PLANT
-    counts_per_rev: int = 65536
+    servo: Servo | str = DEFAULT_SERVO
+    counts_per_rev: int | None = None
     noise: float = 0.0
     seed: int = 0
     flip_tx: float = 0.0
@@ -85,12 +99,27 @@ class FirmwareOptions:
     link: str | os.PathLike[str] | None = None
 
     def __post_init__(self) -> None:
-        m = self.model
-        if m.na > 8 or m.nb > 8 or m.delay > 32:
+        servo = self.servo if isinstance(self.servo, Servo) else parse_servo(self.servo)
+        object.__setattr__(self, "servo", servo)
+        m = servo.model
+        if m is not None and (m.na > 8 or m.nb > 8 or m.delay > 32):
             raise ConfigError(
                 f"the firmware's motor takes na <= 8, nb <= 8, delay <= 32; got {m.na}, {m.nb}, {m.delay}"
             )
-        validation.integer("counts_per_rev", self.counts_per_rev, minimum=16)
+        if servo.twin is not None:
+            if self.counts_per_rev is not None:
+                raise ConfigError(
+                    f"counts_per_rev (={self.counts_per_rev!r}) sets the pseudo-Wiener plant's encoder; "
+                    f"the twin {servo.name!r} has its own (load_encoder_cpr, motor_encoder_cpr)"
+                )
+            cpr = servo.twin.output_counts_per_rev
+            if cpr != int(cpr) or not 16 <= cpr <= 2**24:
+                raise ConfigError(
+                    f"the twin's output encoder has {cpr:g} counts per output turn: the bench protocol needs a "
+                    "whole number in 16..16777216"
+                )
+        else:
+            validation.integer("counts_per_rev", 65536 if self.counts_per_rev is None else self.counts_per_rev, minimum=16)
         validation.non_negative("noise", self.noise)
         validation.integer("seed", self.seed, minimum=0)
         for name in ("flip_tx", "flip_rx", "drop"):
@@ -104,13 +133,41 @@ class FirmwareOptions:
         if self.boot_id is not None and not 0 < self.boot_id < 65536:
             raise ConfigError(f"boot_id (={self.boot_id}) must lie in 1..65535")
 
+    @property
+    def counts_per_turn(self) -> int:
+        """Encoder counts per output turn the firmware reports."""
+        servo = self.servo
+        assert isinstance(servo, Servo)
+        if servo.twin is not None:
+            return int(servo.twin.output_counts_per_rev)
+        return 65536 if self.counts_per_rev is None else self.counts_per_rev
+
+    def servo_arguments(self) -> list[str]:
+        """The firmware's arguments that say which servo is behind its HAL."""
+        servo = self.servo
+        assert isinstance(servo, Servo)
+        if servo.twin is None:
+            m = servo.model
+            assert m is not None
+            return [
+                "--a", ",".join(repr(float(v)) for v in m.a), "--b", ",".join(repr(float(v)) for v in m.b),
+                "--delay", str(m.delay), "--m2", repr(m.m2), "--c1", repr(m.c1), "--c2", repr(m.c2),
+                "--cpr", str(self.counts_per_turn), "--noise", repr(self.noise),
+            ]  # fmt: skip
+        params = servo.twin
+        if self.noise:
+            counts = self.noise / (2.0 * math.pi / params.output_counts_per_rev)
+            params = params.replace(**{f"{params.output_encoder}_encoder_noise_counts": counts})
+        phys, fw = params.pack()
+        return [
+            "--twin-phys", ",".join(repr(float(v)) for v in phys), "--twin-fw", ",".join(repr(float(v)) for v in fw),
+            "--twin-output", params.output_encoder,
+        ]
+
     def arguments(self) -> list[str]:
         """Command-line arguments of the firmware process."""
-        m = self.model
         args = [
-            "--a", ",".join(repr(float(v)) for v in m.a), "--b", ",".join(repr(float(v)) for v in m.b),
-            "--delay", str(m.delay), "--m2", repr(m.m2), "--c1", repr(m.c1), "--c2", repr(m.c2),
-            "--cpr", str(self.counts_per_rev), "--noise", repr(self.noise), "--seed", str(self.seed),
+            *self.servo_arguments(), "--seed", str(self.seed),
             "--flip-tx", repr(self.flip_tx), "--flip-rx", repr(self.flip_rx), "--drop", repr(self.drop),
             "--clock-start", str(self.clock_start_us),
         ]  # fmt: skip

@@ -21,6 +21,7 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial import build
 from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
+from servoid.drivers.servos import Servo
 from servoid.drivers.serial.protocol import FrameSplitter, check, crc16, encode, parse_reply
 from servoid.errors import ConfigError, DeviceFault, DriverError, MissingDependency, ProtocolError
 from servoid.ident import PAPER_PLANT, BacklashModel, simulate
@@ -40,7 +41,7 @@ def firmware():
 )
 def test_the_firmware_plant_matches_simulate_sample_by_sample(firmware, model):
     u = np.random.default_rng(1).uniform(-2.0, 2.0, 3000)
-    args = FirmwareOptions(model=model).arguments()
+    args = FirmwareOptions(servo=Servo("custom", None, model, "rad", 0.2)).arguments()
     done = subprocess.run([str(firmware), "--plant-only", *args], input="\n".join(repr(float(v)) for v in u) + "\n",
                           capture_output=True, text=True, check=True)  # fmt: skip
     y_c = np.array(done.stdout.split(), dtype=float)
@@ -93,7 +94,7 @@ def raw_exchange(port: serial.Serial, body: str) -> bytes:
 
 
 def test_the_firmware_answers_requests_and_refuses_bad_ones():
-    with FirmwareEmulator(FirmwareOptions(boot_id=0x3FA2)) as emu:
+    with FirmwareEmulator(FirmwareOptions(boot_id=0x3FA2, servo="model")) as emu:
         port = serial.Serial(emu.port, 1_000_000, timeout=0.2)
         assert parse_reply(raw_exchange(port, "1 H")).fields == ("1", "65536", "servoid-bench/1.0")
         assert parse_reply(raw_exchange(port, "2 Z")).fields == ("1",)  # unknown verb
@@ -111,7 +112,7 @@ def test_the_firmware_answers_requests_and_refuses_bad_ones():
 
 
 def test_refusals_become_driver_errors_and_units_follow_the_encoder():
-    with FirmwareEmulator(FirmwareOptions(counts_per_rev=4096)) as emu:
+    with FirmwareEmulator(FirmwareOptions(counts_per_rev=4096, servo="model")) as emu:
         with driver_from_url(f"{emu.url}?unit=counts") as servo:
             with pytest.raises(DeviceFault, match="torque is off"):
                 servo.exchange(10)

@@ -1,12 +1,16 @@
 /*
  * hal.h - the hardware abstraction of the servoid bench firmware.
  *
- * The firmware core (firmware.c, protocol.c) is portable C99 with no dynamic
- * memory and no libc beyond <stdint.h>/<string.h>; everything it needs from
- * the board is these few functions. A board port (Arduino, STM32 HAL, ...)
- * implements them over its UART, timer, motor driver and encoder; the host
- * build (host/hal_host.c) implements them over a pseudo-terminal and a
- * simulated motor + gear with backlash.
+ * The firmware core (firmware.c, protocol.c, loop.c) is portable C99 with no
+ * dynamic memory and no libc beyond <stdint.h>/<string.h>/<math.h>;
+ * everything it needs from the board is these few functions. A board port
+ * (Arduino, STM32 HAL, ...) implements them over its UART, timer, motor
+ * driver and encoder, and runs the position loop (loop.h) from its control
+ * timer on the encoder's counts, driving the output stage with the voltage
+ * the loop asks for. The host build (host/hal_host.c) implements them over a
+ * pseudo-terminal and a simulated servo (host/sim_motor.h): a physical twin
+ * (host/twin_sim.c) that is the loop's timer, encoders and output stage --
+ * the loop is the firmware's own -- or the pseudo-Wiener model.
  *
  * Units: positions in encoder counts (int32), time in microseconds (uint32,
  * wraps after 71.6 minutes).

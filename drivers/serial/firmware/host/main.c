@@ -3,6 +3,13 @@
  *
  *   servoid-bench-fw [options]        opens a pty, prints "port /dev/pts/N", serves it
  *   servoid-bench-fw --plant-only     reads one input per line on stdin, prints y (for tests)
+ *   servoid-bench-fw --twin-only      the twin: one set point (rad) per line on stdin, one period
+ *                                     each (--period-us), prints the drive's registers (for tests)
+ *
+ * The motor is the pseudo-Wiener model given by --a/--b/--delay/--m2/--c1/--c2
+ * unless a twin is given (--twin-phys, --twin-fw: the arrays of
+ * servoid.drivers.twin.TwinParams.pack(); --twin-output load|motor): then
+ * the firmware's loop (../loop.c) runs at the twin's ticks.
  *
  * The main loop is what a board's main() would be (fw_init, then fw_poll
  * forever); it only adds a select() so the process sleeps while idle.
@@ -11,6 +18,7 @@
 #define _XOPEN_SOURCE 700
 #include <errno.h>
 #include <fcntl.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,7 +49,9 @@ static void usage(void)
         "                        [--cpr COUNTS] [--noise STD] [--seed N] [--flip-tx P] [--flip-rx P]\n"
         "                        [--drop P] [--mute-after FRAMES] [--restart-after REQUESTS]\n"
         "                        [--clock-start US] [--boot-id HEX] [--trace FILE] [--link PATH]\n"
-        "       servoid-bench-fw --plant-only [model options] < inputs\n",
+        "                        [--twin-phys P0,P1,.. --twin-fw F0,F1,.. --twin-output load|motor]\n"
+        "       servoid-bench-fw --plant-only [model options] < inputs\n"
+        "       servoid-bench-fw --twin-only --twin-phys .. --twin-fw .. --period-us US < set points\n",
         stderr);
 }
 
@@ -92,6 +102,23 @@ static int open_pty(char *name, size_t cap, int *slave_fd)
     return master;
 }
 
+static int twin_only(const double *phys, const double *fw, int output_load, uint64_t seed, double period_s)
+{
+    static twin_sim_t t;
+    char line[128];
+    twin_init(&t, phys, fw, output_load, seed);
+    loop_enable(&t.loop, 1);
+    /* servoid.drivers.twin.TwinPlant.step: the registers at the set point's arrival, then one period */
+    while (fgets(line, sizeof line, stdin)) {
+        const loop_t *l = &t.loop;
+        printf("%.17g %.17g %.17g %.17g %.17g %.17g %.17g %d %d\n", l->cnt_m, l->cnt_l, l->vel, l->pos_est, l->cur,
+               l->duty, l->sp, l->enabled, l->fault);
+        if (l->enabled) loop_command(&t.loop, strtod(line, 0));
+        twin_advance(&t, period_s);
+    }
+    return 0;
+}
+
 static int plant_only(const bl_model_t *model)
 {
     bl_plant_t p;
@@ -106,9 +133,12 @@ int main(int argc, char **argv)
     /* MODEL_PLANT (servoid.drivers.model_plant) unless told otherwise */
     bl_model_t model = {2, 0, 1, {-0.8, 0.15}, {0.35}, 1.0, 0.02, 0.03};
     hal_host_config_t hc;
-    sim_motor_t motor;
+    static sim_motor_t motor;
     fw_state_t fw;
     double cpr = 65536.0, noise = 0.0; /* a 16-bit encoder on the output shaft */
+    static double phys[TW_P_SIZE], fwc[TW_F_SIZE];
+    int n_phys = 0, n_fw = 0, output_load = 1, only_twin = 0;
+    double period_us = SM_DEFAULT_PERIOD_US;
     long restart_after = -1;
     int i, master, slave, only_plant = 0, restarted = 0;
     char port[128];
@@ -119,6 +149,7 @@ int main(int argc, char **argv)
     for (i = 1; i < argc; i++) {
         const char *opt = argv[i], *val = i + 1 < argc ? argv[i + 1] : 0;
         if (!strcmp(opt, "--plant-only")) { only_plant = 1; continue; }
+        if (!strcmp(opt, "--twin-only")) { only_twin = 1; continue; }
         if (!strcmp(opt, "--help")) { usage(); return 0; }
         if (!val) { usage(); return 2; }
         i++;
@@ -128,7 +159,21 @@ int main(int argc, char **argv)
             int nb = parse_list(val, model.b, SM_MAX_NB + 1);
             if (nb < 1) { fputs("bad --b\n", stderr); return 2; }
             model.nb = nb - 1;
-        } else if (!strcmp(opt, "--delay")) model.delay = (int)number(opt, val);
+        } else if (!strcmp(opt, "--twin-phys")) {
+            if ((n_phys = parse_list(val, phys, TW_P_SIZE)) != TW_P_SIZE) {
+                fprintf(stderr, "servoid-bench-fw: --twin-phys needs %d numbers\n", TW_P_SIZE);
+                return 2;
+            }
+        } else if (!strcmp(opt, "--twin-fw")) {
+            if ((n_fw = parse_list(val, fwc, TW_F_SIZE)) != TW_F_SIZE) {
+                fprintf(stderr, "servoid-bench-fw: --twin-fw needs %d numbers\n", TW_F_SIZE);
+                return 2;
+            }
+        } else if (!strcmp(opt, "--twin-output")) {
+            if (strcmp(val, "load") && strcmp(val, "motor")) { fputs("bad --twin-output\n", stderr); return 2; }
+            output_load = !strcmp(val, "load");
+        } else if (!strcmp(opt, "--period-us")) period_us = number(opt, val);
+        else if (!strcmp(opt, "--delay")) model.delay = (int)number(opt, val);
         else if (!strcmp(opt, "--m2")) model.m2 = number(opt, val);
         else if (!strcmp(opt, "--c1")) model.c1 = number(opt, val);
         else if (!strcmp(opt, "--c2")) model.c2 = number(opt, val);
@@ -155,11 +200,27 @@ int main(int argc, char **argv)
         fprintf(stderr, "servoid-bench-fw: %s\n", problem);
         return 2;
     }
+    if ((n_phys != 0) != (n_fw != 0)) {
+        fputs("servoid-bench-fw: a twin needs both --twin-phys and --twin-fw\n", stderr);
+        return 2;
+    }
+    if (n_phys) {
+        sim_motor_init_twin(&motor, phys, fwc, output_load, hc.seed + 1u);
+        cpr = twin_output_cpr(&motor.twin);
+        if (cpr != floor(cpr)) {
+            fprintf(stderr, "servoid-bench-fw: the twin's output encoder has %.17g counts per turn, not a whole number\n", cpr);
+            return 2;
+        }
+    }
     if (!(cpr >= 16.0 && cpr <= 16777216.0)) {
         fputs("servoid-bench-fw: --cpr must lie in 16..16777216\n", stderr);
         return 2;
     }
     if (only_plant) return plant_only(&model);
+    if (only_twin) {
+        if (!n_phys) { fputs("servoid-bench-fw: --twin-only needs a twin\n", stderr); return 2; }
+        return twin_only(phys, fwc, output_load, hc.seed + 1u, period_us / 1e6);
+    }
 
 #ifdef __linux__
     prctl(PR_SET_PDEATHSIG, SIGTERM); /* never outlive the process that started us */
@@ -176,7 +237,7 @@ int main(int argc, char **argv)
     }
     hc.fd = master;
     hc.counts_per_rev = (uint32_t)cpr;
-    sim_motor_init(&motor, &model, cpr / 6.283185307179586, noise, hc.seed + 1u);
+    if (!n_phys) sim_motor_init(&motor, &model, cpr / 6.283185307179586, noise, hc.seed + 1u);
     hal_host_init(&hc, &motor);
     fw_init(&fw);
     printf("port %s\nboot %04x\n", link ? link : port, fw.boot);

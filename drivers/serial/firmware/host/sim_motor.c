@@ -1,4 +1,4 @@
-/* sim_motor.c - the backlash plant and its sample grid (see sim_motor.h). */
+/* sim_motor.c - the twin or the backlash plant, and its sample grid (see sim_motor.h). */
 #include "sim_motor.h"
 
 #include <math.h>
@@ -85,9 +85,24 @@ void sim_motor_init(sim_motor_t *s, const bl_model_t *m, double counts_per_unit,
     sim_motor_reset(s);
 }
 
+void sim_motor_init_twin(sim_motor_t *s, const double *phys, const double *fw, int output_load, uint64_t seed)
+{
+    memset(s, 0, sizeof *s);
+    s->is_twin = 1;
+    twin_init(&s->twin, phys, fw, output_load, seed);
+    s->rad_per_count = 6.283185307179586 / twin_output_cpr(&s->twin);
+    s->twin_period_s = SM_DEFAULT_PERIOD_US / 1e6;
+    sim_motor_reset(s);
+}
+
 void sim_motor_reset(sim_motor_t *s)
 {
-    bl_plant_reset(&s->plant);
+    if (s->is_twin) {
+        twin_reset(&s->twin);
+        s->y_counts = twin_output_counts(&s->twin);
+    } else {
+        bl_plant_reset(&s->plant);
+    }
     s->enabled = 0;
     s->period_us = 0;
     s->started = 0;
@@ -98,6 +113,10 @@ void sim_motor_reset(sim_motor_t *s)
 void sim_motor_enable(sim_motor_t *s, int on)
 {
     if (on && !s->enabled) s->started = 0;
+    if (s->is_twin) {
+        loop_enable(&s->twin.loop, on); /* on also re-arms a drive that turned itself off */
+        if (!on) s->started = 0;        /* the coasting samples count from the next read */
+    }
     s->enabled = on;
 }
 
@@ -105,11 +124,19 @@ void sim_motor_period(sim_motor_t *s, uint32_t period_us)
 {
     s->period_us = period_us;
     s->started = 0;
+    if (s->is_twin && period_us != 0) s->twin_period_s = period_us / 1e6;
 }
 
 static void step(sim_motor_t *s, double u)
 {
-    bl_plant_step(&s->plant, u);
+    if (s->is_twin) {
+        /* servoid.drivers.twin.TwinPlant.step: the reading at the command's arrival, then one period */
+        s->y_counts = twin_output_counts(&s->twin);
+        if (s->twin.loop.enabled) loop_command(&s->twin.loop, u);
+        twin_advance(&s->twin, s->twin_period_s);
+    } else {
+        bl_plant_step(&s->plant, u);
+    }
     s->index++;
 }
 
@@ -121,7 +148,14 @@ static void hold(sim_motor_t *s, uint32_t samples)
 static hal_sample_t reading(sim_motor_t *s, uint32_t t_us)
 {
     hal_sample_t out;
-    double y = s->plant.y;
+    double y;
+    if (s->is_twin) {
+        out.counts = (int32_t)s->y_counts; /* a count of the twin's output encoder, noise and all */
+        out.tick = (uint32_t)s->index;
+        out.t_us = t_us;
+        return out;
+    }
+    y = s->plant.y;
     if (s->noise_std > 0.0) y += s->noise_std * gaussian(&s->rng);
     y *= s->counts_per_unit;
     /* a real encoder saturates or wraps; never let the conversion overflow */
@@ -133,7 +167,7 @@ static hal_sample_t reading(sim_motor_t *s, uint32_t t_us)
 
 hal_sample_t sim_motor_command(sim_motor_t *s, int32_t counts, uint32_t periods, uint32_t now_us)
 {
-    double u = (double)counts / s->counts_per_unit;
+    double u = s->is_twin ? (double)counts * s->rad_per_count : (double)counts / s->counts_per_unit;
     if (!s->enabled) return sim_motor_read(s, now_us);
     if (s->started) {
         uint32_t n = periods;
@@ -152,11 +186,12 @@ hal_sample_t sim_motor_command(sim_motor_t *s, int32_t counts, uint32_t periods,
 
 hal_sample_t sim_motor_read(sim_motor_t *s, uint32_t now_us)
 {
-    if (s->enabled && s->period_us != 0 && !s->started) {
+    int runs = s->enabled || s->is_twin; /* a twin with its stage open coasts on */
+    if (runs && s->period_us != 0 && !s->started) {
         s->started = 1; /* the loop's sample times count from the first request, command or read */
         s->last_us = now_us;
     }
-    if (s->enabled && s->period_us != 0) {
+    if (runs && s->period_us != 0) {
         uint32_t due = (uint32_t)(now_us - s->last_us) / s->period_us;
         hold(s, due);
         s->last_us += due * s->period_us;

@@ -1,5 +1,12 @@
 /*
- * sim_motor.h - a simulated motor + gear with backlash, for the host build.
+ * sim_motor.h - the simulated servo behind the host build's HAL: a physical twin, or the backlash model.
+ *
+ * Two kinds. A twin (twin_sim.h: motor, gear with play, load, encoders) with
+ * the firmware's own loop (../loop.h) running at its ticks: one sample is one
+ * period of servo time, the period the host set (C request), else
+ * SM_DEFAULT_PERIOD_US; with the torque off its drive stage is open and it
+ * coasts (reads run the samples due). Or the pseudo-Wiener model, below,
+ * for exact transport tests.
  *
  * bl_plant_t is servoid's BacklashModel stepped one sample at a time: the
  * linear block x(k) = -sum a_i x(k-i) + sum b_j u(k-d-j) followed by the
@@ -21,10 +28,12 @@
 #include <stdint.h>
 
 #include "../hal.h"
+#include "twin_sim.h"
 
 #define SM_MAX_NA 8
 #define SM_MAX_NB 8
 #define SM_MAX_DELAY 32
+#define SM_DEFAULT_PERIOD_US 5000u /* a twin's sample when the host set no period: servoid's default 200 Hz */
 
 typedef struct {
     int na, nb, delay;
@@ -48,7 +57,12 @@ void bl_plant_reset(bl_plant_t *p);
 double bl_plant_step(bl_plant_t *p, double u);
 
 typedef struct {
-    bl_plant_t plant;
+    int is_twin;
+    twin_sim_t twin;           /* the twin (is_twin) */
+    double twin_period_s;      /* servo time per sample */
+    double rad_per_count;      /* the twin's set point per count of its output encoder */
+    double y_counts;           /* the twin's output reading of the latest sample */
+    bl_plant_t plant;          /* the model (!is_twin) */
     double counts_per_unit;
     double noise_std;          /* encoder noise, plant unit, before quantisation */
     uint64_t rng;
@@ -61,6 +75,8 @@ typedef struct {
 } sim_motor_t;
 
 void sim_motor_init(sim_motor_t *s, const bl_model_t *m, double counts_per_unit, double noise_std, uint64_t seed);
+/* A twin from the packed arrays of TwinParams.pack() (see twin_sim.h). */
+void sim_motor_init_twin(sim_motor_t *s, const double *phys, const double *fw, int output_load, uint64_t seed);
 void sim_motor_reset(sim_motor_t *s);
 void sim_motor_enable(sim_motor_t *s, int on);
 void sim_motor_period(sim_motor_t *s, uint32_t period_us);
