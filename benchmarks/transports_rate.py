@@ -83,7 +83,7 @@ def can_udp(protocol: str, rate: float) -> Iterator[str]:
         s.bind(("", 0))
         port = s.getsockname()[1]
     cmd = [sys.executable, "-m", "servoid", "emulate", "can", "--protocol", protocol, "--port", str(port),
-           "--rate", f"{rate:g}", "--quiet"]  # fmt: skip
+           "--rate", f"{rate:g}", "--quiet", "--servo", "model"]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
     try:
         url = proc.stdout.readline().strip() if proc.stdout else ""

@@ -29,12 +29,13 @@ clock), else one at :data:`~servoid.drivers.servos.DEFAULT_RATE_HZ`; its
 drive stage follows the power stage, and with the power off it coasts.
 
 Position mode: the command is the target position, output rad. Torque
-mode, on the pseudo-Wiener plant only: the same plant, with the command
-read as a torque (Nm) times :data:`TORQUE_GAIN` (rad per Nm) -- a joint
-held by a torsion spring of ``1 / TORQUE_GAIN`` Nm/rad, so that a torque
-moves it to a position proportional to it, through the same dynamics and
-the same backlash. The twins run their position loops only (the drives
-refuse torque mode with a twin behind them).
+mode: a twin's drive runs its current loop on the torque (N m at the motor,
+:meth:`~servoid.drivers.twin.Twin.set_mode`; the twins whose firmware has
+no current loop, the Dynamixel's and Feetech's, run position mode only);
+the pseudo-Wiener plant reads the command as a torque (Nm) times
+:data:`TORQUE_GAIN` (rad per Nm) -- a joint held by a torsion spring of
+``1 / TORQUE_GAIN`` Nm/rad, so that a torque moves it to a position
+proportional to it, through the same dynamics and the same backlash.
 """
 
 from __future__ import annotations
@@ -102,6 +103,11 @@ class SimAxis:
         return self.sampled.plant.y
 
     @property
+    def torque_capable(self) -> bool:
+        """Whether the servo takes torque commands (a twin needs a current loop: a cascade drive)."""
+        return self.twin is None or self.servo.twin.firmware == "cascade"  # type: ignore[union-attr]
+
+    @property
     def reading(self) -> TwinReading | None:
         """A twin's registers as of the latest sample (None for the pseudo-Wiener plant)."""
         return self.twin.reading if self.twin is not None else None
@@ -145,7 +151,11 @@ class SimAxis:
         carries one. A non-finite command (a corrupted frame) holds the last
         input rather than poisoning the plant's state.
         """
-        u = command * self.torque_gain if torque else command
+        if self.twin is not None:
+            self.twin.set_mode("torque" if torque else "position")
+            u = command
+        else:
+            u = command * self.torque_gain if torque else command
         if not math.isfinite(u):
             u = self._last_input
         self._last_input = u

@@ -22,9 +22,10 @@ position loop closes on, 0x608F their resolution per motor revolutions,
 0x6091 the gear ratio, and the other encoder -- the load encoder, on the
 output -- in 0x60E4 sub 1 (additional position actual value, resolution in
 0x60E6 / 0x60EB). With the pseudo-Wiener plant (``servo="model"``) the drive
-has one encoder of ``counts_per_rev`` increments on the output, no gear, and
-torque mode as well. A twin runs its position loop only: the drive offers
-cyclic synchronous position mode (0x6502), not torque.
+has one encoder of ``counts_per_rev`` increments on the output and no gear.
+Torque mode drives a twin's current loop on the target torque (motor torque,
+per mille of 0x6076); a twin without one (the Dynamixel's or Feetech's
+firmware behind this drive) offers cyclic synchronous position only (0x6502).
 
 SYNC counter (CiA 301): with a synchronous counter overflow value (0x1019,
 2..240) configured, each SYNC carries a counter 1..overflow; the difference
@@ -216,7 +217,7 @@ class SimCia402Drive(SimDrive):
         dictionary[0x6091][1].default, dictionary[0x6091][2].default = enc.gear
         if enc.additional is not None:
             dictionary[0x60E6][1].default, dictionary[0x60EB][1].default = enc.additional
-        if self.axis.twin is not None:
+        if not self.axis.torque_capable:
             dictionary[0x6502].default = profile.SUPPORTED_MODE_BITS[profile.MODES["position"]]
         network = _network_class(canopen)(self.bus.open())
         network.NOTIFIER_CYCLE = 0.05  # so that stop() does not wait a second for the reader thread
@@ -323,7 +324,7 @@ class SimCia402Drive(SimDrive):
         value = od.decode_raw(data)
         with self._lock:
             if index == 0x6060:
-                if value not in _MODES:
+                if value not in _MODES or (value == profile.MODES["torque"] and not self.axis.torque_capable):
                     raise canopen.SdoAbortedError(0x06090030)  # value range of parameter exceeded
                 self.mode = int(value)
             elif index == 0x6040:

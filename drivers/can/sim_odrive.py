@@ -35,7 +35,9 @@ motor's, unless the twin closes its loop on the load encoder
 and the estimates are the drive's own encoder PLL's, position and
 velocity. A twin that turns its output off by itself (overspeed, past
 ``vel_limit_tolerance`` times ``vel_limit``) disarms the axis with
-VELOCITY_LIMIT_VIOLATION in the heartbeat, as the firmware does. With the
+VELOCITY_LIMIT_VIOLATION in the heartbeat, as the firmware does. Torque
+control drives a twin's current loop on the input torque (N m at the motor);
+asked of a twin without one, the axis reports BAD_CONFIG. With the
 pseudo-Wiener plant (``servo="model"``) positions are turns of the plant's
 output, as before the twins.
 
@@ -70,6 +72,9 @@ __all__ = ["SimOdriveAxis", "SIM_VERSION"]
 SIM_VERSION = (2, 0, 0, 0, 0, 6, 10, 0)
 
 _TWO_PI = 2 * math.pi
+
+#: Axis error for torque control asked of a twin without a current loop.
+_BAD_CONFIG = next(bit for bit, name in proto.AXIS_ERRORS.items() if name == "BAD_CONFIG")
 
 #: Axis error of a twin that turned its output off on overspeed (ODrive 0.6's name for it).
 _OVERSPEED = next(bit for bit, name in proto.AXIS_ERRORS.items() if name == "VELOCITY_LIMIT_VIOLATION")
@@ -240,6 +245,8 @@ class SimOdriveAxis(SimDrive):
             self._on_state_request(proto.AXIS_STATE_FORMAT.unpack_from(data)[0])
         elif command == proto.SET_CONTROLLER_MODE and len(data) >= proto.CONTROLLER_MODE_FORMAT.size:
             self.control_mode = proto.CONTROLLER_MODE_FORMAT.unpack_from(data)[0]
+            if self.control_mode == proto.CONTROL_MODES["torque"] and not self.axis.torque_capable:
+                self._disarm(_BAD_CONFIG)  # a twin without a current loop: the configuration cannot run
         elif command == proto.CLEAR_ERRORS:
             self.axis_error = 0
             self._send_heartbeat()

@@ -120,7 +120,11 @@ S_N_STUCK_M = 25  # sub-steps the motor spent stuck with the output stage on
 S_N_STUCK_L = 26  # sub-steps the load spent stuck with the output stage on
 S_N_CONTACT = 27  # sub-steps with the gear in contact
 S_POS_EST = 28  # the drive's position estimate on its loop encoder (PLL or raw), output rad
-S_SIZE = 29
+S_MODE = 29  # MODE_* below: what the set point is
+S_SIZE = 30
+
+MODE_POSITION = 0  # the set point is a position, output rad
+MODE_TORQUE = 1  # the set point is a motor torque, N m (cascade drives: the current loop alone)
 
 FAULT_NONE = 0
 FAULT_OVERSPEED = 1

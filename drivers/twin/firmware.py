@@ -36,6 +36,14 @@ Three structures, each as the vendor draws it:
     ODrive faults (output stage off) when the velocity estimate exceeds
     ``overspeed_ratio`` times the velocity limit.
 
+    In torque mode (CiA 402 cyclic synchronous torque, ODrive torque
+    control) the set point is the motor torque: the current command is
+    ``torque / Kt``, limited, as ODrive's ``enable_torque_mode_vel_limit``
+    does (its default), so that the speed stays below the velocity limit
+    (``(+-vel_limit - vel) * vel_gain``; assumed for the CiA 402 drive too),
+    and clipped at the current limit; the position and velocity loops are
+    idle.
+
 At a control tick the drive, in this order: samples both encoders (with
 noise), latches the host's pending set point (sample-and-hold: a command
 that arrives between ticks waits for the next one), clips it to the travel,
@@ -92,10 +100,11 @@ def control_tick(
     state[L.S_TICK_K] = state[L.S_K]
     if state[L.S_HAS_PENDING] > 0.5:
         sp = state[L.S_PENDING]
-        if sp < fw[L.F_SP_MIN]:
-            sp = fw[L.F_SP_MIN]
-        elif sp > fw[L.F_SP_MAX]:
-            sp = fw[L.F_SP_MAX]
+        if state[L.S_MODE] == L.MODE_POSITION:
+            if sp < fw[L.F_SP_MIN]:
+                sp = fw[L.F_SP_MIN]
+            elif sp > fw[L.F_SP_MAX]:
+                sp = fw[L.F_SP_MAX]
         state[L.S_SP] = sp
         state[L.S_HAS_PENDING] = 0.0
 
@@ -155,7 +164,7 @@ def control_tick(
     kind = fw[L.F_KIND]
     vsup = phys[L.P_VSUP]
     if kind == L.FW_CASCADE:
-        _cascade(fw, state, mem, pos_fb, vel, shaft_per_output, vsup)
+        _cascade(fw, state, mem, pos_fb, vel, shaft_per_output, vsup, phys[L.P_KT])
         return
 
     # PID to PWM, in counts of the loop encoder (Dynamixel, Feetech).
@@ -182,9 +191,16 @@ def control_tick(
 
 @jit
 def _cascade(
-    fw: np.ndarray, state: np.ndarray, mem: np.ndarray, pos_fb: float, vel: float, shaft_per_output: float, vsup: float
+    fw: np.ndarray,
+    state: np.ndarray,
+    mem: np.ndarray,
+    pos_fb: float,
+    vel: float,
+    shaft_per_output: float,
+    vsup: float,
+    kt: float,
 ) -> None:
-    """Position P and velocity PI of a cascade drive: sets the current command."""
+    """Position P and velocity PI of a cascade drive (or its torque mode): sets the current command."""
     vel_limit = fw[L.F_VEL_LIMIT]
     if abs(vel) > fw[L.F_OVERSPEED] * vel_limit:
         # ODrive: ERROR_OVERSPEED, the axis drops to idle (output stage off)
@@ -193,6 +209,21 @@ def _cascade(
         state[L.S_V] = 0.0
         state[L.S_I_CMD] = 0.0
         state[L.S_DUTY] = 0.0
+        return
+    if state[L.S_MODE] == L.MODE_TORQUE:
+        # ODrive's enable_torque_mode_vel_limit: no more torque than keeps the speed below the limit
+        wanted = state[L.S_SP] / kt
+        high = (vel_limit - vel) * fw[L.F_VEL_KP]
+        low = (-vel_limit - vel) * fw[L.F_VEL_KP]
+        limited = min(max(wanted, low), high)
+        i_cmd = _clip(limited, fw[L.F_CUR_LIMIT])
+        if i_cmd != wanted:
+            state[L.S_N_CUR_LIM] += 1.0
+        state[L.S_I_CMD] = i_cmd
+        if mem[L.M_SAT] > 0.5:
+            state[L.S_N_SAT] += 1.0
+        mem[L.M_SAT] = 0.0
+        state[L.S_DUTY] = state[L.S_V] / vsup
         return
     vel_cmd = _clip(fw[L.F_POS_KV] * (state[L.S_SP] * shaft_per_output - pos_fb), vel_limit)
     v_err = vel_cmd - vel

@@ -85,6 +85,16 @@ class TwinPlant:
         """Torque off: the drive stage opens; the motor and load coast."""
         self.twin.disable()
 
+    def set_mode(self, mode: str) -> None:
+        """What the set points of :meth:`step` are: ``"position"`` (output rad) or ``"torque"`` (N m at the motor).
+
+        Parameters
+        ----------
+        mode : {"position", "torque"}
+            See :meth:`Twin.set_mode`.
+        """
+        self.twin.set_mode(mode)
+
     def set_period(self, period_s: float) -> None:
         """The host's sample period from now on, s.
 
@@ -96,12 +106,12 @@ class TwinPlant:
         self.period_s = validation.positive("period_s", period_s)
 
     def step(self, u: float) -> float:
-        """Read, command ``u`` (output rad) if the torque is on, run one period; return the reading.
+        """Read, command ``u`` if the torque is on, run one period; return the reading.
 
         Parameters
         ----------
         u : float
-            Set point, output rad.
+            Set point, output rad (torque mode: N m at the motor).
         """
         twin = self.twin
         reading = twin.read()

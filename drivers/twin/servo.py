@@ -284,14 +284,51 @@ class Twin:
         control_tick(self._phys, self._fw, self._state, self._mem, nm[0] if nm.size else 0.0, nl[0] if nl.size else 0.0)
 
     def enable(self) -> None:
-        """Torque on. The set point becomes the present position, so nothing jumps (as the vendors do)."""
+        """Torque on. The set point becomes the present position (zero torque), so nothing jumps (as the vendors do)."""
         if self._state[L.S_ENABLED] > 0.5:
             return
         self._state[L.S_ENABLED] = 1.0
         self._state[L.S_FAULT] = L.FAULT_NONE
         self._mem[:] = 0.0
         self._mem[L.M_FIRST] = 1.0
-        self._state[L.S_SP] = self._loop_position()
+        self._hold()
+
+    @property
+    def mode(self) -> str:
+        """``"position"`` (set points in output rad) or ``"torque"`` (motor torque, N m)."""
+        return "torque" if self._state[L.S_MODE] == L.MODE_TORQUE else "position"
+
+    def set_mode(self, mode: str) -> None:
+        """What :meth:`command` means from now on: a position or, for a cascade drive, a motor torque.
+
+        Parameters
+        ----------
+        mode : {"position", "torque"}
+            ``torque``: the drive runs its current loop alone on ``torque /
+            Kt`` (CiA 402 cyclic synchronous torque, ODrive torque control);
+            the set point starts at zero torque, a position set point at the
+            present position.
+
+        Raises
+        ------
+        ConfigError
+            An unknown mode, or torque on a drive without a current loop.
+        """
+        if mode not in ("position", "torque"):
+            raise ConfigError(f"mode (={mode!r}) must be 'position' or 'torque'")
+        if mode == "torque" and self._params.firmware != "cascade":
+            raise ConfigError(
+                f"the {self._params.name} twin has no current loop (firmware {self._params.firmware}): "
+                "it runs in position mode only"
+            )
+        if mode == self.mode:
+            return
+        self._state[L.S_MODE] = L.MODE_TORQUE if mode == "torque" else L.MODE_POSITION
+        self._hold()
+
+    def _hold(self) -> None:
+        """Set the set point to what keeps the servo as it is: the present position, or no torque."""
+        self._state[L.S_SP] = 0.0 if self._state[L.S_MODE] == L.MODE_TORQUE else self._loop_position()
         self._state[L.S_HAS_PENDING] = 0.0
 
     def disable(self) -> None:
@@ -318,12 +355,12 @@ class Twin:
 
     # -- running ----------------------------------------------------------------
     def command(self, u: float) -> None:
-        """Send a set point, output rad; the drive latches it at its next tick.
+        """Send a set point; the drive latches it at its next tick.
 
         Parameters
         ----------
         u : float
-            Position set point at the output, rad.
+            Position set point at the output, rad (torque mode: motor torque, N m).
         """
         self._state[L.S_PENDING] = validation.real("u", u)
         self._state[L.S_HAS_PENDING] = 1.0
