@@ -45,6 +45,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -203,8 +204,16 @@ def can_url(protocol: str) -> Callable[[str], contextlib.AbstractContextManager[
                 raise RuntimeError(f"the emulator did not start: {' '.join(cmd)}")
             yield url
         finally:
-            proc.send_signal(signal.SIGINT)
-            proc.wait(timeout=10)
+            # SIGTERM, not Ctrl-C: a benchmark started in the background (make bench &) passes on an ignored SIGINT
+            proc.send_signal(signal.SIGTERM)
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                print(
+                    f"(the emulator {' '.join(cmd[3:])} did not stop within 10 s of SIGTERM: killed)", file=sys.stderr
+                )
+                proc.kill()
+                proc.wait()
 
     return start
 
@@ -232,6 +241,18 @@ def identify_live(url: str, samples: int, out: Path) -> tuple[dict | None, str]:
     return json.loads(stdout.getvalue()), ""
 
 
+def outcome(error: str) -> str:
+    """A failed run in a few words: the error's kind, what the device said, the sample it stopped at."""
+    text = error.removeprefix("servoid identify: ").removeprefix("error: ")
+    kind = text.split(":", 1)[0] if re.match(r"^[A-Z]\w+:", text) else "error"
+    said = re.search(r"\((\w+) error\)|(EMCY 0x[0-9A-F]{4})|axis error 0x[0-9A-F]+ \((\w+)\)", text)
+    at = re.search(r"stopped at sample (\d+)", text)
+    if said is None:
+        return text[:70]
+    what = next(g for g in said.groups() if g)
+    return f"{kind}: {what}" + (f" at sample {at.group(1)}" if at else "")
+
+
 def live_row(name: str, transport: str, samples: int, cost_us: str, out: Path) -> list[str]:
     params = preset(name)
     play = params.play_rad
@@ -240,8 +261,7 @@ def live_row(name: str, transport: str, samples: int, cost_us: str, out: Path) -
     with LIVE[transport](name) as url:
         result, error = identify_live(url, samples, out)
     if result is None:
-        reason = error.removeprefix("servoid identify: ").removeprefix("error: ")
-        return [name, transport, f"{play:.5f}", "-", "-", "-", "-", "-", cost_us, reason[:90]]
+        return [name, transport, f"{play:.5f}", "-", "-", "-", "-", "-", cost_us, outcome(error)]
     m = result["model"]
     width = (m["c1"] + m["c2"]) / scale
     online = "settled" if result["mrgia"].get("settled") else "not settled"

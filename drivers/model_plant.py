@@ -1,9 +1,9 @@
 """The estimator's own plant: a servo that is exactly the pseudo-Wiener model, for exact-recovery tests.
 
-The simulated servo (``sim://``, ``plant=bench``) and, until the physical
-servo twins take their place, the serial firmware emulator, the CAN drives and
-the Dynamixel emulator all run this plant, so that they move the same way and
-their identification results can be compared with its true parameters.
+Every simulated device runs it when asked for by name, ``model``
+(``sim://model``, ``servoid emulate serial|can|dxl --servo model``; their
+default is a physical twin, :mod:`servoid.drivers.servos`): the transports'
+exact tests compare what comes through a protocol with its true parameters.
 
 A position-controlled servo with gear backlash, in radians, at the sample
 rate of the session: the closed position loop is a linear block with DC gain

@@ -2,7 +2,7 @@
 
 URL forms::
 
-    sim://?snr=40                                   the simulated servo
+    sim://xm430?snr=40                              the simulated servo (a twin; sim://model the model itself)
     serial:///dev/ttyUSB0?baud=1000000              the serial bench controller
     can://virtual/ch0?protocol=cia402&node=1        a CAN drive (python-can interface / channel)
     dxl:///dev/ttyUSB0?id=1&baud=1000000            a ROBOTIS Dynamixel
@@ -125,7 +125,7 @@ def driver_from_url(url: str) -> Driver:
 
     Examples
     --------
-    >>> with driver_from_url("sim://?snr=40") as servo:   # doctest: +SKIP
+    >>> with driver_from_url("sim://xm430?snr=40") as servo:   # doctest: +SKIP
     ...     servo.enable()
     ...     m = servo.exchange(0.5)
     """

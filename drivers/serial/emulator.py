@@ -119,7 +119,9 @@ class FirmwareOptions:
                     "whole number in 16..16777216"
                 )
         else:
-            validation.integer("counts_per_rev", 65536 if self.counts_per_rev is None else self.counts_per_rev, minimum=16)
+            validation.integer(
+                "counts_per_rev", 65536 if self.counts_per_rev is None else self.counts_per_rev, minimum=16
+            )
         validation.non_negative("noise", self.noise)
         validation.integer("seed", self.seed, minimum=0)
         for name in ("flip_tx", "flip_rx", "drop"):
@@ -160,8 +162,12 @@ class FirmwareOptions:
             params = params.replace(**{f"{params.output_encoder}_encoder_noise_counts": counts})
         phys, fw = params.pack()
         return [
-            "--twin-phys", ",".join(repr(float(v)) for v in phys), "--twin-fw", ",".join(repr(float(v)) for v in fw),
-            "--twin-output", params.output_encoder,
+            "--twin-phys",
+            ",".join(repr(float(v)) for v in phys),
+            "--twin-fw",
+            ",".join(repr(float(v)) for v in fw),
+            "--twin-output",
+            params.output_encoder,
         ]
 
     def arguments(self) -> list[str]:

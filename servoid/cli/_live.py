@@ -41,7 +41,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     """The options of a live run (a group of ``servoid identify``)."""
     live = parser.add_argument_group("live servo")
     live.add_argument("--driver", metavar="URL",
-                      help="identify this servo live: sim://?snr=40, serial:///dev/ttyUSB0, can://..., dxl://... "
+                      help="identify this servo live: sim://xm430?snr=40 (a twin; sim://model the model), serial:///dev/ttyUSB0, can://..., dxl://... "
                            "(see docs/drivers.md); --samples, --seed set the excitation")  # fmt: skip
     live.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
                       help=f"sample rate of the live run in Hz (default {DEFAULT_RATE_HZ:g})")  # fmt: skip
@@ -91,7 +91,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         raise ConfigError("give --driver or --data, not both")
     if args.snr is not None:
         raise ConfigError("--snr sets the noise of the built-in simulation; for the simulated servo put it in the URL: "
-                          "--driver 'sim://?snr=40'")  # fmt: skip
+                          "--driver 'sim://xm430?snr=40'")  # fmt: skip
     if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
     if args.samples < 1:

@@ -44,7 +44,7 @@ Where the record comes from:
                  or by --excitation SPEC (see `servoid excite --help`)
   --data FILE    a CSV recording with a header row and columns u, y (and t in
                  seconds, optional); lines starting with '#' are metadata
-  --driver URL   a live servo (sim://, serial://, can://, dxl://), excited at
+  --driver URL   a live servo (sim://: a twin, sim://model the model; serial://, can://, dxl://), excited at
                  --rate Hz; the recording is written as it is measured
 
 Outputs in --out: recording.csv, model.json, convergence.png (each parameter
@@ -63,7 +63,8 @@ examples:
   servoid identify --snr 43 --excitation prbs:amplitude=1.5,hold=3
   servoid identify --data bench.csv --na 2 --nb 1 --delay 2 --epsilon 0.004 --unit rad
   servoid identify --json --no-plots > result.json
-  servoid identify --driver "sim://?snr=40" --rate 500 --samples 5000
+  servoid identify --driver "sim://xm430?snr=40" --rate 500 --samples 5000
+  servoid identify --driver "sim://model?clock=virtual" --rate 500   (the estimator's own plant)
   servoid identify --driver serial:///dev/pts/5 --rate 200   (after: servoid emulate serial)
 """
 

@@ -21,8 +21,8 @@ from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.drivers.serial import build
 from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
-from servoid.drivers.servos import Servo
 from servoid.drivers.serial.protocol import FrameSplitter, check, crc16, encode, parse_reply
+from servoid.drivers.servos import Servo
 from servoid.errors import ConfigError, DeviceFault, DriverError, MissingDependency, ProtocolError
 from servoid.ident import PAPER_PLANT, BacklashModel, simulate
 from servoid.recording import read_recording

@@ -80,7 +80,9 @@ def test_the_c_twin_reads_what_the_python_twin_reads_sample_for_sample(firmware,
     c, py = c_twin(firmware, params, u, period_s), python_twin(params, u, period_s)
     for i, field in enumerate(FIELDS):
         differ = np.flatnonzero(c[:, i] != py[:, i])
-        assert differ.size == 0, f"{field} differs first at sample {differ[0]}: C {c[differ[0], i]!r}, Python {py[differ[0], i]!r}"
+        assert differ.size == 0, (
+            f"{field} differs first at sample {differ[0]}: C {c[differ[0], i]!r}, Python {py[differ[0], i]!r}"
+        )
     assert np.ptp(py[:, 1]) > 10  # it moved
     if name == "odrive":
         assert py[-1, 8] == 1 and py[-1, 7] == 0  # the overspeed really happened, in both
