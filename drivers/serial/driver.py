@@ -257,7 +257,7 @@ class SerialDriver(Driver):
         if reply.kind == "X":
             code = reply.ints()[0]
             what = ERROR_CODES.get(code, f"error code {code}")
-            if code == 2:
+            if code in (2, 6):
                 raise DeviceFault(f"{self.describe()}: {verb} refused: {what}")
             raise DriverError(f"{self.describe()}: {verb} refused: {what}")
         if reply.kind != expect:

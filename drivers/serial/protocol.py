@@ -41,6 +41,7 @@ ERROR_CODES = {
     3: "an argument is out of range",
     4: "streaming needs a control period (send C first)",
     5: "the set point's slot is not after the previous one",
+    6: "the output stage turned itself off (a fault of the drive, e.g. an overspeed); the torque is off",
 }
 
 #: Reply kinds and how many fields follow the boot id.

@@ -97,3 +97,20 @@ def test_the_serial_emulator_passes_the_twin_and_refuses_what_the_protocol_canno
         FirmwareOptions(counts_per_rev=4096)
     with pytest.raises(ConfigError, match="353.5 counts per output turn.*whole number"):
         FirmwareOptions(servo="xm430?output_encoder=motor&motor_encoder_cpr=1")
+
+
+def test_a_twin_that_faults_behind_the_firmware_is_a_device_fault_never_a_coasting_servo():
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.serial.emulator import FirmwareEmulator
+    from servoid.errors import DeviceFault
+
+    # the ODrive's default gains: quick reversals of 1.6 rad spin its motor past 1.2 x vel_limit
+    with FirmwareEmulator(FirmwareOptions(servo="odrive")) as emu, driver_from_url(emu.url) as servo:
+        servo.set_sample_period(0.005)
+        servo.enable()
+        with pytest.raises(DeviceFault, match="turned itself off"):
+            for v in np.random.default_rng(1).uniform(-1.6, 1.6, 400):
+                servo.exchange(float(v))
+        assert servo.status()["torque"] == 0
+        servo.enable()  # re-armed
+        servo.exchange(0.0)

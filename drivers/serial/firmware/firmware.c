@@ -120,7 +120,15 @@ static void set_point(fw_state_t *fw, uint32_t seq, int32_t counts, int with_slo
         fw->have_slot = 1;
         fw->last_slot = slot;
     }
-    reply_sample(fw, seq, "P", hal_motor_set(counts, periods));
+    {
+        hal_sample_t s = hal_motor_set(counts, periods);
+        if (hal_motor_fault()) {
+            set_torque(fw, 0); /* the stage is off already: say so rather than report a servo that coasts */
+            reply_error(fw, seq, FW_ERR_FAULT);
+            return;
+        }
+        reply_sample(fw, seq, "P", s);
+    }
 }
 
 static void handle(fw_state_t *fw, char *body, int n)

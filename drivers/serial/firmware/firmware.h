@@ -23,7 +23,8 @@ enum {
     FW_ERR_TORQUE = 2,    /* S while the torque is off */
     FW_ERR_RANGE = 3,     /* an argument out of range */
     FW_ERR_PERIOD = 4,    /* R without a control period */
-    FW_ERR_SLOT = 5       /* S for a slot at or before the previous one */
+    FW_ERR_SLOT = 5,      /* S for a slot at or before the previous one */
+    FW_ERR_FAULT = 6      /* the output stage turned itself off: the torque is off */
 };
 
 typedef struct {

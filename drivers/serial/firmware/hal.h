@@ -53,6 +53,10 @@ hal_sample_t hal_motor_set(int32_t counts, uint32_t periods);
 /* The latest reading of the position loop. */
 hal_sample_t hal_encoder_read(void);
 
+/* Nonzero when the output stage turned itself off (a motor driver's fault pin; in the host
+ * build, the twin's loop faulted, e.g. an overspeed). Cleared by hal_motor_enable(1). */
+int hal_motor_fault(void);
+
 /* Encoder counts per output revolution. */
 uint32_t hal_counts_per_rev(void);
 

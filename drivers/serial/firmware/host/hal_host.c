@@ -113,3 +113,4 @@ hal_sample_t hal_motor_set(int32_t counts, uint32_t periods)
     return sim_motor_command(motor, counts, periods, hal_micros());
 }
 hal_sample_t hal_encoder_read(void) { return sim_motor_read(motor, hal_micros()); }
+int hal_motor_fault(void) { return sim_motor_fault(motor); }

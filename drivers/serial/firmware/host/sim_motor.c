@@ -199,3 +199,5 @@ hal_sample_t sim_motor_read(sim_motor_t *s, uint32_t now_us)
     }
     return reading(s, now_us);
 }
+
+int sim_motor_fault(const sim_motor_t *s) { return s->is_twin ? s->twin.loop.fault : 0; }

@@ -83,5 +83,7 @@ void sim_motor_period(sim_motor_t *s, uint32_t period_us);
 /* periods: control periods since the previous set point as the host counts them, 0: from the clock */
 hal_sample_t sim_motor_command(sim_motor_t *s, int32_t counts, uint32_t periods, uint32_t now_us);
 hal_sample_t sim_motor_read(sim_motor_t *s, uint32_t now_us);
+/* Nonzero when a twin's loop turned its output stage off by itself (TW_FAULT_*). */
+int sim_motor_fault(const sim_motor_t *s);
 
 #endif
