@@ -19,7 +19,8 @@ What the emulated servo does
   velocity estimate (0.229 rpm a unit), Present Current the winding current
   (2.69 mA a unit), Present PWM its duty (885 = 100 %), each as of the latest
   sample. Torque Enable switches the twin's drive stage: with the torque
-  off it coasts. A twin runs in the position modes (3, 4, 5) only; the
+  off it coasts. A twin that turns its stage off by itself (the ODrive
+  twin's overspeed) sets the Overload Error bit of Hardware Error Status. A twin runs in the position modes (3, 4, 5) only; the
   current and PWM modes of its own current loop and output stage are not
   modelled, and Operating Mode refuses them (Data Range Error).
 * **The plant, sampled**: the servo is a :class:`~servoid.drivers.sampled.SampledPlant`;
@@ -377,6 +378,10 @@ class EmulatedServo:
         twin = self._sampled.twin
         if twin is None:
             return
+        if twin.twin.read().fault is not None and not self.alert:
+            # the twin turned its output stage off by itself (an ODrive twin's overspeed): the X series says
+            # so with a hardware error, as its own protections do, rather than answer for a coasting servo
+            self.inject_hardware_error(HardwareError.OVERLOAD)
         r = twin.reading
         self._put(
             ct.PRESENT_VELOCITY, _clip(ct.PRESENT_VELOCITY, round(r.velocity_rad_s / ct.RAD_PER_S_PER_VELOCITY_UNIT))

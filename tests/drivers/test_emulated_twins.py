@@ -120,3 +120,10 @@ def test_every_emulator_refuses_a_bad_servo_in_one_line(kind, servo, message, ca
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_a_twin_that_faults_behind_the_dynamixel_protocol_raises_its_hardware_error():
+    with DynamixelEmulator(ids=[1], return_delay_us=0, period_s=PERIOD_S, servo="odrive") as emu:
+        with pytest.raises(DeviceFault, match="overload"):
+            run(emu.url(1), np.random.default_rng(1).uniform(-1.6, 1.6, 200))
+        assert not emu.servo(1).torque and emu.servo(1).value(ct.HARDWARE_ERROR_STATUS) == ct.HardwareError.OVERLOAD
