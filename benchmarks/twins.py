@@ -245,7 +245,11 @@ def outcome(error: str) -> str:
     """A failed run in a few words: the error's kind, what the device said, the sample it stopped at."""
     text = error.removeprefix("servoid identify: ").removeprefix("error: ")
     kind = text.split(":", 1)[0] if re.match(r"^[A-Z]\w+:", text) else "error"
-    said = re.search(r"\((\w+) error\)|(EMCY 0x[0-9A-F]{4})|axis error 0x[0-9A-F]+ \((\w+)\)", text)
+    said = re.search(
+        r"\((\w+) error\)|(EMCY 0x[0-9A-F]{4})|axis error 0x[0-9A-F]+ \((\w+)\)|(hardware error: [\w ,]+?) \("
+        r"|(output stage turned itself off)",
+        text,
+    )
     at = re.search(r"stopped at sample (\d+)", text)
     if said is None:
         return text[:70]
@@ -286,6 +290,7 @@ def main() -> None:
     parser.add_argument(
         "--live-samples", type=int, default=5000, help="samples of each run of table 3 (default 5000, identify's)"
     )
+    parser.add_argument("--presets", nargs="+", default=list(preset_names()), help="presets of table 3 (default all)")
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -333,7 +338,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         live = [
             live_row(name, transport, args.live_samples, cost[name], Path(tmp) / f"{name}-{i}")
-            for name in preset_names()
+            for name in args.presets
             for i, transport in enumerate(LIVE)
         ]
     table(
