@@ -22,6 +22,7 @@ import numpy as np
 
 from servoid.cli import _term
 from servoid.drivers import driver_from_url
+from servoid.drivers.base import Limits
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
@@ -29,6 +30,7 @@ from servoid.excitation import UniformSpec, parse_spec, sample
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
 from servoid.identify_outputs import Record
+from servoid.readers.excitation_file import is_file_spec, read_excitation
 from servoid.recording import Recording
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
 from servoid.session.listeners import EstimatorFeed
@@ -37,6 +39,9 @@ __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "exc
 
 #: Default sample rate of a live run, Hz.
 DEFAULT_RATE_HZ = 200.0
+
+#: Samples of a simulated or live run when --samples is not given.
+DEFAULT_SAMPLES = 5000
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -60,15 +65,23 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
-    """The input of a live run: ``--excitation SPEC`` around ``centre``, else uniform noise ``centre +/- amplitude``."""
-    if args.excitation is not None:
-        if args.amplitude is not None:
-            raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
-        spec = parse_spec(args.excitation)
-    else:
-        spec = UniformSpec(amplitude=amplitude)
-    return centre + sample(spec, args.samples, seed=args.seed)
+def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "") -> np.ndarray:
+    """The input of a live run.
+
+    ``--excitation file:...`` replays a file's commands as they are, after
+    checking them against the driver's ``limits``; a spec (``--excitation
+    SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
+    amplitude``. ``--samples`` long (a file: all of it by default).
+    """
+    if args.excitation is not None and args.amplitude is not None:
+        raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
+    if is_file_spec(args.excitation):
+        replay = read_excitation(args.excitation)
+        replay.check_within(limits.low, limits.high, limits.max_step, unit=unit)
+        u: np.ndarray = replay.first(args.samples)
+        return u
+    spec = parse_spec(args.excitation) if args.excitation is not None else UniformSpec(amplitude=amplitude)
+    return limits.centre + sample(spec, args.samples or DEFAULT_SAMPLES, seed=args.seed)
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
@@ -96,7 +109,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                           "--driver 'sim://?snr=40'")  # fmt: skip
     if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
-    if args.samples < 1:
+    if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     driver = driver_from_url(args.driver)
     quiet = args.json
@@ -112,17 +125,18 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
-        u = excitation(args, amplitude, driver.limits.centre)
+        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit)
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         path = args.out / "recording.csv"
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
+                "servo": _flat(identity)}  # fmt: skip
         if not quiet:
-            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {args.samples} samples "
-                               f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
+            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
+                               f"({u.size / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
-        with _term.live_progress("live", args.samples) as bar:
+        with _term.live_progress("live", u.size) as bar:
 
             def update(p: SessionProgress) -> None:
                 bar(p.done, _status_text(p, driver.position_unit.unit))

@@ -6,14 +6,14 @@ import argparse
 import time
 from pathlib import Path
 
-from servoid.cli import _term
+from servoid.cli import _data, _term
 from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
 from servoid.errors import ConfigError, DataError
 from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
 from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
-from servoid.recording import Recording, read_recording
+from servoid.recording import Recording
 
 ORDER = 20
 
@@ -37,9 +37,7 @@ extended model for a further effect (--max-effects).
 The effects (parameters in the unit of u unless said):
 {_LIBRARY}
 
-Recordings: CSV with a header row and columns u, y (and t in seconds,
-optional); lines starting with '#' are metadata ('# unit: rad'). Both must
-have the same sample period and units.
+{_data.formats_help("Recordings: ", 0, ". Both are read with the same options and must have the same sample period and units.")}
 
 Outputs in --out: model.json (base model plus "effects"), diagnose_fit.png
 (measured vs both models, residuals), diagnose_regimes.png (where the error
@@ -51,6 +49,8 @@ examples:
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 1 --delay 1 --json > diagnosis.json
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1 --effects coulomb_friction,dead_zone
+  servoid diagnose --train DATA_EMPS.mat --validate DATA_EMPS_PULSES.mat --columns u=qg,y=qm --nb 1
+  servoid diagnose --train bag_a/ --validate bag_b/ --topics y=/joint_states:wrist,u=/cmd
   python examples/real_data.py emps --out emps/    (the EMPS benchmark, converted and diagnosed)
 """
 
@@ -61,10 +61,11 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
     rec = p.add_argument_group("recordings")
-    rec.add_argument("--train", required=True, type=Path, metavar="A.csv", help="training recording (all fitting)")
-    rec.add_argument("--validate", required=True, type=Path, metavar="B.csv",
+    rec.add_argument("--train", required=True, type=Path, metavar="A", help="training recording (all fitting)")
+    rec.add_argument("--validate", required=True, type=Path, metavar="B",
                      help="validation recording (scores only, never fitted)")  # fmt: skip
     rec.add_argument("--unit", metavar="UNIT", help="unit of y (default: the recordings' '# unit:' line)")
+    _data.add_options(p)
     mdl = p.add_argument_group("base model")
     mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
     mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
@@ -101,13 +102,6 @@ def _candidates(text: str | None) -> tuple[str, ...]:
     return names
 
 
-def _read(path: Path, what: str) -> Recording:
-    rec = read_recording(path)
-    for note in rec.notes:
-        _term.warn(f"{path}: {note}")
-    return rec
-
-
 def check_pair(train: Recording, validate: Recording) -> None:
     """Refuse recordings that cannot be compared: different units or sample periods.
 
@@ -129,8 +123,8 @@ def check_pair(train: Recording, validate: Recording) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    train = _read(args.train, "training")
-    validate = _read(args.validate, "validation")
+    train = _data.read(args.train, args)
+    validate = _data.read(args.validate, args)
     check_pair(train, validate)
     config = DiagnoseConfig(
         identification=MRGIAConfig(na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent,
