@@ -11,8 +11,6 @@ from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_PLANT
 
-HELP = "the serial bench servo: reference C firmware + simulated motor and gear on a pseudo-terminal"
-
 DESCRIPTION = """\
 Build the reference firmware of the serial bench controller (C, in
 servoid/drivers/serial/firmware/) for this machine with the system's C

@@ -16,24 +16,24 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
-from servoid.drivers import driver_from_url
-from servoid.drivers.base import Limits
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
-from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
-from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
-from servoid.identify_outputs import Record
-from servoid.readers.excitation_file import is_file_spec, read_excitation
-from servoid.recording import Recording
-from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
-from servoid.session.listeners import EstimatorFeed
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+    from servoid.drivers.base import Limits
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
+    from servoid.identify_outputs import Record
+    from servoid.recording import Recording
+    from servoid.session import SessionProgress, SessionResult
+
+# The libraries a run needs are imported inside the functions that run it, so that the
+# commands' --help (which add_options serves) starts without them.
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
 
@@ -73,6 +73,9 @@ def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit:
     SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
     amplitude``. ``--samples`` long (a file: all of it by default).
     """
+    from servoid.excitation import UniformSpec, parse_spec, sample
+    from servoid.readers.excitation_file import is_file_spec, read_excitation
+
     if args.excitation is not None and args.amplitude is not None:
         raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
     if is_file_spec(args.excitation):
@@ -86,6 +89,10 @@ def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit:
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
     """The samples of a recording to identify from: all, or for a live recording those its session used."""
+    import numpy as np
+
+    from servoid.session import usable
+
     if rec.status is None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
@@ -111,6 +118,12 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.session import SessionConfig, run_session
+    from servoid.session.listeners import EstimatorFeed
+
     driver = driver_from_url(args.driver)
     quiet = args.json
     with driver:
@@ -172,6 +185,10 @@ def _record(
     path: Path,
     online: MRGIAResult | None,
 ) -> Record:
+    import numpy as np
+
+    from servoid.identify_outputs import Record
+
     valid = result.valid
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")

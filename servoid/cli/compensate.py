@@ -4,24 +4,18 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.ident.control.compensation_study import (
-    ARMS,
-    CHANGES,
-    FAMILIES,
-    ArmSummary,
-    CompensationStudy,
-    compensation_study,
-    default_resolution,
-)
-from servoid.ident.control.references import amplitude_limit, reference_suite
-from servoid.ident.control.tracking import Sensor
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
-from servoid.modelfile import ModelFile, load_model
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.control.compensation_study import ArmSummary, CompensationStudy
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.modelfile import ModelFile
+
+# The study and the models are imported inside the functions that run: `servoid compensate --help` starts
+# without the numerical libraries.
 
 ORDER = 30
 
@@ -106,6 +100,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _plant(spec: str | None, content: ModelFile) -> tuple[BacklashModel, str]:
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.modelfile import load_model
+
     if spec is None:
         return content.model, "the model itself"
     if spec == "paper":
@@ -141,6 +138,8 @@ def _nominal_rows(study: CompensationStudy) -> list[list[str]]:
 
 
 def _robustness_rows(study: CompensationStudy) -> list[list[str]]:
+    from servoid.ident.control.compensation_study import ARMS
+
     rows = []
     entries: list[tuple[str, dict[str, ArmSummary], str]] = [("nominal", {a: study.summary(a) for a in ARMS}, "")]
     entries += [(p.label, p.summaries, p.note) for p in study.perturbations]  # type: ignore[misc]
@@ -171,6 +170,11 @@ def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, pa
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.ident.control.compensation_study import CHANGES, FAMILIES, compensation_study, default_resolution
+    from servoid.ident.control.references import amplitude_limit, reference_suite
+    from servoid.ident.control.tracking import Sensor
+    from servoid.modelfile import load_model
+
     content = load_model(args.model)
     plant, plant_name = _plant(args.plant, content)
     if content.effects:

@@ -6,21 +6,18 @@ import argparse
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-from rich.markup import escape
+from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sample
-from servoid.excitation.design import Design, Prior, ServoLimits, design
-from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
-from servoid.excitation.specs import grammar
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
-from servoid.modelfile import load_model
-from servoid.recording import write_recording
+from servoid.excitation.specs import KINDS, SignalSpec, format_spec, grammar, parse_spec
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.excitation.design import Design
+    from servoid.excitation.report import ExcitationReport, Verdict
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+# The numerical libraries are imported inside the functions that run: `servoid excite --help` starts without them.
 
 ORDER = 5
 
@@ -123,6 +120,8 @@ def _consecutive(values: dict[str, float], prefix: str, first: int) -> list[floa
 
 def _prior_model(text: str) -> BacklashModel:
     """A model from ``a1=..,a2=..,b0=..,delay=1,m2=..,c1=..,c2=..``."""
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
     usage = "give --prior a1=..,b0=..,delay=1,m2=..,c1=..,c2=.. (a1.. and b0.. as many as the orders)"
     values: dict[str, float] = {}
     for item in filter(None, (part.strip() for part in text.split(","))):
@@ -147,6 +146,9 @@ def _prior_model(text: str) -> BacklashModel:
 
 def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
     """The model to report through and where it came from."""
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.modelfile import load_model
+
     if args.no_model:
         return None, "none"
     if args.model is not None:
@@ -157,6 +159,8 @@ def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
 
 
 def _design(args: argparse.Namespace) -> tuple[Design, str]:
+    from servoid.excitation.design import Prior, ServoLimits, design
+
     if args.spec is not None:
         raise ConfigError("give SPEC or --design, not both")
     if args.no_model:
@@ -219,12 +223,21 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
 
 
 def _print_verdicts(verdicts: Sequence[Verdict]) -> None:
+    from rich.markup import escape
+
     colour = {"ok": "green", "warning": "yellow", "insufficient": "red"}
     for v in verdicts:
         _term.stdout.print(f"[{colour[v.level]}]{v.level:12s}[/{colour[v.level]}] {escape(v.message)}")
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+    from rich.markup import escape
+
+    from servoid.excitation import sample
+    from servoid.excitation.report import assess, worst_level
+    from servoid.recording import write_recording
+
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if args.sample_period is not None and not args.sample_period > 0:

@@ -5,24 +5,18 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from servoid.cli import _data, _live, _term
+from servoid.cli import _data, _live, _model, _term
 from servoid.errors import ConfigError
-from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
-from servoid.ident.identify import identify
-from servoid.ident.models.simulate import simulate
-from servoid.ident.online.mrgia import MRGIAConfig, noise_epsilon
-from servoid.ident.paper import (
-    PAPER_INPUT_AMPLITUDE,
-    PAPER_INPUT_VARIANCE,
-    PAPER_PLANT,
-    PAPER_RHO_EXPONENT,
-    RECOMMENDED_RHO_EXPONENT,
-)
-from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
-from servoid.readers.excitation_file import is_file_spec, read_excitation
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_INPUT_VARIANCE
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.online.mrgia import MRGIAConfig
+    from servoid.identify_outputs import Record
+
+# The numerical libraries are imported inside the functions that run: `servoid identify --help`
+# must start without them (benchmarks/startup.py).
 
 ORDER = 10
 
@@ -99,13 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     _data.add_options(p)
     _live.add_options(p)
     mdl = p.add_argument_group("model")
-    mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
-    mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
-    mdl.add_argument("--delay", type=int, default=1, help="input delay d >= 1 in samples (default 1)")
+    _model.add_structure_options(mdl)
     est = p.add_argument_group("estimator")
-    est.add_argument("--rho-exponent", type=float, default=RECOMMENDED_RHO_EXPONENT, metavar="R",
-                     help=f"r in rho(k) = (k+1)^-r, in (0, 1]; the paper uses {PAPER_RHO_EXPONENT}, larger "
-                          f"values average noise better (default {RECOMMENDED_RHO_EXPONENT})")  # fmt: skip
+    _model.add_rho_option(est)
     est.add_argument("--epsilon", type=float, metavar="E",
                      help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), unit of y "
                           "(default: from --snr for the simulated servo, else 0)")  # fmt: skip
@@ -124,6 +114,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
+    from servoid.ident.online.mrgia import MRGIAConfig
+
     return MRGIAConfig(
         na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent, epsilon=epsilon,
         project=not args.paper_algorithm, recover=not args.paper_algorithm,
@@ -131,6 +123,15 @@ def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
 
 
 def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
+    import numpy as np
+
+    from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
+    from servoid.ident.models.simulate import simulate
+    from servoid.ident.online.mrgia import noise_epsilon
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.identify_outputs import Record
+    from servoid.readers.excitation_file import is_file_spec, read_excitation
+
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
@@ -162,6 +163,8 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 
 def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
+    from servoid.identify_outputs import Record
+
     rec = _data.read(args.data, args)
     unit = args.unit or rec.metadata.get("unit", "unit")
     record = Record(
@@ -194,6 +197,9 @@ def _refuse_reading_options(args: argparse.Namespace) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.ident.identify import identify
+    from servoid.identify_outputs import result_json, summary_rows, write_outputs
+
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(

@@ -16,11 +16,13 @@ import re
 from collections.abc import Iterable
 from importlib import resources
 from string import Template
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import __version__
 from servoid.errors import ConfigError
-from servoid.modelfile import ModelFile
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.modelfile import ModelFile
 
 __all__ = ["SUMMARY", "OPTIONS", "DEFAULT_NAME", "render"]
 
