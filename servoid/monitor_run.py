@@ -567,9 +567,10 @@ class _Loop:
             if self._live is not None:
                 self._live.close()
                 self._live = None
+            from servoid.plots import save
             from servoid.plots.monitor import plot_monitor
 
-            self.files["plot"] = plot_monitor(self._snapshot(), self.plot_path)
+            self.files["plot"] = save(plot_monitor(self._snapshot()), self.plot_path)
 
     def result(self, session: SessionResult) -> MonitorResult:
         est = self.estimator.estimate()

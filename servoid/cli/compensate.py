@@ -196,10 +196,10 @@ def run(args: argparse.Namespace) -> int:
         from servoid import plots
 
         out_dir = args.out if args.out is not None else args.model.parent
-        paths["tracking_plot"] = str(plots.plot_tracking(study, out_dir / "compensation.png",
-                                                         output_unit=content.output_unit))  # fmt: skip
-        paths["robustness_plot"] = str(plots.plot_robustness(study, out_dir / "robustness.png",
-                                                             output_unit=content.output_unit))  # fmt: skip
+        tracking = plots.plot_tracking(study, output_unit=content.output_unit)
+        paths["tracking_plot"] = str(plots.save(tracking, out_dir / "compensation.png"))
+        robustness = plots.plot_robustness(study, output_unit=content.output_unit)
+        paths["robustness_plot"] = str(plots.save(robustness, out_dir / "robustness.png"))
     if args.json:
         _term.print_json(study_json(study, content, plant_name, paths))
         return 0

@@ -264,12 +264,14 @@ def run(args: argparse.Namespace) -> int:
     meta = {"servoid excitation": "", "spec": format_spec(spec), "seed": args.seed, "input_unit": args.unit}
     paths = {"signal": str(write_recording(args.out, columns, metadata=meta))}
     if not args.no_plot:
+        from servoid.plots import save
         from servoid.plots.excitation import plot_excitation
 
-        paths["plot"] = str(plot_excitation(
-            u, report, args.plot, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
+        fig = plot_excitation(
+            u, report, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
             input_unit="" if args.unit == "unit" else args.unit, title=spec.kind, level=worst_level(verdicts),
-        ))  # fmt: skip
+        )  # fmt: skip
+        paths["plot"] = str(save(fig, args.plot))
 
     if args.json:
         obj: dict[str, Any] = {
