@@ -246,6 +246,7 @@ def test_read_picks_by_suffix_and_refuses_unknown(tmp_path):
 
 def test_option_strings_parse_and_refuse():
     assert parse_columns("u=goal, y=pos,t=none") == {"u": "goal", "y": "pos", "t": "none"}
+    assert parse_columns("u=log(:,2),y=log(:, 3)") == {"u": "log(:,2)", "y": "log(:, 3)"}
     assert parse_topics("y=/joint_states:j2,u=/cmd") == {"y": "/joint_states:j2", "u": "/cmd"}
     for text, fragment in [("u=a,u=b", "'u' is given twice"), ("x=a", "unknown role 'x'"), ("u", "must be ROLE=NAME")]:
         with pytest.raises(ConfigError, match=fragment):

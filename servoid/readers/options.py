@@ -94,7 +94,7 @@ class ReadOptions:
 
 def _pairs(text: str, *, option: str, roles: tuple[str, ...], example: str) -> dict[str, str]:
     out: dict[str, str] = {}
-    for item in (part.strip() for part in text.split(",")):
+    for item in (part.strip() for part in _top_level_split(text)):
         if not item:
             continue
         key, eq, value = item.partition("=")
@@ -109,6 +109,21 @@ def _pairs(text: str, *, option: str, roles: tuple[str, ...], example: str) -> d
     if not out:
         raise ConfigError(f"{option} (={text!r}) names nothing; e.g. {example}")
     return out
+
+
+def _top_level_split(text: str) -> list[str]:
+    """``text`` split at the commas outside brackets, so that ``u=log(:,2)`` stays whole."""
+    parts, depth, start = [], 0, 0
+    for i, char in enumerate(text):
+        if char in "([":
+            depth += 1
+        elif char in ")]":
+            depth = max(depth - 1, 0)
+        elif char == "," and depth == 0:
+            parts.append(text[start:i])
+            start = i + 1
+    parts.append(text[start:])
+    return parts
 
 
 def parse_columns(text: str) -> dict[str, str]:
