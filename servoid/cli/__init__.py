@@ -53,7 +53,7 @@ BAD_INPUT = (ConfigError, DataError, ModelError)
 
 #: Said on stderr when numba starts compiling: the first run after an install compiles the kernels
 #: (measured by benchmarks/startup.py on a 2-core machine), later runs load them from numba's cache.
-COMPILE_NOTE = "compiling servoid's estimator once (numba, ~10-20 s; later runs start at once)..."
+COMPILE_NOTE = "compiling servoid's estimator once (numba, 15-30 s; later runs load it from the cache)..."
 
 
 def command_names() -> list[str]:
