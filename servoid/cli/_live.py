@@ -28,7 +28,7 @@ from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, parse_spec, sample
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
-from servoid.identify_outputs import Record
+from servoid.identify_outputs import OUTPUT_FILES, Record
 from servoid.recording import Recording
 from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
 from servoid.session.listeners import EstimatorFeed
@@ -116,7 +116,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
-        path = args.out / "recording.csv"
+        path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
         if not quiet:
             _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {args.samples} samples "

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from servoid import limits
 from servoid.cli import _live, _term
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
@@ -21,7 +22,8 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
+from servoid.identify_outputs import OUTPUT_FILES, Record, result_json, summary_rows, write_outputs
+from servoid.output_paths import output_dir
 from servoid.recording import read_recording
 
 ORDER = 10
@@ -161,6 +163,7 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     """The record to identify and the estimator's settings (built once), from the command line."""
+    _check_sizes(args)
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
@@ -170,7 +173,15 @@ def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     return _simulated(args)
 
 
+def _check_sizes(args: argparse.Namespace) -> None:
+    """The record's length, the orders, the delay and the seed within servoid's limits, before any work."""
+    limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a record's length")
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    limits.seed("--seed", args.seed)
+
+
 def run(args: argparse.Namespace) -> int:
+    output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(
