@@ -75,7 +75,8 @@ command sent and which commands the servo may hold (:attr:`Driver.last_command`,
 holds either the new command or the one before, and the next command is kept
 within ``max_step`` of both), the context
 manager, idempotent :meth:`Driver.close` that always tries to leave the torque
-off, unwrapping of the device clock, counters, and wrapping of library errors
+off (and holds Ctrl-C, SIGTERM and SIGHUP until it has: a second Ctrl-C
+cannot cut the torque-off short), unwrapping of the device clock, counters, and wrapping of library errors
 into :mod:`servoid.errors` (``raise ... from``): a ``TimeoutError`` becomes
 :class:`DriverTimeout`, anything else :class:`DriverError`.
 
@@ -85,10 +86,14 @@ Drivers are not thread-safe; a driver belongs to the thread that opened it.
 from __future__ import annotations
 
 import abc
+import contextlib
 import logging
 import math
-from collections.abc import Callable, Mapping
+import signal
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Any, ClassVar
 
 from servoid import validation
@@ -391,6 +396,43 @@ COMMON_OPTIONS: dict[str, Option] = {
 }
 
 
+#: Signals that would interrupt a torque-off half done; held while a driver closes.
+_HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP inside the block and deliver them after it (main thread only).
+
+    Python runs signal handlers in the main thread between two bytecodes, so
+    a second Ctrl-C would raise inside the torque-off request; masking the
+    signal in this thread alone would not help (the kernel hands it to
+    another thread, a bus reader's). The handlers are swapped for one that
+    notes the signal, and the first one noted is raised again afterwards,
+    to whatever handler was there before.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+
+    def note(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - a signal handler's signature
+        noted.append(signum)
+
+    previous: dict[int, Any] = {}
+    for sig in _HELD_SIGNALS:
+        handler = signal.getsignal(sig)
+        if handler is not None:  # None: installed outside Python, cannot be restored
+            previous[sig] = signal.signal(sig, note)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if noted:
+            signal.raise_signal(noted[0])
+
+
 class Driver(abc.ABC):
     """Base of every servo driver (see the module docstring for the contract).
 
@@ -573,18 +615,19 @@ class Driver(abc.ABC):
         """
         if not self._is_open:
             return
-        try:
-            self._set_torque(False)
-            self._torque = False
-        except Exception as exc:  # noqa: BLE001 - must not mask the error being handled
-            self.stats.errors += 1
-            log.warning("%s: could not switch the torque off while closing: %s", self.describe(), exc)
-        finally:
-            self._is_open = False
+        with _stop_signals_held():
             try:
-                self._close()
-            except Exception as exc:  # noqa: BLE001
-                log.warning("%s: error while closing: %s", self.describe(), exc)
+                self._set_torque(False)
+                self._torque = False
+            except Exception as exc:  # noqa: BLE001 - must not mask the error being handled
+                self.stats.errors += 1
+                log.warning("%s: could not switch the torque off while closing: %s", self.describe(), exc)
+            finally:
+                self._is_open = False
+                try:
+                    self._close()
+                except Exception as exc:  # noqa: BLE001
+                    log.warning("%s: error while closing: %s", self.describe(), exc)
 
     def __enter__(self) -> Driver:
         return self.open()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from servoid import limits
 from servoid.cli import _term
+from servoid.cli._records import read_checked
 from servoid.diagnose_outputs import DIAGNOSE_FILES, candidate_rows, diagnosis_json, write_diagnosis_outputs
 from servoid.errors import ConfigError, DataError
 from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
@@ -15,7 +16,7 @@ from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
 from servoid.output_paths import output_dir
-from servoid.recording import Recording, read_recording
+from servoid.recording import Recording
 
 ORDER = 20
 
@@ -104,10 +105,7 @@ def _candidates(text: str | None) -> tuple[str, ...]:
 
 
 def _read(path: Path, what: str) -> Recording:
-    rec = read_recording(path)
-    for note in rec.notes:
-        _term.warn(f"{path}: {note}")
-    return rec
+    return read_checked(path)
 
 
 def check_pair(train: Recording, validate: Recording) -> None:

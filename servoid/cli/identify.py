@@ -10,6 +10,7 @@ import numpy as np
 
 from servoid import limits
 from servoid.cli import _live, _term
+from servoid.cli._records import read_checked
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
@@ -24,7 +25,6 @@ from servoid.ident.paper import (
 )
 from servoid.identify_outputs import OUTPUT_FILES, Record, result_json, summary_rows, write_outputs
 from servoid.output_paths import output_dir
-from servoid.recording import read_recording
 
 ORDER = 10
 
@@ -150,9 +150,7 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 
 def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
-    rec = read_recording(args.data)
-    for note in rec.notes:
-        _term.warn(f"{args.data}: {note}")
+    rec = read_checked(args.data)
     unit = args.unit or rec.metadata.get("unit", "unit")
     record = Record(
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
