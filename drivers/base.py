@@ -327,6 +327,9 @@ class DriverStats:
     stale : int
         Replies that came after their request had timed out (matched by
         sequence number), discarded.
+    unconfirmed : int
+        Commands the servo's read-back showed it did not get (a corrupted
+        request it dropped); their samples are not used.
     """
 
     exchanges: int = 0
@@ -335,6 +338,7 @@ class DriverStats:
     timeouts: int = 0
     rejected: int = 0
     stale: int = 0
+    unconfirmed: int = 0
 
 
 @dataclass(frozen=True)

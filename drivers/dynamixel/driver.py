@@ -5,10 +5,17 @@ URL::
     dxl:///dev/ttyUSB0?id=1&baud=1000000&mode=position
 
 Per sample, :meth:`DynamixelDriver.exchange` writes the goal with a
-GroupSyncWrite (a broadcast, never answered) and then READs addresses
-120..135 in one transaction: Realtime Tick, Present PWM, Current, Velocity
-and Position. Both are one packet each way; the goal of the sample is in the
-servo before the position is read.
+GroupSyncWrite (a broadcast, never answered) and then READs from the goal's
+address to 135 in one transaction: the goal itself (Goal Position 116, Goal
+Current 102 or Goal PWM 100, by mode), Realtime Tick, Present PWM, Current,
+Velocity and Position -- one contiguous block of the control table. Both
+are one packet each way; the goal of the sample is in the servo before the
+position is read. The goal read back confirms the write: a SYNC_WRITE the
+servo received corrupted is dropped without a word (a broadcast is never
+answered), and only the read-back shows it. A goal that differs from the one
+written raises :class:`~servoid.errors.CommandUnconfirmed` (counted in
+``stats.unconfirmed``): the sample is not used, and the session's guard
+window follows it.
 
 Units
 -----
@@ -57,6 +64,10 @@ Pitfalls of the SDK handled here
   Hardware Error Status and names the fault).
 * The SDK's busy flag stays set when a call raises: it is reset after every
   failure.
+* A status packet whose LENGTH field was corrupted makes the SDK ask the port
+  for a negative number of bytes (``os.read`` fails with Errno 22); the port
+  here gives nothing instead, and the packet's CRC then fails: a rejected
+  frame (``stats.rejected``), not a driver error.
 * Not thread-safe (neither is the SDK): a driver belongs to the thread that
   opened it, and :meth:`exchange` from another thread raises.
 """
@@ -79,7 +90,7 @@ from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, Uni
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ALERT, MAX_ID, ErrorNumber, Instruction, describe_error
-from servoid.errors import ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
+from servoid.errors import CommandUnconfirmed, ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
 
 __all__ = ["DynamixelDriver", "MODES", "SUPPORTED_BAUD_RATES", "POSITION_UNIT", "COMMAND_UNITS"]
 
@@ -221,6 +232,10 @@ class _Port(PortHandler):  # type: ignore[misc]
         # The SDK calls this in a tight loop until the reply is complete or the
         # timeout expires; waiting in select() instead frees the core for the
         # servo emulator or the estimator, and wakes as soon as bytes arrive.
+        if length <= 0:
+            # the SDK's own arithmetic on a corrupted LENGTH field (it waits for LENGTH + 7 bytes and has
+            # more already): nothing to read, and the CRC over the bytes it has then refuses the packet
+            return b""
         fd = getattr(self.ser, "fd", None)
         if fd is None or self.poll == "spin":
             return super().readPort(length)  # type: ignore[no-any-return]
@@ -392,11 +407,18 @@ class DynamixelDriver(Driver):
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
-        return self._present()
+        reading, goal = self._present()
+        if goal != value:
+            self.stats.unconfirmed += 1
+            raise CommandUnconfirmed(
+                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {value} just "
+                f"written: the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
+            )
+        return reading
 
     def _read(self) -> Reading:
         self._require_owner()
-        return self._present()
+        return self._present()[0]
 
     def _identity(self) -> dict[str, Any]:
         return dict(self._info)
@@ -526,17 +548,20 @@ class DynamixelDriver(Driver):
                 )
 
     # ---- transactions ----------------------------------------------------------------------------
-    def _present(self) -> Reading:
-        address, length = ct.PRESENT_BLOCK
+    def _present(self) -> tuple[Reading, int]:
+        """The present values and the goal the servo holds, in one READ from the goal to Present Position."""
+        address = self._goal.address
+        length = ct.PRESENT_POSITION.end - address
         data = self._read_block(address, length, "READ of the present values")
-        return Reading(
+        reading = Reading(
             position=float(ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)),
-            device_time=ct.decode_value(ct.REALTIME_TICK, data, 0) / 1000.0,
+            device_time=ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address) / 1000.0,
             velocity=ct.decode_value(ct.PRESENT_VELOCITY, data, ct.PRESENT_VELOCITY.address - address)
             * ct.RAD_PER_S_PER_VELOCITY_UNIT,
             current=ct.decode_value(ct.PRESENT_CURRENT, data, ct.PRESENT_CURRENT.address - address)
             * ct.AMPERE_PER_UNIT,
         )
+        return reading, ct.decode_value(self._goal, data, 0)
 
     def _read_block(self, address: int, length: int, what: str, *, allow_alert: bool = False) -> bytes:
         # The READ packet as the SDK's readTxRx builds it; sent through txRxPacket so that the

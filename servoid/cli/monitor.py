@@ -102,10 +102,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                             "the model's linear block holds at the rate it was identified at")  # fmt: skip
     servo.add_argument("--duration", type=float, metavar="S", help="run this many seconds (default: until Ctrl-C)")
     servo.add_argument("--guard", type=int, metavar="N",
-                       help="samples left out after each one that could not be used (late, missed, timed out): "
-                          "a device on its own clock applies a late command in a later sample and the next "
-                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
-                          "(sim, serial, CiA 402), else 10")  # fmt: skip
+                       help="samples left out after one whose command the servo may have applied otherwise than "
+                            "recorded: a timed-out exchange (the command or its reply lost), and for a device on its "
+                            "own clock (Dynamixel, ODrive) a late or missed slot too (default 10)")  # fmt: skip
     servo.add_argument("--use-late", action="store_true", help="let the estimator use samples exchanged late")
     inp = p.add_argument_group("input")
     inp.add_argument("--operating", metavar="SPEC",

@@ -13,7 +13,7 @@ from servoid.drivers.dynamixel import DynamixelDriver
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.driver import PTY_LATENCY_MS, default_latency_ms
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
-from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError
+from servoid.errors import CommandUnconfirmed, ConfigError, DriverError, DriverTimeout, ProtocolError
 
 from .dxl_helpers import TEST_LATENCY_MS, clock, emulator, url  # noqa: F401 - fixtures
 
@@ -169,9 +169,33 @@ def test_a_stray_reply_is_caught_by_its_length(emulator):  # noqa: F811
     with driver_from_url(url(emulator)) as d:
         d.enable()
         emulator.faults(1).stale_replies = 1
-        with pytest.raises(ProtocolError, match="has 0 data bytes, expected 16"):
+        with pytest.raises(ProtocolError, match="present values has 0 data bytes, expected 20"):
             d.exchange(0.1)
         assert d.exchange(0.1).position is not None  # and the next sample is fine
+
+
+def test_a_goal_lost_on_its_way_is_seen_in_the_read_back_and_never_taken_as_applied(emulator):  # noqa: F811
+    with driver_from_url(url(emulator)) as d:
+        d.enable()
+        held = emulator.servo(1).value(ct.GOAL_POSITION)
+        emulator.faults(1).corrupt_goals = 1
+        with pytest.raises(CommandUnconfirmed, match=r"holds Goal Position \d+, not the \d+ just written"):
+            d.exchange(0.2)
+        assert emulator.servo(1).value(ct.GOAL_POSITION) == held and d.stats.unconfirmed == 1
+        # the SYNC_WRITE that arrives intact is confirmed
+        d.exchange(0.2)
+        assert emulator.servo(1).value(ct.GOAL_POSITION) == round(0.2 / RAD) + ct.POSITION_CENTRE
+        assert d.stats.unconfirmed == 1
+
+
+def test_a_corrupted_length_field_is_a_rejected_frame_not_a_driver_error(emulator):  # noqa: F811
+    with driver_from_url(url(emulator)) as d:
+        d.enable()
+        emulator.faults(1).corrupt_lengths = 1
+        with pytest.raises(ProtocolError, match="was corrupted") as caught:
+            d.exchange(0.1)  # the SDK asked the port for a negative count (Errno 22) before the fix
+        assert type(caught.value) is ProtocolError and d.stats.rejected == 1
+        assert d.exchange(0.1).position is not None  # the next sample is fine
 
 
 def test_the_busy_flag_is_reset_after_the_sdk_raises(emulator, monkeypatch):  # noqa: F811
