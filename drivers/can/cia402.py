@@ -88,7 +88,7 @@ class Cia402Driver(CanDriver):
 
     Parameters
     ----------
-    interface, channel, node, mode, bitrate, port, timeout, limits
+    interface, channel, node, mode, bitrate, port, bind, timeout, limits
         As for :class:`~servoid.drivers.can.driver.CanDriver`; node 1..127.
     counts_per_rev : int, optional
         Encoder increments per revolution; default: read from the drive (0x608F).
@@ -114,6 +114,7 @@ class Cia402Driver(CanDriver):
         mode: str = "position",
         bitrate: int | None = None,
         port: int | None = None,
+        bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         counts_per_rev: int | None = None,
         fault_reset: bool = False,
@@ -121,7 +122,7 @@ class Cia402Driver(CanDriver):
     ) -> None:
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            timeout=timeout, limits=limits,
+            bind=bind, timeout=timeout, limits=limits,
         )  # fmt: skip
         if not 1 <= self.node <= 127:
             raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")

@@ -51,7 +51,7 @@ class OdriveDriver(CanDriver):
 
     Parameters
     ----------
-    interface, channel, node, mode, bitrate, port, timeout, limits
+    interface, channel, node, mode, bitrate, port, bind, timeout, limits
         As for :class:`~servoid.drivers.can.driver.CanDriver`; node 0..63
         (``odrv0.axis0.config.can.node_id``).
     """
@@ -68,13 +68,14 @@ class OdriveDriver(CanDriver):
         mode: str = "position",
         bitrate: int | None = None,
         port: int | None = None,
+        bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         limits: Limits | None = None,
     ) -> None:
         turns = UnitConversion("rad", scale=_TWO_PI)
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            timeout=timeout, limits=limits, position_unit=turns,
+            bind=bind, timeout=timeout, limits=limits, position_unit=turns,
             command_unit=turns if mode == "position" else UnitConversion("Nm", scale=1.0),
         )  # fmt: skip
         if self.node > 63:

@@ -71,6 +71,9 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--channel", default=None, help=f"channel: multicast group for udp_multicast (default {UDP_GROUP}), "
                                                    "can0 / vcan0 for socketcan")  # fmt: skip
     p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
+    p.add_argument("--bind", metavar="ADDRESS",
+                   help="udp_multicast: IPv4 address of the interface to listen on (default 127.0.0.1: this host "
+                        "only, no datagram from the network reaches the drive; 0.0.0.0: every interface)")  # fmt: skip
     p.add_argument("--counts-per-rev", type=int, default=SIM_COUNTS_PER_REV, metavar="N",
                    help=f"cia402: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
@@ -88,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
             "to reach the drive from another process"
         )
     port = args.port if args.port is not None or args.interface != "udp_multicast" else UDP_PORT
-    bus = BusAddress(args.interface, args.channel or "", port=port)
+    bus = BusAddress(args.interface, args.channel or "", port=port, bind=args.bind)
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per input)")
     if args.protocol == "cia402":
