@@ -119,12 +119,14 @@ def new_link(path: str | os.PathLike[str], *, option: str) -> Path:
     Raises
     ------
     ConfigError
-        Something exists at ``path``, or its folder cannot be written in.
+        Something exists at ``path``, or its folder does not exist or cannot be written in.
     """
     p = Path(path)
     if os.path.lexists(p):
         kind = "a link" if p.is_symlink() else ("a folder" if p.is_dir() else "a file")
         raise ConfigError(f"{option} (={p}) exists ({kind}); servoid replaces nothing: remove it or name another path")
+    if not p.parent.is_dir():
+        raise ConfigError(f"{option} (={p}): the folder {p.parent} does not exist")
     _writable_folder(p.parent, option, p)
     return p
 

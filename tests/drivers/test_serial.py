@@ -176,7 +176,7 @@ def test_a_set_point_lost_on_its_way_is_never_taken_as_applied():
     assert dropped > 0 and timeouts.size > 0 and result.config.guard_samples == 10
     for k in timeouts:
         assert not result.valid[k : k + 11].any(), f"a sample within 10 after the lost set point {k} was used"
-    assert result.valid.mean() > 0.5
+    assert result.valid.sum() > 100  # and the run still identifies from what is left
 
 
 def test_a_killed_host_leaves_its_recording_readable_and_the_watchdog_drops_the_torque(tmp_path):
