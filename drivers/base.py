@@ -52,6 +52,16 @@ What a driver MAY implement
     the samples after it carry that error for a few periods; for such
     drivers (the default) the sampling session leaves a guard window after
     every sample it could not use (:class:`servoid.session.UsableRule`).
+``watchdog_s`` (instance attribute, set in ``__init__``)
+    The device's own watchdog as the driver configures it: seconds without
+    a request after which the servo switches itself off (or stops) -- what
+    covers a host killed with SIGKILL, a crash or a cut cable; None when the
+    device has none or it is off. The base refuses a sample period that would
+    let it expire between two samples (:meth:`Driver.set_sample_period`).
+``watchdog_fed_by_exchanges`` (class attribute)
+    True (the default) when the exchanges themselves feed the device's
+    watchdog, so that the sample period must stay below half of it; False
+    when something else does (CiA 402's heartbeat, sent by a thread).
 ``command_step`` (instance attribute, set in ``__init__`` or ``_open``)
     The smallest change of the command the device can apply, in native units
     (1 for a goal in whole encoder counts); None (the default) for a
@@ -456,6 +466,7 @@ class Driver(abc.ABC):
     clock_wrap_s: ClassVar[float | None] = None
     clock_resolution_s: ClassVar[float] = 0.0
     carries_slots: ClassVar[bool] = False
+    watchdog_fed_by_exchanges: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -469,6 +480,8 @@ class Driver(abc.ABC):
         self.command_unit = command_unit if command_unit is not None else self.position_unit
         #: Smallest change of the command the device applies, native unit (None: continuous).
         self.command_step: float | None = None
+        #: The device's own watchdog as configured, s (None: none, or off); see the module docstring.
+        self.watchdog_s: float | None = None
         self.stats = DriverStats()
         self.url: str = ""
         self._is_open = False
@@ -582,6 +595,11 @@ class Driver(abc.ABC):
         """Tell the driver (and through it the device) the period of the exchanges to come, in seconds."""
         self._require_open()
         period = validation.positive("period_s", period_s)
+        if self.watchdog_fed_by_exchanges and self.watchdog_s is not None and 2.0 * period > self.watchdog_s:
+            raise ConfigError(
+                f"period_s (={period!r}) must be below half the device's watchdog ({self.watchdog_s:g} s): it would "
+                "switch the servo off between two samples; sample faster or raise watchdog= in the URL"
+            )
         self._call(self._set_period, period)
         self.sample_period_s = period
 

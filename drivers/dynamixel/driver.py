@@ -36,7 +36,12 @@ torque off, make sure Status Return Level is 2 (every instruction answered),
 and only then, with the torque off, write the EEPROM entries that differ from
 what was asked: Operating Mode and Return Delay Time (``return_delay_us``,
 default 0 us; the factory's 500 us costs half a millisecond per sample;
-``return_delay_us=keep`` leaves it). The command limits default to the
+``return_delay_us=keep`` leaves it). Bus Watchdog (98) is cleared (a -1 left
+by a host that died locks the goals) and, on every torque-on, set to
+``watchdog`` (default 0.5 s, in units of 20 ms; 0: off): a host killed with
+SIGKILL, or a cut cable, stops the servo within that time -- it holds where
+it is, its goals locked until the next open (the e-manual's behaviour; X
+series servos keep the torque on while stopped). The command limits default to the
 servo's own (Min/Max Position Limit, Current Limit or PWM Limit), narrowed by
 ``min``/``max`` if given. Switching the torque on first sets the goal to the
 present position, so the servo does not jump.
@@ -77,6 +82,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import math
 import os
 import select
 import threading
@@ -133,6 +139,10 @@ SETUP_ATTEMPTS = 3
 #: Latency timer (ms) assumed for a pseudo-terminal (an emulator) when the URL does not say.
 PTY_LATENCY_MS = 10.0
 
+#: Bus Watchdog of the servo while its torque is on, s (URL ``watchdog``): it stops within this
+#: time of the host's last packet. Far above any sample period servoid uses (1 kHz .. 50 Hz).
+DEFAULT_WATCHDOG_S = 0.5
+
 #: Time a rebooted servo gets to answer again (s).
 REBOOT_TIMEOUT_S = 3.0
 
@@ -177,6 +187,14 @@ def _latency(value: Any) -> float | None:
     if not number > 0:
         raise ValueError("the latency timer is a positive number of milliseconds, or 'auto'")
     return number
+
+
+def _watchdog(value: Any) -> float:
+    seconds = float(value)
+    units = math.ceil(seconds / ct.SECONDS_PER_BUS_WATCHDOG_UNIT - 1e-9) if seconds > 0 else 0
+    if not (math.isfinite(seconds) and seconds >= 0 and units <= 127):
+        raise ValueError("the Bus Watchdog takes 0 (off) or up to 2.54 s, in steps of 20 ms")
+    return units * ct.SECONDS_PER_BUS_WATCHDOG_UNIT
 
 
 def _flag(value: Any) -> bool:
@@ -285,6 +303,9 @@ class DynamixelDriver(Driver):
         else 1 ms).
     reboot : bool
         Reboot a servo that reports a hardware error at open (default: refuse it).
+    watchdog : float
+        Bus Watchdog, seconds without an instruction packet before the servo
+        stops (rounded up to 20 ms; 0 switches it off; at most 2.54).
     limits : Limits, optional
         Command limits in the mode's unit; narrowed to the servo's own at open.
     """
@@ -303,6 +324,10 @@ class DynamixelDriver(Driver):
             _latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"
         ),
         "reboot": Option(_flag, "1: reboot a servo that reports a hardware error at open (default 0)"),
+        "watchdog": Option(
+            _watchdog,
+            f"Bus Watchdog: s without a packet before the servo stops, 0: off (default {DEFAULT_WATCHDOG_S:g})",
+        ),
     }
 
     def __init__(
@@ -315,6 +340,7 @@ class DynamixelDriver(Driver):
         return_delay_us: int | None = 0,
         latency_ms: float | None = None,
         reboot: bool = False,
+        watchdog: float = DEFAULT_WATCHDOG_S,
         limits: Limits | None = None,
     ) -> None:
         if not isinstance(port, str) or not port:
@@ -326,6 +352,7 @@ class DynamixelDriver(Driver):
         self.return_delay_us = _checked("return_delay_us", return_delay_us, _return_delay)
         self.latency_ms = _checked("latency_ms", latency_ms, _latency)
         self.reboot_on_error = bool(reboot)
+        watchdog_s = _checked("watchdog", watchdog, _watchdog)
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
@@ -339,6 +366,7 @@ class DynamixelDriver(Driver):
         self._attempts = 1  # SETUP_ATTEMPTS inside _setup()
         self._info: dict[str, Any] = {}
         self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
+        self.watchdog_s = watchdog_s or None
 
     @classmethod
     def from_url(cls, url: DriverURL) -> DynamixelDriver:
@@ -392,6 +420,8 @@ class DynamixelDriver(Driver):
             low, high = self._position_range
             start = min(max(self._read_value(ct.PRESENT_POSITION), low), high)
         self._write_value(self._goal, start)
+        units = round((self.watchdog_s or 0.0) / ct.SECONDS_PER_BUS_WATCHDOG_UNIT)
+        self._write_value(ct.BUS_WATCHDOG, units)  # armed from the torque coming on: a dead host stops the servo
         self._write_value(ct.TORQUE_ENABLE, 1)
 
     def _torque_off(self) -> None:
@@ -410,6 +440,11 @@ class DynamixelDriver(Driver):
         reading, goal = self._present()
         if goal != value:
             self.stats.unconfirmed += 1
+            if self._read_value(ct.BUS_WATCHDOG) == ct.BUS_WATCHDOG_EXPIRED:
+                raise DeviceFault(
+                    f"{self.describe()}: servo {self.servo_id}'s Bus Watchdog expired (no packet for "
+                    f"{self.watchdog_s:g} s: the host stalled): it stopped and locks its goals until reopened"
+                )
             raise CommandUnconfirmed(
                 f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {value} just "
                 f"written: the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
@@ -448,6 +483,8 @@ class DynamixelDriver(Driver):
             state = self._read_block(0, ct.HARDWARE_ERROR_STATUS.end, "READ of the control table")
         if ct.decode_value(ct.TORQUE_ENABLE, state, ct.TORQUE_ENABLE.address):
             self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)  # the EEPROM is locked while it is on
+        # a Bus Watchdog that expired (-1, a host that died) locks the goals until it is cleared
+        self._write_value(ct.BUS_WATCHDOG, 0, allow_alert=True)
         if ct.decode_value(ct.OPERATING_MODE, state, ct.OPERATING_MODE.address) != self._operating_mode:
             self._write_value(ct.OPERATING_MODE, int(self._operating_mode))
         return_delay = ct.decode_value(ct.RETURN_DELAY_TIME, state, ct.RETURN_DELAY_TIME.address)

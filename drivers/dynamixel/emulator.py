@@ -360,6 +360,10 @@ class DynamixelEmulator:
     trace : path, optional
         File to which every reading of the present values is written as it
         is sent, before any corruption: ``<id> <tick ms> <position counts>``.
+    on_event : callable, optional
+        Called with one line (``"servo 1: bus watchdog expired ..."``,
+        ``"servo 1: torque off"``) when a servo's Bus Watchdog expires or its
+        torque goes off, from the serving thread.
 
     Examples
     --------
@@ -383,6 +387,7 @@ class DynamixelEmulator:
         flip_tx: float | None = None,
         seed: int = 0,
         trace: str | Path | None = None,
+        on_event: Callable[[str], None] | None = None,
     ) -> None:
         id_list = [int(i) for i in ids]
         if not id_list or len(set(id_list)) != len(id_list):
@@ -402,6 +407,8 @@ class DynamixelEmulator:
         self._rng = np.random.default_rng(seed)
         self._trace: IO[str] | None = open(trace, "w", encoding="ascii") if trace is not None else None  # noqa: SIM115
         self.bus = DynamixelBus(servos)
+        for servo in servos:
+            servo.on_event = on_event
         Plant(plant).step(0.0)  # compile (or load) the plant's kernel now, not while a reply is awaited
         self._faults = {id(s): LinkFaults() for s in servos}
         self.stats = EmulatorStats()
@@ -491,9 +498,10 @@ class DynamixelEmulator:
         self.close()
 
     def serve_forever(self) -> None:
-        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground)."""
+        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground); run the Bus Watchdogs."""
         while not self._stop.is_set():
-            ready, _, _ = select.select([self._master, self._wake_r], [], [], IDLE_DISCARD_S)
+            ready, _, _ = select.select([self._master, self._wake_r], [], [], self._quiet_for_s())
+            self._check_watchdogs()
             if self._wake_r in ready:
                 os.read(self._wake_r, 64)
                 continue
@@ -511,6 +519,18 @@ class DynamixelEmulator:
             received = self.clock.now_ns()
             for frame in self._reader.feed(self._flipped(data, self.flip_rx)):
                 self._serve_frame(frame, received)
+
+    def _quiet_for_s(self) -> float:
+        """How long to wait for bytes: until a partial frame is stale, or the next Bus Watchdog expires."""
+        deadlines = [d for d in (s.watchdog_deadline_ns() for s in self.bus.servos) if d is not None]
+        if not deadlines:
+            return IDLE_DISCARD_S
+        return min(IDLE_DISCARD_S, max(0.0, (min(deadlines) - self.clock.now_ns()) / NS_PER_S))
+
+    def _check_watchdogs(self) -> None:
+        now = self.clock.now_ns()
+        for servo in self.bus.connected():
+            servo.check_watchdog(now)
 
     def _flipped(self, data: bytes, probability: float) -> bytes:
         """``data`` with one random bit flipped in each byte hit (``probability`` per byte)."""
@@ -552,6 +572,10 @@ class DynamixelEmulator:
                     frame = CorruptPacket(frame.id, frame.encode())
         if isinstance(frame, CorruptPacket):
             self.stats.corrupt_received += 1
+        elif isinstance(frame, Packet) and not frame.is_status:
+            for servo in self.bus.connected():  # an intact instruction packet feeds the Bus Watchdog of its servos
+                if frame.id in (servo.id, BROADCAST_ID):
+                    servo.heard(received)
         last = received
         for servo, reply in self.bus.handle(frame):
             faults = self._faults[id(servo)]

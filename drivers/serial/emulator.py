@@ -147,6 +147,7 @@ class FirmwareEmulator:
         self.process: subprocess.Popen[bytes] | None = None
         self.port = ""
         self.boot_id = 0
+        self._err = b""  # what the firmware wrote on stderr so far, read by events()
 
     @property
     def url(self) -> str:
@@ -166,7 +167,25 @@ class FirmwareEmulator:
             raise DriverError(f"the firmware did not start ({' | '.join(lines)}): {err}")
         self.port = lines[0].split(" ", 1)[1]
         self.boot_id = int(lines[1].split(" ", 1)[1], 16)
+        assert self.process.stderr is not None
+        os.set_blocking(self.process.stderr.fileno(), False)  # events() reads what is there, never waits
         return self
+
+    def events(self) -> list[str]:
+        """The firmware's new event lines on stderr (the watchdog dropping the torque, with the monotonic time)."""
+        if self.process is None or self.process.stderr is None:
+            return []
+        old = self._err.count(b"\n")
+        while True:
+            try:
+                chunk = os.read(self.process.stderr.fileno(), 65536)
+            except BlockingIOError:
+                break
+            if not chunk:
+                break
+            self._err += chunk
+        lines = self._err.decode(errors="replace").splitlines()
+        return lines[old : self._err.count(b"\n")]
 
     def _first_lines(self, count: int) -> list[str]:
         # raw reads with a deadline: a buffered readline() would swallow the second line
@@ -191,12 +210,14 @@ class FirmwareEmulator:
             return ""
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
+        if proc.stderr is not None:
+            os.set_blocking(proc.stderr.fileno(), True)
         try:
             _, err = proc.communicate(timeout=5)
         except subprocess.TimeoutExpired:
             proc.kill()
             _, err = proc.communicate()
-        return err.decode(errors="replace").strip()
+        return (self._err + err).decode(errors="replace").strip()
 
     @property
     def running(self) -> bool:

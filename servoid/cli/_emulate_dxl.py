@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import time
 from pathlib import Path
 
 from servoid.cli._live import DEFAULT_RATE_HZ
@@ -65,6 +66,11 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _print_event(line: str) -> None:
+    """A servo's own decision (Bus Watchdog, torque off), with the monotonic time a watching process can compare."""
+    print(f"{line} (monotonic {time.monotonic():.6f} s)", flush=True)
+
+
 def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = EPILOG
     parser.add_argument("--ids", type=_ids, default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)")
@@ -89,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
     if link is not None:
         new_link(link, option="--link")
     emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number,
-                                 period_s=period_s)  # fmt: skip
+                                 period_s=period_s, on_event=_print_event)  # fmt: skip
     try:
         if link is not None:
             os.symlink(emulator.port, link)

@@ -80,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             while emu.running:
                 time.sleep(0.2)
+                for line in emu.events():  # the watchdog dropping the torque, as the firmware says it
+                    _term.stderr.print(line, soft_wrap=True)
         except KeyboardInterrupt:
             pass
         status = "stopped" if emu.running else "the firmware exited"
