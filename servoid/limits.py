@@ -40,6 +40,7 @@ __all__ = [
     "text",
     "magnitudes",
     "lone_surrogate",
+    "digits_of",
 ]
 
 #: Samples of one record (simulated, live or read): 10 million samples are 2.8 hours at 1 kHz,
@@ -91,6 +92,17 @@ def _integer(name: str, value: Any) -> int:
     return int(value)
 
 
+def digits_of(value: Any) -> int:
+    """About how many decimal digits the integer ``value`` has (its ``str`` may be refused: over 4300 digits).
+
+    Parameters
+    ----------
+    value : int
+        The integer.
+    """
+    return int(int(value).bit_length() * 0.30103) + 1
+
+
 def bounded_count(name: str, value: Any, *, limit: int, minimum: int = 1, what: str = "") -> int:
     """``value`` as an int in ``[minimum, limit]``, or a :class:`ConfigError` naming it and the limit.
 
@@ -133,7 +145,7 @@ def bounded_real(name: str, value: Any, *, limit: float = MAX_MAGNITUDE) -> floa
     try:
         number = float(value)
     except OverflowError:  # an int too large for a float
-        raise ConfigError(f"{name} (an integer of about {int(int(value).bit_length() * 0.30103) + 1} digits) must lie within "
+        raise ConfigError(f"{name} (an integer of about {digits_of(value)} digits) must lie within "
                           f"+/-{limit:g}") from None  # fmt: skip
     if not math.isfinite(number):
         raise ConfigError(f"{name} (={number!r}) must be finite")

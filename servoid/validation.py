@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from servoid.errors import ConfigError
+from servoid.limits import digits_of
 
 __all__ = [
     "real",
@@ -41,9 +42,7 @@ def real(name: str, value: Any) -> float:
     try:
         out = float(value)
     except OverflowError:  # an int beyond a float's range; its repr may run to thousands of digits
-        raise ConfigError(
-            f"{name} (an integer of about {int(int(value).bit_length() * 0.30103) + 1} digits) must be finite"
-        ) from None
+        raise ConfigError(f"{name} (an integer of about {digits_of(value)} digits) must be finite") from None
     if not math.isfinite(out):
         raise ConfigError(f"{name} (={show(value)}) must be finite")
     return out

@@ -76,11 +76,11 @@ def open_udp_bus(can: Any, channel: str, port: int, *, bind: str | None = None, 
 
     where = check_bind(bind) if bind is not None else LOOPBACK
 
-    class _Multicast(udp.GeneralPurposeUdpMulticastBus):  # type: ignore[misc, name-defined]
+    class _Multicast(udp.GeneralPurposeUdpMulticastBus):
         def _create_socket(self, address_family: socket.AddressFamily) -> socket.socket:
             return _socket(can, self, address_family, where)
 
-    class LoopbackUdpBus(udp.UdpMulticastBus):  # type: ignore[misc, name-defined]
+    class LoopbackUdpBus(udp.UdpMulticastBus):
         """python-can's udp_multicast bus with servoid's socket, skipping malformed datagrams."""
 
         def __init__(self) -> None:
@@ -94,7 +94,7 @@ def open_udp_bus(can: Any, channel: str, port: int, *, bind: str | None = None, 
 
         def _recv_internal(self, timeout: float | None) -> tuple[Any, bool]:
             try:
-                return super()._recv_internal(timeout)  # type: ignore[no-any-return]
+                return super()._recv_internal(timeout)
             except can.CanOperationError as exc:
                 if "could not unpack" not in str(exc):
                     raise  # the socket itself failed (the interface went down): not a datagram to skip
