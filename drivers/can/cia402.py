@@ -14,12 +14,13 @@ PRE-OPERATIONAL:
    type 1), and switch PDOs 2-4 off;
 5. configure the SYNC counter (0x1019 = 240; a drive without one gets plain SYNCs);
 6. the drive's watchdog on its master (``watchdog``, default 0.5 s; 0: off): the
-   heartbeat consumer (0x1016) watches node ``host_node`` (default 127), and the
-   abort connection option (0x6007) is "disable voltage"; the driver then
-   sends that heartbeat every quarter of the time, from python-can's cyclic
-   sender, until it closes (having switched the consumer off first). A host
-   killed with SIGKILL, hung, or cut off leaves the drive without heartbeat:
-   it switches its power stage off within the time, and reports EMCY 0x8130;
+   abort connection option (0x6007) is "disable voltage", and the driver
+   sends its heartbeat as node ``host_node`` (default 127) every quarter of
+   the time, from python-can's cyclic sender, until it closes; from each
+   torque-on to the next torque-off the heartbeat consumer (0x1016) watches
+   it. A host killed with SIGKILL, hung, or cut off leaves the drive without
+   heartbeat: it switches its power stage off within the time, and reports
+   EMCY 0x8130;
 7. NMT start (OPERATIONAL).
 
 Each cyclic exchange is RPDO1 then SYNC, answered by TPDO1: the drive
@@ -303,17 +304,28 @@ class Cia402Driver(CanDriver):
         self._cw, self._target = self._rpdo[0x6040], self._rpdo[target_index]
 
     def _start_heartbeat(self) -> None:
-        """Make the drive watch the host's heartbeat (0x1016, 0x6007 disable voltage) and start sending it."""
+        """Start sending the host's heartbeat, and check the drive can watch it (0x1016, 0x6007 disable voltage).
+
+        The drive watches it from each torque-on to the next torque-off
+        (:meth:`_watch_host`): while the torque is off there is nothing to
+        switch off, and a host busy compiling or plotting then may fall silent.
+        """
         if self.watchdog_s is None:
             return
-        ms = round(self.watchdog_s * 1000)
-        if self._sdo_write_optional(0x1016, profile.heartbeat_consumer(self.host_node, ms), subindex=1) is None:
+        if self._sdo_write_optional(0x1016, 0, subindex=1) is None:
             log.warning("%s has no heartbeat consumer (0x1016): it will not switch off if the host dies", self._who())
             self.watchdog_s = None
             return
         self._sdo_write_optional(0x6007, 2)  # disable voltage: off, and no fault to reset before the next run
         period = max(self.watchdog_s / 4, 0.01)
         self._heartbeat = self._network.send_periodic(0x700 + self.host_node, bytes([0x05]), period)  # OPERATIONAL
+
+    def _watch_host(self, watching: bool) -> None:
+        """Arm (or disarm) the drive's heartbeat consumer on the host's node."""
+        if self._heartbeat is None or self.watchdog_s is None:
+            return
+        value = profile.heartbeat_consumer(self.host_node, round(self.watchdog_s * 1000)) if watching else 0
+        self._sdo_call(lambda: setattr(self._node.sdo[0x1016][1], "raw", value), "set its heartbeat consumer (0x1016)")
 
     def _close(self) -> None:
         network, self._network = self._network, None
@@ -339,6 +351,7 @@ class Cia402Driver(CanDriver):
     def _set_torque(self, enabled: bool) -> None:
         self._last_slot = None  # the drive's count of cycles starts afresh
         if enabled:
+            self._watch_host(True)  # from now on, a host that falls silent leaves the drive switched off
             self._enable()
             return
         if self._restarted:
@@ -347,6 +360,7 @@ class Cia402Driver(CanDriver):
         state = profile.state_of(statusword)
         if state in _POWERED:
             raise DeviceFault(f"{self._who()} did not switch off: still {state} (statusword 0x{statusword:04X})")
+        self._watch_host(False)
 
     def _enable(self) -> None:
         self._emcy.clear()

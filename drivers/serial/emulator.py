@@ -21,8 +21,10 @@ import os
 import select
 import signal
 import subprocess
+import threading
 import time
 from dataclasses import dataclass
+from typing import IO
 
 from servoid import validation
 from servoid.drivers.model_plant import MODEL_PLANT
@@ -147,7 +149,9 @@ class FirmwareEmulator:
         self.process: subprocess.Popen[bytes] | None = None
         self.port = ""
         self.boot_id = 0
-        self._err = b""  # what the firmware wrote on stderr so far, read by events()
+        self._err: list[str] = []  # the firmware's stderr lines so far, read by a thread as they come
+        self._seen = 0  # how many of them events() has handed out
+        self._reader: threading.Thread | None = None
 
     @property
     def url(self) -> str:
@@ -167,25 +171,20 @@ class FirmwareEmulator:
             raise DriverError(f"the firmware did not start ({' | '.join(lines)}): {err}")
         self.port = lines[0].split(" ", 1)[1]
         self.boot_id = int(lines[1].split(" ", 1)[1], 16)
-        assert self.process.stderr is not None
-        os.set_blocking(self.process.stderr.fileno(), False)  # events() reads what is there, never waits
+        # a thread drains stderr as the firmware writes it: a full pipe would block the firmware
+        self._reader = threading.Thread(target=self._drain, args=(self.process.stderr,), daemon=True)
+        self._reader.start()
         return self
 
+    def _drain(self, stream: IO[bytes]) -> None:
+        for line in stream:
+            self._err.append(line.decode(errors="replace").rstrip("\n"))
+
     def events(self) -> list[str]:
-        """The firmware's new event lines on stderr (the watchdog dropping the torque, with the monotonic time)."""
-        if self.process is None or self.process.stderr is None:
-            return []
-        old = self._err.count(b"\n")
-        while True:
-            try:
-                chunk = os.read(self.process.stderr.fileno(), 65536)
-            except BlockingIOError:
-                break
-            if not chunk:
-                break
-            self._err += chunk
-        lines = self._err.decode(errors="replace").splitlines()
-        return lines[old : self._err.count(b"\n")]
+        """The firmware's new lines on stderr: the torque going off, the watchdog acting (with the monotonic time)."""
+        lines = self._err[self._seen :]
+        self._seen += len(lines)
+        return lines
 
     def _first_lines(self, count: int) -> list[str]:
         # raw reads with a deadline: a buffered readline() would swallow the second line
@@ -210,14 +209,18 @@ class FirmwareEmulator:
             return ""
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
-        if proc.stderr is not None:
-            os.set_blocking(proc.stderr.fileno(), True)
         try:
-            _, err = proc.communicate(timeout=5)
+            proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             proc.kill()
-            _, err = proc.communicate()
-        return (self._err + err).decode(errors="replace").strip()
+            proc.wait()
+        if self._reader is not None:
+            self._reader.join(timeout=5)
+            self._reader = None
+        for stream in (proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
+        return "\n".join(self._err).strip()
 
     @property
     def running(self) -> bool:

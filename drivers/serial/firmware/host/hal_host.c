@@ -115,7 +115,13 @@ void hal_event(const char *what)
             (unsigned long long)(now % 1000000u));
     fflush(stderr);
 }
-void hal_motor_enable(int on) { sim_motor_enable(motor, on); }
+void hal_motor_enable(int on)
+{
+    static int powered;
+    if (powered && !on) hal_event("torque off"); /* however it came: a request, the watchdog, a restart */
+    powered = on;
+    sim_motor_enable(motor, on);
+}
 void hal_motor_period(uint32_t period_us) { sim_motor_period(motor, period_us); }
 hal_sample_t hal_motor_set(int32_t counts, uint32_t periods)
 {
