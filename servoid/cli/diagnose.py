@@ -6,14 +6,17 @@ import argparse
 import time
 from pathlib import Path
 
+from servoid import limits
 from servoid.cli import _term
-from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
+from servoid.cli._records import read_checked
+from servoid.diagnose_outputs import DIAGNOSE_FILES, candidate_rows, diagnosis_json, write_diagnosis_outputs
 from servoid.errors import ConfigError, DataError
 from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
 from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
-from servoid.recording import Recording, read_recording
+from servoid.output_paths import output_dir
+from servoid.recording import Recording
 
 ORDER = 20
 
@@ -102,10 +105,7 @@ def _candidates(text: str | None) -> tuple[str, ...]:
 
 
 def _read(path: Path, what: str) -> Recording:
-    rec = read_recording(path)
-    for note in rec.notes:
-        _term.warn(f"{path}: {note}")
-    return rec
+    return read_checked(path)
 
 
 def check_pair(train: Recording, validate: Recording) -> None:
@@ -129,6 +129,8 @@ def check_pair(train: Recording, validate: Recording) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    output_dir(args.out, option="--out", files=DIAGNOSE_FILES.values())
     train = _read(args.train, "training")
     validate = _read(args.validate, "validation")
     check_pair(train, validate)

@@ -9,8 +9,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rich.markup import escape
+from rich.text import Text
 
+from servoid import limits
 from servoid.cli import _term
 from servoid.errors import ConfigError
 from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sample
@@ -20,6 +21,7 @@ from servoid.excitation.specs import grammar
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.paper import PAPER_PLANT
 from servoid.modelfile import load_model
+from servoid.output_paths import output_file
 from servoid.recording import write_recording
 
 ORDER = 5
@@ -109,6 +111,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out.add_argument("--plot", type=Path, default=Path("excitation.png"), metavar="FILE.png",
                      help="where to save the plot (default ./excitation.png)")  # fmt: skip
     out.add_argument("--no-plot", action="store_true", help="skip the plot")
+    out.add_argument("--force", action="store_true", help="replace --out and --plot if they exist (default: refuse)")
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
     p.set_defaults(handler=run)
 
@@ -221,12 +224,16 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
 def _print_verdicts(verdicts: Sequence[Verdict]) -> None:
     colour = {"ok": "green", "warning": "yellow", "insufficient": "red"}
     for v in verdicts:
-        _term.stdout.print(f"[{colour[v.level]}]{v.level:12s}[/{colour[v.level]}] {escape(v.message)}")
+        _term.stdout.print(Text.assemble((f"{v.level:12s}", colour[v.level]), " ", v.message))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.samples is not None and args.samples < 1:
-        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    output_file(args.out, option="--out", force=args.force)
+    if not args.no_plot:
+        output_file(args.plot, option="--plot", force=args.force)
+    if args.samples is not None:
+        limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a signal's length")
+    limits.seed("--seed", args.seed)
     if args.sample_period is not None and not args.sample_period > 0:
         raise ConfigError(f"--sample-period (={args.sample_period}) must be > 0 seconds")
     proposal: Design | None = None
@@ -276,11 +283,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     out = _term.stdout
     if proposal is not None:
-        out.print(f"proposed: [bold]{escape(format_spec(spec))}[/bold]", soft_wrap=True)
+        out.print(Text.assemble("proposed: ", (format_spec(spec), "bold")), soft_wrap=True)
         for reason in proposal.reasons:
-            out.print(f"  - {escape(reason)}")
-    out.print(f"signal: {escape(format_spec(spec))}", soft_wrap=True)
-    out.print(f"through: {escape(model_source) if model is not None else 'no model (the signal alone)'}")
+            out.print(f"  - {reason}")
+    out.print(f"signal: {format_spec(spec)}", soft_wrap=True)
+    out.print(f"through: {model_source if model is not None else 'no model (the signal alone)'}")
     _term.table(
         f"servoid excite: {spec.kind}", ["quantity", "value"], _report_rows(spec, report, args.seed, args.sample_period)
     )

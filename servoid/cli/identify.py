@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from servoid import limits
 from servoid.cli import _live, _term
+from servoid.cli._records import read_checked
 from servoid.errors import ConfigError
 from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
 from servoid.ident.identify import identify
@@ -21,8 +23,8 @@ from servoid.ident.paper import (
     PAPER_RHO_EXPONENT,
     RECOMMENDED_RHO_EXPONENT,
 )
-from servoid.identify_outputs import Record, result_json, summary_rows, write_outputs
-from servoid.recording import read_recording
+from servoid.identify_outputs import OUTPUT_FILES, Record, result_json, summary_rows, write_outputs
+from servoid.output_paths import output_dir
 
 ORDER = 10
 
@@ -148,9 +150,7 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 
 def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
-    rec = read_recording(args.data)
-    for note in rec.notes:
-        _term.warn(f"{args.data}: {note}")
+    rec = read_checked(args.data)
     unit = args.unit or rec.metadata.get("unit", "unit")
     record = Record(
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
@@ -161,6 +161,7 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     """The record to identify and the estimator's settings (built once), from the command line."""
+    _check_sizes(args)
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
@@ -170,7 +171,15 @@ def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     return _simulated(args)
 
 
+def _check_sizes(args: argparse.Namespace) -> None:
+    """The record's length, the orders, the delay and the seed within servoid's limits, before any work."""
+    limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a record's length")
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    limits.seed("--seed", args.seed)
+
+
 def run(args: argparse.Namespace) -> int:
+    output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(
