@@ -17,7 +17,11 @@ from servoid.extendedfile import save_extended_model
 from servoid.ident.diagnosis.diagnose import Diagnosis
 from servoid.recording import Recording
 
-__all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows"]
+__all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows", "DIAGNOSE_FILES"]
+
+#: What ``write_diagnosis_outputs`` writes into its folder, by name.
+DIAGNOSE_FILES = {"model": "model.json", "fit_plot": "diagnose_fit.png", "regimes_plot": "diagnose_regimes.png",
+                  "resid_plot": "diagnose_resid.png", "candidates_plot": "diagnose_candidates.png"}  # fmt: skip
 
 
 def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recording, validate: Recording, *,
@@ -26,7 +30,7 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = {
         "model": str(save_extended_model(
-            out_dir / "model.json", diagnosis.model, method="mrgia+oe+effects", fit_nrmse=diagnosis.gap_after,
+            out_dir / DIAGNOSE_FILES["model"], diagnosis.model, method="mrgia+oe+effects", fit_nrmse=diagnosis.gap_after,
             source=source, samples=len(train), input_unit=input_unit, output_unit=output_unit,
             sample_period_s=train.sample_period,
         ))
@@ -41,7 +45,7 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
             "candidates_plot": _plots.plot_candidates(diagnosis),
         }
         for key, fig in figures.items():
-            paths[key] = str(_plots.save(fig, out_dir / f"diagnose_{key.removesuffix('_plot')}.png"))
+            paths[key] = str(_plots.save(fig, out_dir / DIAGNOSE_FILES[key]))
     return paths
 
 

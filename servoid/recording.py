@@ -13,6 +13,10 @@ by the writer and ignored by :func:`read_recording`, which can also take the
 input, output and time from columns of other names (a CSV from another
 tool). Units are given in the metadata (``# unit: rad``).
 
+Every value must lie within :data:`servoid.limits.MAX_MAGNITUDE` (``1e100``):
+``-1e300`` is finite yet no position a bench measures (a wrong unit, a
+corrupted line), and its square is not finite.
+
 Time must increase strictly from row to row: a repeated stamp, or one that
 goes back (rows reversed or shuffled), is refused with its line, because a
 model in samples is only as good as the order of its samples; a file whose
@@ -40,7 +44,7 @@ from typing import IO, Any, Literal
 
 import numpy as np
 
-from servoid import validation
+from servoid import limits, validation
 from servoid.errors import ConfigError, DataError
 from servoid.files import read_text
 
@@ -49,6 +53,7 @@ __all__ = [
     "read_recording",
     "read_column",
     "check_time",
+    "check_magnitudes",
     "time_scale",
     "TIME_UNITS",
     "NO_TIME",
@@ -240,8 +245,9 @@ def read_recording(
         Missing or unreadable file, no header, a column asked for that is
         missing (the message lists those found) or named twice in the
         header, a field longer than the CSV reader's limit, a value that is
-        not a number or not finite (with its line and column), time that
-        does not increase strictly (with the line), or no data rows.
+        not a number or not finite (with its line and column) or beyond
+        :data:`~servoid.limits.MAX_MAGNITUDE` (:func:`check_magnitudes`), time
+        that does not increase strictly (with the line), or no data rows.
     ConfigError
         An unknown time unit.
     """
@@ -260,6 +266,7 @@ def read_recording(
     status_col = cols.pop("status", None)
     # a live recording marks unmeasured samples by their status and a nan y
     data, notes = table.numbers(cols, may_be_nan={"y"} if status_col is not None else set())
+    check_magnitudes({wanted[key]: values for key, values in data.items()}, where=f"{table.path}")
     t = data.get("t")
     if t is not None:
         t = t * scale if scale != 1.0 else t
@@ -363,6 +370,32 @@ def _read_table(path: str | os.PathLike[str]) -> _Table:
             f"characters: not a recording CSV)"
         ) from None
     return _Table(p, meta, header, rows, first_row, text.endswith("\n"))
+
+
+def check_magnitudes(arrays: Mapping[str, np.ndarray], *, where: str) -> None:
+    """Refuse values beyond :data:`~servoid.limits.MAX_MAGNITUDE`, naming the first (NaN passes: a missed sample).
+
+    A value like ``-1e300`` is finite yet no position a bench measures (a
+    wrong unit, a corrupted line), and its square is not finite: refused by
+    name before any work, rather than ending in a divergence.
+
+    Parameters
+    ----------
+    arrays : mapping
+        The source's name of each series (a column, a variable) to its values.
+    where : str
+        The source (a path), for the message.
+
+    Raises
+    ------
+    DataError
+        Naming the series, the index and the value, and how many such values there are.
+    """
+    for name, values in arrays.items():
+        try:
+            limits.magnitudes(name, values)
+        except ConfigError as exc:
+            raise DataError(f"{where}: {exc}") from None
 
 
 def check_time(

@@ -13,6 +13,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from servoid.errors import ConfigError
+from servoid.limits import digits_of
 
 if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
@@ -46,7 +47,10 @@ def real(name: str, value: Any) -> float:
     """Return ``value`` as a finite float, or raise :class:`ConfigError` naming it."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ConfigError(f"{name} (={show(value)}) must be a real number")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an int beyond a float's range; its repr may run to thousands of digits
+        raise ConfigError(f"{name} (an integer of about {digits_of(value)} digits) must be finite") from None
     if not math.isfinite(out):
         raise ConfigError(f"{name} (={show(value)}) must be finite")
     return out

@@ -80,6 +80,8 @@ def _bad(tmp_path, text):
         ("a,b\n1,2\n", {"u_column": "goal"}, "missing column(s) 'goal', 'y'; the header has 'a', 'b'"),
         ("time,u,y\n0,1,2\n", {"time_column": "stamp"}, "missing column(s) 'stamp'"),
         ("u,y\n1,2\n" + "3," + "9" * 140_000 + "\n", {}, "line 3: field larger than field limit (131072)"),
+        ("u,y\n1,2\n3,-1e300\n", {}, "y[1] (=-1e+300) lies beyond +/-1e+100"),
+        ("u,pos\n1,2\n3,1e300\n", {"y_column": "pos"}, "pos[1] (=1e+300) lies beyond +/-1e+100"),
     ],
 )
 def test_csv_refuses_with_one_line_naming_the_problem(tmp_path, text, kwargs, fragment):
@@ -237,6 +239,42 @@ def test_bam_names_the_missing_field(tmp_path):
         read_bam(p)
     with pytest.raises(DataError, match="not a MATLAB"):
         read_mat(p)
+
+
+@pytest.mark.parametrize(
+    "value, fragment",
+    [
+        ("true", "sample 1 (=True) is not a number"),
+        ("1" + "0" * 400, "sample 1 (an integer of about 401 digits) lies beyond +/-1e+100"),
+        ("1e300", "position[1] (=1e+300) lies beyond +/-1e+100"),
+        ('"x"', "sample 1 (='x') is not a number"),
+        ("[1, 2]", "sample 1 (=[1, 2]) is not a number"),
+    ],
+)
+def test_bam_refuses_values_that_are_no_numbers_or_beyond_the_limit(tmp_path, value, fragment):
+    p = tmp_path / "x.json"
+    entries = [f'{{"timestamp": {k}, "goal_position": 0.5, "position": {value if k == 1 else 0.25}}}' for k in range(3)]
+    p.write_text('{"entries": [' + ", ".join(entries) + "]}")
+    with pytest.raises(DataError) as info:
+        read_bam(p)
+    assert fragment in str(info.value) and "\n" not in str(info.value)
+
+
+def test_mat_refuses_complex_variables_and_values_beyond_the_limit(tmp_path):
+    scipy_io = pytest.importorskip("scipy.io")
+    p = tmp_path / "x.mat"
+    scipy_io.savemat(p, {"u": np.array([1 + 2j, 0j, 1j]), "y": np.ones(3), "big": np.array([0.0, -1e300, 1.0])})
+    with pytest.raises(DataError, match="variable 'u' of .* holds complex numbers; expected real ones"):
+        read_mat(p)
+    with pytest.raises(DataError, match=r"big\[1\] \(=-1e\+300\) lies beyond \+/-1e\+100"):
+        read_mat(p, u="big")
+
+
+def test_dataframe_refuses_true_false_columns():
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({"u": [True, False, True], "y": [0.1, 0.2, 0.3]})
+    with pytest.raises(DataError, match="column 'u' holds true/false values; expected numbers"):
+        from_dataframe(frame)
 
 
 def test_read_picks_by_suffix_and_refuses_unknown(tmp_path):

@@ -27,6 +27,16 @@ business, as on a real ODrive, whose loop runs on its own clock:
   follows the host's slots exactly, as the CiA 402 drive does from its SYNC
   counter.
 
+The axis watchdog (``config.enable_watchdog``, ``config.watchdog_timeout``),
+as the firmware runs it: every frame addressed to the axis feeds it (CAN
+Simple's ``do_command`` does so before anything else), and in closed-loop
+control a silence longer than the timeout disarms the axis to IDLE with
+WATCHDOG_TIMER_EXPIRED. Both settings can be given as saved on the board
+(``watchdog_s``) or written over RxSdo with the ids of
+:meth:`SimOdriveAxis.flat_endpoints` (this simulated firmware's endpoint
+table, as a real board's ``flat_endpoints.json`` gives its own).
+``on_event`` hears the watchdog expiring and the power stage going off.
+
 Faults for tests: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms
 to IDLE and says why in the heartbeat, as the firmware does), applied at
 the next Set_Input_* so that tests are deterministic, as is
@@ -60,6 +70,13 @@ SIM_VERSION = (2, 0, 0, 0, 0, 6, 10, 0)
 
 _TWO_PI = 2 * math.pi
 
+#: Data frames only the axis sends (the host asks for them with remote frames).
+_SENT_BY_THE_AXIS = frozenset({proto.GET_VERSION, proto.HEARTBEAT, proto.GET_ERROR, proto.TXSDO,
+                               proto.GET_ENCODER_ESTIMATES})  # fmt: skip
+
+#: This simulated firmware's endpoints (name -> id, type); a real board's ids come from its flat_endpoints.json.
+_ENDPOINTS = {"axis0.config.watchdog_timeout": (0x0101, "float"), "axis0.config.enable_watchdog": (0x0102, "bool")}
+
 
 class SimOdriveAxis(SimDrive):
     """A simulated ODrive axis on a python-can bus (see the module docstring).
@@ -78,6 +95,9 @@ class SimOdriveAxis(SimDrive):
     mute_after, drop, seed
         Injected faults (:class:`~servoid.drivers.can._sim_base.SimDrive`),
         counted in encoder estimates sent in closed-loop control.
+    watchdog_s : float, optional
+        The axis watchdog as saved on the board (``config.watchdog_timeout``
+        with ``config.enable_watchdog``); None: off.
 
     Attributes
     ----------
@@ -99,6 +119,7 @@ class SimOdriveAxis(SimDrive):
         mute_after: int | None = None,
         drop: float = 0.0,
         seed: int = 0,
+        watchdog_s: float | None = None,
     ) -> None:
         node = validation.integer("node", node, minimum=0)
         if node > 63:
@@ -120,6 +141,9 @@ class SimOdriveAxis(SimDrive):
         self._bus: Any = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self.watchdog_timeout = 0.0 if watchdog_s is None else validation.positive("watchdog_s", watchdog_s)
+        self.enable_watchdog = watchdog_s is not None
+        self._fed = time.monotonic()  # when a frame for the axis last came
 
     # ---- life cycle ----------------------------------------------------------------------
     def start(self) -> SimOdriveAxis:
@@ -151,8 +175,23 @@ class SimOdriveAxis(SimDrive):
 
     @axis_state.setter
     def axis_state(self, state: int) -> None:
+        was_on = self._axis_state == proto.CLOSED_LOOP_CONTROL
         self._axis_state = state
         self.axis.power(state == proto.CLOSED_LOOP_CONTROL)
+        if state == proto.CLOSED_LOOP_CONTROL:
+            self._fed = time.monotonic()  # the watchdog counts from entering closed loop
+        elif was_on:
+            self._event(f"power stage off ({proto.state_name(state)})")
+
+    @staticmethod
+    def flat_endpoints() -> dict[str, Any]:
+        """This simulated firmware's endpoint table, in the shape of a board's ``flat_endpoints.json``."""
+        return {
+            "fw_version": ".".join(map(str, SIM_VERSION[4:7])),
+            "hw_version": ".".join(map(str, SIM_VERSION[1:4])),
+            "endpoints": {name: {"id": ident, "type": kind, "access": "rw"}
+                          for name, (ident, kind) in _ENDPOINTS.items()},
+        }  # fmt: skip
 
     @property
     def power_on(self) -> bool:
@@ -181,9 +220,19 @@ class SimOdriveAxis(SimDrive):
             if now >= next_beat:
                 self._send_heartbeat()
                 next_beat = now + self.heartbeat_s
-            msg = self._bus.recv(min(next_beat - now, 0.05))
+            msg = self._bus.recv(min(next_beat - now, 0.005 if self._watching() else 0.05))
             if msg is not None:
                 self._on_frame(msg)
+            self._check_watchdog()
+
+    def _watching(self) -> bool:
+        return self.enable_watchdog and self.watchdog_timeout > 0 and self.power_on
+
+    def _check_watchdog(self) -> None:
+        if self._watching() and time.monotonic() - self._fed > self.watchdog_timeout:
+            silent = time.monotonic() - self._fed
+            self._event(f"axis watchdog expired ({silent * 1e3:.0f} ms without a frame): WATCHDOG_TIMER_EXPIRED")
+            self._disarm(proto.WATCHDOG_TIMER_EXPIRED)
 
     def _on_frame(self, msg: Any) -> None:
         if msg.is_error_frame:
@@ -191,6 +240,9 @@ class SimOdriveAxis(SimDrive):
         node, command = proto.split_id(msg.arbitration_id)
         if node != self.node:
             return
+        if not msg.is_remote_frame and command in _SENT_BY_THE_AXIS:
+            return  # the axis's own frame, looped back by the UDP bus: a CAN controller never receives its own
+        self._fed = time.monotonic()  # any frame for the axis feeds its watchdog, as CAN Simple's do_command
         at = msg.timestamp or time.time()  # when the bus took the frame (the kernel's stamp over UDP)
         if msg.is_remote_frame:
             self._answer(command)
@@ -209,6 +261,19 @@ class SimOdriveAxis(SimDrive):
             self._send_heartbeat()
         elif command == proto.ESTOP:
             self._disarm(0x2000000)  # ESTOP_REQUESTED
+        elif command == proto.RXSDO and len(data) >= proto.SDO_FORMAT.size:
+            self._on_sdo(*proto.SDO_FORMAT.unpack_from(data))
+
+    def _on_sdo(self, opcode: int, ident: int, _reserved: int, value: bytes) -> None:
+        name = next((n for n, (i, _) in _ENDPOINTS.items() if i == ident), None)
+        if name is None:
+            return  # an id this firmware does not have: no answer
+        kind = _ENDPOINTS[name][1]
+        attribute = name.rsplit(".", 1)[1]
+        if opcode == proto.SDO_WRITE:
+            setattr(self, attribute, proto.sdo_decode(kind, value))
+        elif opcode == proto.SDO_READ:
+            self._send(proto.TXSDO, proto.SDO_FORMAT.pack(0, ident, 0, proto.sdo_value(kind, getattr(self, attribute))))
 
     def _on_input(self, value: float, *, torque: bool, at: float) -> None:
         self.inputs += 1

@@ -58,6 +58,10 @@ __all__ = [
 #: Samples per call of the compiled loop when progress is reported.
 PROGRESS_CHUNK = 1 << 16
 
+#: Smallest ``rho_exponent``: below about 1e-16, ``rho(1) = 2^-r`` rounds to 1 and eq. (30)'s
+#: ``mu = rho(t-1)/rho(t) (1 - rho(t))`` to 0, by which eq. (21) divides.
+MIN_RHO_EXPONENT = 1e-6
+
 
 class Step(enum.IntEnum):
     """What one call of :meth:`MRGIA.update` did."""
@@ -88,8 +92,8 @@ class MRGIAConfig:
     na, nb, delay : int
         Orders ``n_a >= 1``, ``n_b >= 0`` and delay ``d >= 1`` of eq. (1).
     rho_exponent : float
-        ``r`` in the convergence factor ``rho(k) = (k + 1)^-r``, in (0, 1];
-        default 0.75. The paper uses 0.25; larger values forget more slowly
+        ``r`` in the convergence factor ``rho(k) = (k + 1)^-r``, in
+        [:data:`MIN_RHO_EXPONENT`, 1]; default 0.75. The paper uses 0.25; larger values forget more slowly
         and average output noise (:data:`servoid.ident.paper.RECOMMENDED_RHO_EXPONENT`).
     epsilon : float
         Threshold on ``|y(k) - y(k-1)|`` for the switching functions ``g4``,
@@ -152,6 +156,8 @@ class MRGIAConfig:
         nb = validation.integer("nb", self.nb, minimum=0)
         delay = validation.integer("delay", self.delay, minimum=1)
         r = validation.in_unit_interval("rho_exponent", self.rho_exponent, open_high=False)
+        if r < MIN_RHO_EXPONENT:
+            raise ConfigError(f"rho_exponent (={r!r}) must be >= {MIN_RHO_EXPONENT:g}: rho(k) would stay at 1")
         validation.non_negative("epsilon", self.epsilon)
         validation.positive("p0", self.p0)
         validation.positive("sigma0", self.sigma0)

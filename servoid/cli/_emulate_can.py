@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 import threading
+import time
+from pathlib import Path
 from types import FrameType
 
 from servoid.cli._live import DEFAULT_RATE_HZ
@@ -13,6 +16,7 @@ from servoid.drivers.can._bus import UDP_GROUP, UDP_PORT, BusAddress
 from servoid.drivers.can.driver import DEFAULT_NODES, PROTOCOLS
 from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
 from servoid.errors import ConfigError
+from servoid.output_paths import output_file
 
 DESCRIPTION = f"""\
 Start a simulated CAN servo drive with the bench backlash plant behind it, and
@@ -38,6 +42,14 @@ axis does: sample it at the same rate (servoid identify --rate), or the plant
 seen is another one (--rate 0: one sample per Set_Input_*). Position mode:
 target in rad. Torque mode: the same plant driven by torque x 1 rad/Nm (a
 joint held by a 1 Nm/rad spring).
+
+Watchdogs: the CiA 402 drive watches the heartbeat the driver configures
+(0x1016) and switches its power stage off when it stops; the ODrive axis runs
+its axis watchdog when --watchdog S is given (as saved on a board with
+odrivetool), fed by every frame, and --endpoints FILE writes its endpoint
+table (flat_endpoints.json) for the driver's watchdog=/endpoints= options.
+Each such event, and every power stage going off, is a line on stderr with
+the monotonic time.
 
 The first line on stdout is the URL; status lines go to stderr. The drive
 runs until Ctrl-C (or SIGTERM).
@@ -69,12 +81,25 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--channel", default=None, help=f"channel: multicast group for udp_multicast (default {UDP_GROUP}), "
                                                    "can0 / vcan0 for socketcan")  # fmt: skip
     p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
+    p.add_argument("--bind", metavar="ADDRESS",
+                   help="udp_multicast: IPv4 address of the interface to listen on (default 127.0.0.1: this host "
+                        "only, no datagram from the network reaches the drive; 0.0.0.0: every interface)")  # fmt: skip
     p.add_argument("--counts-per-rev", type=int, default=SIM_COUNTS_PER_REV, metavar="N",
                    help=f"cia402: encoder increments per revolution (default {SIM_COUNTS_PER_REV})")  # fmt: skip
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
                    help=f"odrive: the axis's own sample rate, Hz (default {DEFAULT_RATE_HZ:g}, that of servoid identify; "
                         "0: one sample per input); cia402 follows the SYNC counter")  # fmt: skip
-    p.add_argument("--quiet", action="store_true", help="no status lines on stderr")
+    p.add_argument("--watchdog", type=float, metavar="S",
+                   help="odrive: the axis watchdog timeout as saved on the board, s (default: off)")  # fmt: skip
+    p.add_argument("--endpoints", type=Path, metavar="FILE",
+                   help="odrive: write the simulated firmware's flat_endpoints.json here (for the driver's endpoints=)")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="replace --endpoints if it exists")
+    p.add_argument("--quiet", action="store_true", help="no status lines on stderr (events are still shown)")
+
+
+def _print_event(line: str) -> None:
+    """A drive's own decision (watchdog, power stage off), with the monotonic time a watching process can compare."""
+    print(f"{line} (monotonic {time.monotonic():.6f} s)", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,14 +111,24 @@ def run(args: argparse.Namespace) -> int:
             "to reach the drive from another process"
         )
     port = args.port if args.port is not None or args.interface != "udp_multicast" else UDP_PORT
-    bus = BusAddress(args.interface, args.channel or "", port=port)
+    bus = BusAddress(args.interface, args.channel or "", port=port, bind=args.bind)
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per input)")
     if args.protocol == "cia402":
+        if args.watchdog is not None or args.endpoints is not None:
+            raise ConfigError(
+                "--watchdog and --endpoints are the ODrive's; a CiA 402 drive's watchdog is set by its driver"
+            )
         options: dict[str, object] = {"counts_per_rev": args.counts_per_rev}
     else:
-        options = {"period_s": 1.0 / args.rate if args.rate else None}
+        options = {"period_s": 1.0 / args.rate if args.rate else None, "watchdog_s": args.watchdog}
+        if args.endpoints is not None:
+            from servoid.drivers.can.sim_odrive import SimOdriveAxis
+
+            output_file(args.endpoints, option="--endpoints", force=args.force)
+            args.endpoints.write_text(json.dumps(SimOdriveAxis.flat_endpoints(), indent=2) + "\n", encoding="utf-8")
     drive = simulated_drive(args.protocol, bus=bus, node=args.node, **options)
+    drive.on_event = _print_event
     stop = threading.Event()
 
     def _terminate(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - signal handler signature

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import time
 from pathlib import Path
 
 from servoid.cli._live import DEFAULT_RATE_HZ
@@ -12,6 +13,7 @@ from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.errors import ConfigError
+from servoid.output_paths import new_link, remove_own_link
 
 DESCRIPTION = f"""\
 Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
@@ -62,6 +64,11 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _print_event(line: str) -> None:
+    """A servo's own decision (Bus Watchdog, torque off), with the monotonic time a watching process can compare."""
+    print(f"{line} (monotonic {time.monotonic():.6f} s)", flush=True)
+
+
 def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = EPILOG
     parser.add_argument("--ids", type=_ids, default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)")
@@ -74,22 +81,21 @@ def register(parser: argparse.ArgumentParser) -> None:
                         help=f"the servos' own sample rate, Hz: sample them at this rate (default {DEFAULT_RATE_HZ:g}, "
                              "that of servoid identify; 0: one sample per goal)")  # fmt: skip
     parser.add_argument("--link", type=Path, metavar="PATH",
-                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts)")  # fmt: skip
+                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts); "
+                             "PATH must not exist: nothing is replaced")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per goal)")
     period_s = 1.0 / args.rate if args.rate else None
-    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number,
-                                 period_s=period_s)  # fmt: skip
     link: Path | None = args.link
+    if link is not None:
+        new_link(link, option="--link")
+    emulator = DynamixelEmulator(args.ids, return_delay_us=args.return_delay_us, model_number=args.model_number,
+                                 period_s=period_s, on_event=_print_event)  # fmt: skip
     try:
         if link is not None:
-            if link.exists() and not link.is_symlink():
-                raise ConfigError(f"--link (={link}) exists and is not a symbolic link; not replacing it")
-            if link.is_symlink():
-                link.unlink()
             os.symlink(emulator.port, link)
         port = str(link) if link is not None else emulator.port
         model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
@@ -110,5 +116,5 @@ def run(args: argparse.Namespace) -> int:
         return 0
     finally:
         emulator.close()
-        if link is not None and link.is_symlink():
-            link.unlink()
+        if link is not None:
+            remove_own_link(link, emulator.port)

@@ -10,6 +10,7 @@ from servoid.cli import _term
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_PLANT
+from servoid.output_paths import new_link
 
 DESCRIPTION = """\
 Build the reference firmware of the serial bench controller (C, in
@@ -35,7 +36,9 @@ def register(p: argparse.ArgumentParser) -> None:
                    help="encoder counts per revolution (default 65536)")  # fmt: skip
     p.add_argument("--noise", type=float, default=0.0, metavar="RAD",
                    help="encoder noise standard deviation in rad (default 0)")  # fmt: skip
-    p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the port (a stable name)")
+    p.add_argument("--link", metavar="PATH",
+                   help="also make PATH a symlink to the port (a stable name); PATH must not exist: nothing is "
+                        "replaced, and the link is removed at exit if it still points to the port")  # fmt: skip
     faults = p.add_argument_group("fault injection")
     faults.add_argument("--flip", type=float, default=0.0, metavar="P",
                         help="probability per byte of a flipped bit, both directions (default 0)")  # fmt: skip
@@ -55,6 +58,8 @@ def run(args: argparse.Namespace) -> int:
         value = getattr(args, name)
         if not 0.0 <= value <= 1.0:
             raise ConfigError(f"--{name} (={value!r}) must lie in [0, 1]")
+    if args.link is not None:
+        new_link(args.link, option="--link")
     options = FirmwareOptions(
         model=PLANTS[args.plant], counts_per_rev=args.cpr, noise=args.noise, seed=args.seed,
         flip_tx=args.flip, flip_rx=args.flip, drop=args.drop, link=args.link,
@@ -73,6 +78,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             while emu.running:
                 time.sleep(0.2)
+                for line in emu.events():  # the watchdog dropping the torque, as the firmware says it
+                    _term.stderr.print(line, soft_wrap=True)
         except KeyboardInterrupt:
             pass
         status = "stopped" if emu.running else "the firmware exited"

@@ -56,10 +56,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                       help="half-width of the uniform excitation, in the driver's unit "
                            f"(default: the simulated servo's reference, else {MODEL_AMPLITUDE} for the bench servo)")  # fmt: skip
     live.add_argument("--guard", type=int, metavar="N",
-                      help="samples left out after each one that could not be used (late, missed, timed out): "
-                          "a device on its own clock applies a late command in a later sample and the next "
-                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
-                          "(sim, serial, CiA 402), else 10")  # fmt: skip
+                      help="samples left out after one whose command the servo may have applied otherwise than "
+                           "recorded: a timed-out exchange (the command or its reply lost), and for a device on its "
+                           "own clock (Dynamixel, ODrive) a late or missed slot too; the next samples carry that "
+                           "error (default 10)")  # fmt: skip
     live.add_argument(
         "--use-late", action="store_true", help="let the estimator use samples exchanged late (default: leave them out)"
     )
@@ -92,12 +92,16 @@ def recording_valid(rec: Recording) -> np.ndarray | None:
     import numpy as np
 
     from servoid.session import usable
+    from servoid.session.samples import GUARD_AFTER_ANY, STATUSES
 
     if rec.status is None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
     guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
-    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples)
+    # recordings from before guard_after had the window after every unusable sample
+    after = [s for s in rec.metadata.get("guard_after", ",".join(GUARD_AFTER_ANY)).split(",") if s in STATUSES]
+    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples,
+                              after=after)  # fmt: skip
     used &= np.isfinite(rec.y)
     return used
 
@@ -121,6 +125,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.drivers import driver_from_url
     from servoid.drivers.simulated import SimulatedServo
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
     from servoid.session.listeners import EstimatorFeed
 
@@ -142,7 +147,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
-        path = args.out / "recording.csv"
+        path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
                 "servo": _flat(identity)}  # fmt: skip
         if not quiet:
@@ -220,6 +225,8 @@ def session_rows(result: SessionResult) -> tuple[list[str], list[list[str]]]:
         rows.append(["exchange", f"median {acq['exchange_median_s'] * 1e6:.0f} us, "
                                  f"99 % {acq['exchange_p99_s'] * 1e6:.0f} us"])  # fmt: skip
     rows.append(["frames rejected / stale", f"{acq['frames_rejected']} / {acq['replies_stale']}"])
+    if acq["commands_unconfirmed"]:
+        rows.append(["commands not confirmed", str(acq["commands_unconfirmed"])])
     rows.append(["commands clamped", str(acq["commands_clamped"])])
     return ["", "value"], rows
 

@@ -1,8 +1,11 @@
 """Terminal output for the command line: progress bars and tables on stderr/stdout via rich.
 
 Everything meant for a human goes through here, so ``--json`` runs can keep
-stdout for the one JSON object. rich is imported on first use (``stdout``
-and ``stderr`` are made then), so that ``servoid --help`` starts without it.
+stdout for the one JSON object. The consoles never read markup in what they
+print (a unit, a path, a driver URL are the user's text: ``--unit '[/]'`` is
+a unit, not a closing tag); styles are given as styles. rich is imported on
+first use (``stdout`` and ``stderr`` are made then), so that ``servoid
+--help`` starts without it.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ def _console(stream: TextIO, *, to_stderr: bool) -> Console:
     # no file=: rich looks sys.stdout/stderr up at each write, so a stream
     # swapped later (pytest's capture, a redirect) is still the one written to
     width = None if stream.isatty() or os.environ.get("COLUMNS") else PIPE_WIDTH
-    return Console(stderr=to_stderr, highlight=False, width=width)
+    return Console(stderr=to_stderr, highlight=False, markup=False, width=width)
 
 
 def __getattr__(name: str) -> Any:
@@ -59,7 +62,7 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
         return
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
     with Progress(*columns, console=_console_named("stderr"), transient=True) as bar:
         task = bar.add_task(label, total=total)
 
@@ -72,29 +75,29 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
 @contextlib.contextmanager
 def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str], None]]:
     """A progress bar with a status line on stderr; yields ``update(done, text)``."""
-    from rich.markup import escape
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[text]}"))
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[text]}", markup=False))  # fmt: skip
     with Progress(*columns, console=_console_named("stderr"), transient=True) as bar:
         task = bar.add_task(label, total=total, text="")
 
         def update(done: int, text: str) -> None:
-            bar.update(task, completed=done, text=escape(text))
+            bar.update(task, completed=done, text=text)
 
         yield update
 
 
 def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], *, console: Console | None = None) -> None:
     """Print a table; numbers are right-aligned."""
-    from rich.markup import escape
     from rich.table import Table
+    from rich.text import Text
 
-    tab = Table(title=title, title_justify="left")
+    tab = Table(title=Text(title), title_justify="left")
     for i, col in enumerate(columns):
-        tab.add_column(col, justify="left" if i == 0 else "right")
+        tab.add_column(Text(col), justify="left" if i == 0 else "right")
     for row in rows:
-        tab.add_row(*(escape(str(c)) for c in row))
+        tab.add_row(*(Text(str(c)) for c in row))
     (console or _console_named("stdout")).print(tab)
 
 
@@ -108,6 +111,6 @@ def print_json(obj: Any) -> None:
 
 def warn(message: str) -> None:
     """A warning line on stderr."""
-    from rich.markup import escape
+    from rich.text import Text
 
-    _console_named("stderr").print(f"[yellow]warning:[/yellow] {escape(message)}")
+    _console_named("stderr").print(Text.assemble(("warning:", "yellow"), " ", message))

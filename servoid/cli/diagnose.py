@@ -7,10 +7,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from servoid import limits
 from servoid.cli import _data, _model, _term
 from servoid.errors import ConfigError, DataError
 from servoid.ident import defaults
 from servoid.ident.models.effect_names import CANDIDATE_NAMES, NONE, SUMMARIES
+from servoid.output_paths import output_dir
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.recording import Recording
@@ -121,10 +123,12 @@ def check_pair(train: Recording, validate: Recording) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
+    from servoid.diagnose_outputs import DIAGNOSE_FILES, candidate_rows, diagnosis_json, write_diagnosis_outputs
     from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
     from servoid.ident.online.mrgia import MRGIAConfig
 
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    output_dir(args.out, option="--out", files=DIAGNOSE_FILES.values())
     train = _data.read(args.train, args)
     validate = _data.read(args.validate, args)
     check_pair(train, validate)

@@ -7,9 +7,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from servoid import limits
 from servoid.cli import _data, _live, _model, _term
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_INPUT_VARIANCE
+from servoid.output_paths import output_dir
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.online.mrgia import MRGIAConfig
@@ -132,8 +134,6 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     from servoid.identify_outputs import Record
     from servoid.readers.excitation_file import is_file_spec, read_excitation
 
-    if args.samples is not None and args.samples < 1:
-        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
         raise ConfigError(
             "the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
@@ -176,6 +176,7 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     """The record to identify and the estimator's settings (built once), from the command line."""
+    _check_sizes(args)
     if args.data is None:
         _refuse_reading_options(args)
     if args.driver is not None:
@@ -196,10 +197,19 @@ def _refuse_reading_options(args: argparse.Namespace) -> None:
         raise ConfigError(f"{', '.join(given)} say(s) how to read a --data recording; there is none")
 
 
+def _check_sizes(args: argparse.Namespace) -> None:
+    """The record's length, the orders, the delay and the seed within servoid's limits, before any work."""
+    if args.samples is not None:
+        limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a record's length")
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    limits.seed("--seed", args.seed)
+
+
 def run(args: argparse.Namespace) -> int:
     from servoid.ident.identify import identify
-    from servoid.identify_outputs import result_json, summary_rows, write_outputs
+    from servoid.identify_outputs import OUTPUT_FILES, result_json, summary_rows, write_outputs
 
+    output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(

@@ -18,8 +18,8 @@ pandas DataFrame        :mod:`.dataframe`           columns (Python only: :func:
 returns a :class:`~servoid.recording.Recording`; an option a format does
 not take is refused, not ignored. Every reader checks the same things with
 the same messages (:mod:`._series`): a missing column, variable, field or
-topic is named with a list of those there; values must be finite numbers;
-time must increase strictly. :mod:`.excitation_file` reads an excitation to
+topic is named with a list of those there; values must be finite numbers
+within :data:`servoid.limits.MAX_MAGNITUDE`; time must increase strictly. :mod:`.excitation_file` reads an excitation to
 replay (``--excitation file:PATH[:COLUMN]``).
 """
 

@@ -68,8 +68,9 @@ def read_bam(
 def _field(entries: list[Any], name: str, p: Path) -> list[Any]:
     out = []
     for i, entry in enumerate(entries):
-        if not isinstance(entry, dict) or name not in entry:
-            fields = listing({k: "" for k in entry}) if isinstance(entry, dict) else type(entry).__name__
-            raise DataError(f"{p}: entry {i} has no field {name!r}; it has {fields}")
+        if not isinstance(entry, dict):
+            raise DataError(f"{p}: entry {i} is a {type(entry).__name__}, not an object of fields (such as {name!r})")
+        if name not in entry:
+            raise DataError(f"{p}: entry {i} has no field {name!r}; it has {listing({k: '' for k in entry})}")
         out.append(entry[name])
     return out

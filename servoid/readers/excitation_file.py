@@ -17,7 +17,7 @@ import numpy as np
 
 from servoid.errors import ConfigError
 from servoid.readers._series import series
-from servoid.recording import read_column
+from servoid.recording import check_magnitudes, read_column
 
 __all__ = ["PREFIX", "ExcitationFile", "is_file_spec", "read_excitation"]
 
@@ -111,7 +111,7 @@ def read_excitation(spec: str) -> ExcitationFile:
     ------
     DataError
         The file or column missing (the message lists those there), values
-        not finite numbers, none at all.
+        not finite numbers or beyond :data:`~servoid.limits.MAX_MAGNITUDE`, none at all.
     ConfigError
         Not a ``file:`` spec.
     """
@@ -130,4 +130,5 @@ def read_excitation(spec: str) -> ExcitationFile:
     else:
         values, _ = read_column(path, column)
     u = series(values, what=f"excitation {PREFIX}{path}:{column}")
+    check_magnitudes({column: u}, where=f"excitation {PREFIX}{path}")
     return ExcitationFile(u=u, path=path, column=column)

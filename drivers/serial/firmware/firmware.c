@@ -240,6 +240,7 @@ void fw_poll(fw_state_t *fw)
     if (fw->torque && fw->watchdog_ms && elapsed(now, fw->last_request_us, fw->watchdog_ms * 1000u)) {
         set_torque(fw, 0); /* the host went silent (crashed, unplugged): never leave the motor powered */
         fw->streaming = 0;
+        hal_event("watchdog: no request within the watchdog time, torque off");
     }
 }
 
