@@ -38,11 +38,14 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
     if plots:
         from servoid import plots as _plots
 
-        paths["fit_plot"] = str(_plots.plot_diagnosis_fit(diagnosis, validate.y, out_dir / DIAGNOSE_FILES["fit_plot"],
-                                                          t=validate.t, output_unit=output_unit))  # fmt: skip
-        paths["regimes_plot"] = str(_plots.plot_regimes(diagnosis, out_dir / DIAGNOSE_FILES["regimes_plot"]))
-        paths["resid_plot"] = str(_plots.plot_residual_tests(diagnosis, out_dir / DIAGNOSE_FILES["resid_plot"]))
-        paths["candidates_plot"] = str(_plots.plot_candidates(diagnosis, out_dir / DIAGNOSE_FILES["candidates_plot"]))
+        figures = {
+            "fit_plot": _plots.plot_diagnosis_fit(diagnosis, validate.y, t=validate.t, output_unit=output_unit),
+            "regimes_plot": _plots.plot_regimes(diagnosis),
+            "resid_plot": _plots.plot_residual_tests(diagnosis),
+            "candidates_plot": _plots.plot_candidates(diagnosis),
+        }
+        for key, fig in figures.items():
+            paths[key] = str(_plots.save(fig, out_dir / DIAGNOSE_FILES[key]))
     return paths
 
 

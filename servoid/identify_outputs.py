@@ -130,36 +130,17 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         from servoid import plots as _plots
 
         refined = result.model if result.refinement is not None else None
-        paths["convergence_plot"] = str(
-            _plots.plot_convergence(
-                result.mrgia, out_dir / OUTPUT_FILES["convergence_plot"], truth=record.truth, refined=refined
-            )
-        )
+        convergence = _plots.plot_convergence(result.mrgia, truth=record.truth, refined=refined)
+        paths["convergence_plot"] = str(_plots.save(convergence, out_dir / OUTPUT_FILES["convergence_plot"]))
         y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
         simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, record.u, y0=y0)}
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
-        paths["fit_plot"] = str(
-            _plots.plot_fit(
-                record.y,
-                simulated,
-                out_dir / OUTPUT_FILES["fit_plot"],
-                u=record.u,
-                t=record.t,
-                output_unit=record.output_unit,
-            )  # fmt: skip
-        )
+        fit = _plots.plot_fit(record.y, simulated, u=record.u, t=record.t, output_unit=record.output_unit)
+        paths["fit_plot"] = str(_plots.save(fit, out_dir / OUTPUT_FILES["fit_plot"]))
         x_hat = simulate(result.model, record.u, y0=y0).x
-        paths["backlash_plot"] = str(
-            _plots.plot_backlash(
-                result.model,
-                x_hat,
-                record.y,
-                out_dir / OUTPUT_FILES["backlash_plot"],
-                output_unit=record.output_unit,
-                truth=record.truth,
-            )  # fmt: skip
-        )
+        loop = _plots.plot_backlash(result.model, x_hat, record.y, output_unit=record.output_unit, truth=record.truth)
+        paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
     return paths
 
 

@@ -16,11 +16,16 @@ from __future__ import annotations
 import math
 import numbers
 import re
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from servoid.errors import ConfigError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+# NumPy is imported only by the check of arrays (:func:`magnitudes`): the command line checks its
+# arguments with the scalar checks and must start without loading NumPy. NumPy registers its scalar
+# types with the ``numbers`` ABCs, so the scalar checks accept them without naming them.
 
 __all__ = [
     "MAX_SAMPLES",
@@ -85,9 +90,9 @@ _SURROGATE = re.compile("[\ud800-\udfff]")
 
 
 def _integer(name: str, value: Any) -> int:
-    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)):
-        if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
-            return int(value)
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        if isinstance(value, numbers.Real) and math.isfinite(value) and float(value).is_integer():
+            return int(float(value))
         raise ConfigError(f"{name} (={value!r}) must be an integer")
     return int(value)
 
@@ -140,7 +145,7 @@ def bounded_real(name: str, value: Any, *, limit: float = MAX_MAGNITUDE) -> floa
     limit : float
         Largest magnitude allowed (default :data:`MAX_MAGNITUDE`).
     """
-    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ConfigError(f"{name} (={value!r}) must be a real number")
     try:
         number = float(value)
@@ -237,6 +242,8 @@ def magnitudes(name: str, values: np.ndarray, *, limit: float = MAX_MAGNITUDE) -
     limit : float
         Largest magnitude allowed (default :data:`MAX_MAGNITUDE`).
     """
+    import numpy as np
+
     with np.errstate(invalid="ignore"):
         beyond = np.abs(values) > limit
     if beyond.any():

@@ -43,15 +43,18 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import __version__, limits, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.files import read_json
-from servoid.ident.control.compensate import default_band
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.serialise import dumps, number
 from servoid.schema_check import first_problem, json_path
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+# The model class, the band and the JSON writer (NumPy) are imported where they are used, so that the
+# schema's facts (VERSION, SCHEMA) reach the command line's help without loading NumPy.
 
 __all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model",
            "json_schema"]  # fmt: skip
@@ -100,6 +103,8 @@ class ModelFile:
     @property
     def compensation_band(self) -> float:
         """The smoothing band of the backlash inverse, output unit (stored, or servoid's default)."""
+        from servoid.ident.control.compensate import default_band
+
         return default_band(self.model, noise_std=self.noise_std) if self.band is None else self.band
 
     @property
@@ -120,6 +125,8 @@ class ModelFile:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object of the schema."""
+        from servoid.ident.serialise import number
+
         out: dict[str, Any] = {
             "schema": SCHEMA,
             "version": VERSION,
@@ -148,6 +155,8 @@ class ModelFile:
 
     def to_json(self) -> str:
         """The file's text: :meth:`to_dict` pretty-printed, with a final newline."""
+        from servoid.ident.serialise import dumps
+
         return dumps(self.to_dict(), indent=2) + "\n"
 
 
@@ -183,6 +192,9 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     ModelError
         The model inside is invalid (the message names the value).
     """
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.serialise import number
+
     p = Path(path)
     data = read_json(p, what="model file", max_bytes=limits.MAX_JSON_BYTES, non_finite=True)
     if not isinstance(data, Mapping) or data.get("schema") != SCHEMA:

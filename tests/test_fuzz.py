@@ -12,7 +12,10 @@ Hypothesis generates, seeded (``derandomize``) and bounded in number:
   pools that mix the valid (small: each run takes milliseconds) with the
   campaign's hostile ones (huge, negative, NaN, ``1e400``, markup, lone
   surrogates, existing files and folders);
-* CSV recordings through ``servoid identify --data``.
+* recordings through ``servoid identify --data`` and the readers
+  (:mod:`servoid.readers`): CSV files with the reading options
+  (``--columns``, ``--time-column``, ``--time-unit``), BAM JSON logs and
+  MATLAB files, and the reading options on the command line at large.
 
 The command line runs in this process (fast), under a timer that fails an
 example taking more than :data:`HANG_S`; a few cases also run as real
@@ -124,10 +127,18 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     (work / "folder").mkdir()
     rows = "\n".join(f"{0.3 * math.sin(k / 7):.6f},{0.2 * math.sin((k - 3) / 7):.6f}" for k in range(400))
     (work / "rec.csv").write_text("u,y\n" + rows + "\n")
+    u = [0.3 * math.sin(k / 7) for k in range(400)]
+    y = [0.2 * math.sin((k - 3) / 7) for k in range(400)]
+    entries = [{"timestamp": 0.01 * k, "goal_position": a, "position": b} for k, (a, b) in enumerate(zip(u, y))]
+    (work / "bam.json").write_text(json.dumps({"motor": "mx106", "entries": entries}))
+    scipy_io = pytest.importorskip("scipy.io")
+    scipy_io.savemat(work / "rec.mat", {"u": u, "y": y, "t": [0.01 * k for k in range(400)],
+                                        "log": [[0.01 * k, a, b] for k, (a, b) in enumerate(zip(u, y))]})  # fmt: skip
     return work
 
 
-PATHS = ["model.json", "exists.txt", "folder", "missing.json", "rec.csv", "no/such/dir/x", "/proc/x", ""]
+PATHS = ["model.json", "exists.txt", "folder", "missing.json", "rec.csv", "rec.mat", "bam.json", "no/such/dir/x",
+         "/proc/x", ""]  # fmt: skip
 
 
 # ---- model files ---------------------------------------------------------------------------------
@@ -267,6 +278,32 @@ COMMON = {
     "--unit": _text(),
     "--seed": _number(["0", "3"]),
 }
+#: The reading options (servoid/cli/_data.py): valid for one format or another, and hostile.
+READING = {
+    "--columns": st.sampled_from(
+        [
+            "u=u,y=y",
+            "u=goal_position,y=position",
+            "u=log(:,2),y=log(:,3),t=log(:,1)",
+            "t=none",
+            "u=y,y=u",
+            "u=u,u=y",
+            "x=1",
+            "u=",
+            "=",
+            "",
+            ",,",
+            "u=log(:,99)",
+            "u=log(0,:)",
+            "u=a.b.c",
+            "[/]",
+            "\udcff",
+        ]
+    ),
+    "--time-column": st.sampled_from(["none", "t", "timestamp", "u", "time", "", "NONE"]),
+    "--time-unit": st.sampled_from(["s", "ms", "ns", "h", ""]),
+    "--topics": st.sampled_from(["y=/joint_states:j1,u=/cmd", "y=/a", "q=/x", "", "y=/a:1,u=/b:x.y"]),
+}
 COMMANDS: dict[str, tuple[list[str], dict[str, st.SearchStrategy[str] | None]]] = {
     "identify": (
         [],
@@ -291,6 +328,7 @@ COMMANDS: dict[str, tuple[list[str], dict[str, st.SearchStrategy[str] | None]]] 
             "--data": st.sampled_from(PATHS),
             "--json": None,
             "--paper-algorithm": None,
+            **READING,
             **COMMON,
         },
     ),  # fmt: skip
@@ -344,8 +382,8 @@ def command_lines(draw: st.DrawFn) -> list[str]:
         strategy = options[name]
         argv += [name] if strategy is None else [name, draw(strategy)]
     # runs that get through are kept short: no plots (matplotlib is not an input path), few samples
-    if command == "identify":
-        argv += ["--no-plots"] + ([] if "--samples" in chosen else ["--samples", "300"])
+    if command == "identify":  # a --data recording has its own length
+        argv += ["--no-plots"] + ([] if {"--samples", "--data"} & set(chosen) else ["--samples", "300"])
         argv += [] if "--out" in chosen else ["--out", "id-out"]
     if command == "excite":
         argv += [] if "--no-plot" in chosen else ["--no-plot"]
@@ -372,10 +410,10 @@ CELLS = ["0", "1.5", "-2", "nan", "inf", "-1e300", "1e400", "", "x", "1" * 400, 
 def recordings(draw: st.DrawFn) -> str:
     header = draw(st.sampled_from(["u,y", "t,u,y", "y,u", "u,u,y", "u", "u,y,t", "", "# unit: rad\nu,y"]))
     columns = max(1, header.split("\n")[-1].count(",") + 1)
-    regular = draw(st.booleans())
+    kind = draw(st.sampled_from(["clean", "mostly clean", "hostile"]))  # clean files reach identification
     rows = []
-    for k in range(draw(st.integers(0, 120))):
-        if regular and draw(st.integers(0, 9)):
+    for k in range(draw(st.integers(0, 200))):  # identifying na=2 takes at least 61
+        if kind == "clean" or (kind == "mostly clean" and draw(st.integers(0, 9))):
             cells = [f"{k * 0.01:.2f}", f"{math.sin(k / 5):.5f}", f"{math.sin((k - 2) / 5):.5f}"][:columns]
         else:
             cells = [draw(st.sampled_from(CELLS)) for _ in range(draw(st.integers(columns - 1, columns + 1)))]
@@ -383,12 +421,111 @@ def recordings(draw: st.DrawFn) -> str:
     return header + "\n" + "\n".join(rows) + ("\n" if draw(st.booleans()) else "")
 
 
+#: Reading options a CSV takes, for the fuzzed files (the command lines above try the others on it).
+CSV_OPTIONS = [["--time-column", "none"], ["--time-unit", "ms"], ["--columns", "u=y,y=u"], ["--columns", "t=u"],
+               ["--columns", "y=t"], ["--time-column", "y"]]  # fmt: skip
+
+
 @settings(FUZZ, max_examples=50)
-@given(text=recordings(), na=st.sampled_from(["1", "2"]))
-def test_csv_recordings_through_identify(capsys, workdir, text, na):
+@given(text=recordings(), na=st.sampled_from(["1", "2"]),
+       options=st.lists(st.sampled_from(CSV_OPTIONS), max_size=2, unique_by=lambda o: o[0]))  # fmt: skip
+def test_csv_recordings_through_identify(capsys, workdir, text, na, options):
     path = workdir / "fuzzed.csv"
     path.write_text(text, encoding="utf-8")
-    run_cli(capsys, ["identify", "--data", str(path), "--na", na, "--no-plots", "--json", "--out", "csv-out"], workdir)
+    argv = ["identify", "--data", str(path), "--na", na, "--no-plots", "--json", "--out", "csv-out"]
+    run_cli(capsys, argv + [word for option in options for word in option], workdir)
+
+
+# ---- the other formats: BAM logs and MATLAB files through the readers ----------------------------
+BAM_VALUE = st.one_of(
+    st.floats(-10, 10), st.floats(allow_nan=False, allow_infinity=False), st.integers(-(10**400), 10**400),
+    st.none(), st.booleans(), st.sampled_from(HOSTILE_TEXT), st.lists(st.floats(-1, 1), max_size=2), st.just({}),
+)  # fmt: skip
+BAM_FIELDS = ["timestamp", "goal_position", "position", "speed"]
+
+
+@st.composite
+def bam_logs(draw: st.DrawFn) -> str:
+    kind = draw(st.sampled_from(["clean", "one bad entry", "hostile"]))  # clean logs reach identification
+    entries: list[Any] = []
+    for k in range(draw(st.integers(0, 200))):
+        if kind != "hostile" or draw(st.integers(0, 2)):
+            entries.append({"timestamp": k * 0.01, "goal_position": math.sin(k / 5), "position": math.sin((k - 2) / 5),
+                            "speed": math.cos(k / 5)})  # fmt: skip
+        elif draw(st.integers(0, 9)):
+            entries.append(draw(st.dictionaries(st.sampled_from(BAM_FIELDS), BAM_VALUE, max_size=4)))
+        else:
+            entries.append(draw(BAM_VALUE))
+    if kind == "one bad entry" and entries:
+        entry = dict(entries[draw(st.integers(0, len(entries) - 1))])
+        entry[draw(st.sampled_from(BAM_FIELDS))] = draw(BAM_VALUE)
+        entries[draw(st.integers(0, len(entries) - 1))] = entry
+    shape = draw(st.sampled_from(["log", "log", "log", "entries only", "a list", "no entries", "entries not a list"]))
+    doc: Any = {
+        "log": {"motor": draw(st.sampled_from(["mx106", "[/]", "\u202e"])), "entries": entries},
+        "entries only": {"entries": entries},
+        "a list": entries,
+        "no entries": {"motor": "mx106"},
+        "entries not a list": {"entries": {"0": entries[:1]}},
+    }[shape]
+    return json.dumps(doc)
+
+
+@settings(FUZZ, max_examples=40)
+@given(text=bam_logs(), options=st.lists(st.sampled_from([["--columns", "u=speed"], ["--time-column", "none"],
+                                                          ["--time-unit", "ms"], ["--columns", "y=goal_position"]]),
+                                         max_size=2, unique_by=lambda o: o[0]))  # fmt: skip
+def test_bam_logs_through_identify(capsys, workdir, text, options):
+    path = workdir / "fuzzed_bam.json"
+    path.write_text(text, encoding="utf-8")
+    argv = ["identify", "--data", str(path), "--no-plots", "--json", "--out", "bam-out"]
+    run_cli(capsys, argv + [word for option in options for word in option], workdir)
+
+
+MAT_VALUE = st.one_of(
+    st.lists(st.floats(-1, 1), min_size=0, max_size=60), st.lists(st.floats(), min_size=1, max_size=5),
+    st.lists(st.lists(st.floats(-1, 1), min_size=3, max_size=3), min_size=1, max_size=40), st.text(max_size=5),
+    st.floats(), st.just([1e300, 0.0, 1.0]), st.just([[1 + 2j, 0j]]), st.just({"position": [0.1, 0.2, 0.3]}),
+)  # fmt: skip
+
+
+@st.composite
+def mat_files(draw: st.DrawFn) -> tuple[dict[str, Any], list[str]]:
+    """Variables of a MATLAB file, and the reading options that name them (mostly right, one changed at times)."""
+    n = draw(st.integers(3, 200))
+    u = [math.sin(k / 5) for k in range(n)]
+    y = [math.sin((k - 2) / 5) for k in range(n)]
+    t = [0.01 * k for k in range(n)]
+    layout = draw(st.sampled_from(["vectors", "vectors without t", "a matrix", "a struct"]))
+    if layout == "vectors":
+        variables: dict[str, Any] = {"u": u, "y": y, "t": t}
+        options: list[str] = []
+    elif layout == "vectors without t":
+        variables, options = {"u": u, "y": y}, []
+    elif layout == "a matrix":
+        variables = {"log": [list(row) for row in zip(t, u, y)]}
+        options = ["--columns", "t=log(:,1),u=log(:,2),y=log(:,3)"]
+    else:
+        variables = {"s": {"goal": u, "position": y}}
+        options = ["--columns", "u=s.goal,y=s.position"]
+    for name in draw(st.lists(st.sampled_from(["u", "y", "t", "log", "s"]), max_size=2, unique=True)):
+        variables[name] = draw(MAT_VALUE)  # one variable hostile
+    extra = draw(st.sampled_from([[], [], ["--time-column", "none"], ["--time-unit", "ms"], ["--topics", "y=/a,u=/b"],
+                                  ["--columns", "u=log(:,9),y=log(0,:)"]]))  # fmt: skip
+    return variables, options + extra
+
+
+@settings(FUZZ, max_examples=40)
+@given(drawn=mat_files())
+def test_mat_files_through_identify(capsys, workdir, drawn):
+    scipy_io = pytest.importorskip("scipy.io")
+    variables, options = drawn
+    path = workdir / "fuzzed.mat"
+    try:
+        scipy_io.savemat(path, variables)
+    except (TypeError, ValueError):
+        return  # not something a MATLAB file can hold
+    run_cli(capsys, ["identify", "--data", str(path), "--no-plots", "--json", "--out", "mat-out", *options], workdir)
 
 
 # ---- as a user sees it: real processes ---------------------------------------------------------

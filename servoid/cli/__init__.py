@@ -7,6 +7,12 @@ up: a module ``servoid/cli/<name>.py`` that defines ``ORDER`` (its place in
 starts with ``_`` are helpers. The handlers are thin: they parse into the same
 config objects the API takes and call the libraries.
 
+Starting fast: a command module imports only what its parser needs (plain
+Python: the defaults, the paper's numbers, the effect names), and the
+libraries inside its handler; and ``servoid CMD ...`` imports only the
+module of CMD (the others stand in by name), so ``--help`` answers before
+NumPy would have loaded (``benchmarks/startup.py``).
+
 Exit status: 0 success; 2 bad input (a one-line message naming the problem,
 never a traceback); 1 any other servoid error (a servo that stopped answering,
 an estimator that diverged); 3 an alarm raised by ``servoid monitor
@@ -38,7 +44,7 @@ from typing import Any, NoReturn
 from servoid import __version__, limits
 from servoid.errors import ConfigError, DataError, ModelError, ServoidError
 
-__all__ = ["main", "build_parser", "Parser", "check_arguments", "STOP_SIGNALS"]
+__all__ = ["main", "build_parser", "command_names", "Parser", "check_arguments", "STOP_SIGNALS", "COMPILE_NOTE"]
 
 DESCRIPTION = """\
 Identify servo drives with gear backlash while they run on the bench.
@@ -58,6 +64,10 @@ examples:
 
 BAD_INPUT = (ConfigError, DataError, ModelError)
 
+#: Said on stderr when numba starts compiling: the first run after an install compiles the kernels
+#: (measured by benchmarks/startup.py on a 2-core machine), later runs load them from numba's cache.
+COMPILE_NOTE = "compiling servoid's estimator once (numba, 15-30 s; later runs load it from the cache)..."
+
 #: Signals that stop a command as Ctrl-C does (SIGKILL cannot be caught: the servo's own watchdog covers it).
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
 
@@ -71,16 +81,26 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {flat} (see {self.prog} --help)\n")
 
 
-def _command_modules() -> list[ModuleType]:
-    mods = []
-    for info in pkgutil.iter_modules(__path__):
-        if not info.name.startswith("_"):
-            mods.append(importlib.import_module(f"{__name__}.{info.name}"))
+def command_names() -> list[str]:
+    """The subcommands, found without importing them."""
+    return sorted(info.name for info in pkgutil.iter_modules(__path__) if not info.name.startswith("_"))
+
+
+def _command_modules(names: Sequence[str]) -> list[ModuleType]:
+    mods = [importlib.import_module(f"{__name__}.{name}") for name in names]
     return sorted(mods, key=lambda m: (getattr(m, "ORDER", 100), m.__name__))
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every subcommand registered."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The argument parser with every subcommand registered.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        The arguments it will parse: when they name a command, only that
+        command's module is imported and the others stand in by name (a
+        faster start; the parse is the same).
+    """
     parser = Parser(
         prog="servoid",
         description=DESCRIPTION,
@@ -89,9 +109,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"servoid {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", title="commands")
-    for mod in _command_modules():
+    names = command_names()
+    chosen = _chosen(argv, names)
+    for mod in _command_modules([chosen] if chosen else names):
         mod.register(sub)
+    for name in names:
+        if name != chosen and chosen is not None:
+            sub.add_parser(name)  # named, for argparse's list of choices; never parsed
     return parser
+
+
+def _chosen(argv: Sequence[str] | None, names: Sequence[str]) -> str | None:
+    """The command ``argv`` names: its first word, when it is one (options before it are the top level's)."""
+    words = [a for a in (argv or ()) if not a.startswith("-")]
+    return words[0] if words and words[0] in names else None
 
 
 def check_arguments(args: argparse.Namespace) -> None:
@@ -159,12 +190,17 @@ def _escaping_output() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     _escaping_output()
-    parser = build_parser()
+    if argv is None:
+        argv = sys.argv[1:]
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     handler = getattr(args, "handler", None)
     if handler is None:
         print("servoid: error: name a command (servoid --help lists them)", file=sys.stderr)
         return 2
+    from servoid.ident import _jit
+
+    _jit.on_first_compile(lambda: print(f"servoid {args.command}: {COMPILE_NOTE}", file=sys.stderr, flush=True))
     try:
         check_arguments(args)
         with _stop_signals_as_interrupt():

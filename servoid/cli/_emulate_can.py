@@ -18,8 +18,6 @@ from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_
 from servoid.errors import ConfigError
 from servoid.output_paths import output_file
 
-HELP = "a simulated CAN servo drive (CANopen CiA 402 or ODrive CAN Simple)"
-
 DESCRIPTION = f"""\
 Start a simulated CAN servo drive with the bench backlash plant behind it, and
 print the can:// URL that reaches it. By default it listens on python-can's

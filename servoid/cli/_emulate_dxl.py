@@ -15,8 +15,6 @@ from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
 from servoid.errors import ConfigError
 from servoid.output_paths import new_link, remove_own_link
 
-HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"
-
 DESCRIPTION = f"""\
 Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
 table) on a pseudo-terminal that the official dynamixel-sdk, and so the dxl://

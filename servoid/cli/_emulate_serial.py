@@ -12,8 +12,6 @@ from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_PLANT
 from servoid.output_paths import new_link
 
-HELP = "the serial bench servo: reference C firmware + simulated motor and gear on a pseudo-terminal"
-
 DESCRIPTION = """\
 Build the reference firmware of the serial bench controller (C, in
 servoid/drivers/serial/firmware/) for this machine with the system's C

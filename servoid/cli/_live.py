@@ -16,28 +16,32 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
-from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
-from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
-from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
-from servoid.identify_outputs import OUTPUT_FILES, Record
-from servoid.recording import Recording
-from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
-from servoid.session.listeners import EstimatorFeed
-from servoid.session.samples import GUARD_AFTER_ANY, STATUSES
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+    from servoid.drivers.base import Limits
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
+    from servoid.identify_outputs import Record
+    from servoid.recording import Recording
+    from servoid.session import SessionProgress, SessionResult
+
+# The libraries a run needs are imported inside the functions that run it, so that the
+# commands' --help (which add_options serves) starts without them.
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation"]
 
 #: Default sample rate of a live run, Hz.
 DEFAULT_RATE_HZ = 200.0
+
+#: Samples of a simulated or live run when --samples is not given.
+DEFAULT_SAMPLES = 5000
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -61,19 +65,35 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
-    """The input of a live run: ``--excitation SPEC`` around ``centre``, else uniform noise ``centre +/- amplitude``."""
-    if args.excitation is not None:
-        if args.amplitude is not None:
-            raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
-        spec = parse_spec(args.excitation)
-    else:
-        spec = UniformSpec(amplitude=amplitude)
-    return centre + sample(spec, args.samples, seed=args.seed)
+def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "") -> np.ndarray:
+    """The input of a live run.
+
+    ``--excitation file:...`` replays a file's commands as they are, after
+    checking them against the driver's ``limits``; a spec (``--excitation
+    SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
+    amplitude``. ``--samples`` long (a file: all of it by default).
+    """
+    from servoid.excitation import UniformSpec, parse_spec, sample
+    from servoid.readers.excitation_file import is_file_spec, read_excitation
+
+    if args.excitation is not None and args.amplitude is not None:
+        raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
+    if is_file_spec(args.excitation):
+        replay = read_excitation(args.excitation)
+        replay.check_within(limits.low, limits.high, limits.max_step, unit=unit)
+        u: np.ndarray = replay.first(args.samples)
+        return u
+    spec = parse_spec(args.excitation) if args.excitation is not None else UniformSpec(amplitude=amplitude)
+    return limits.centre + sample(spec, args.samples or DEFAULT_SAMPLES, seed=args.seed)
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
     """The samples of a recording to identify from: all, or for a live recording those its session used."""
+    import numpy as np
+
+    from servoid.session import usable
+    from servoid.session.samples import GUARD_AFTER_ANY, STATUSES
+
     if rec.status is None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
@@ -100,8 +120,15 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                           "--driver 'sim://?snr=40'")  # fmt: skip
     if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
-    if args.samples < 1:
+    if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.identify_outputs import OUTPUT_FILES
+    from servoid.session import SessionConfig, run_session
+    from servoid.session.listeners import EstimatorFeed
+
     driver = driver_from_url(args.driver)
     quiet = args.json
     with driver:
@@ -116,17 +143,18 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
-        u = excitation(args, amplitude, driver.limits.centre)
+        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit)
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         path = args.out / OUTPUT_FILES["recording"]
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
+                "servo": _flat(identity)}  # fmt: skip
         if not quiet:
-            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {args.samples} samples "
-                               f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
+            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
+                               f"({u.size / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
-        with _term.live_progress("live", args.samples) as bar:
+        with _term.live_progress("live", u.size) as bar:
 
             def update(p: SessionProgress) -> None:
                 bar(p.done, _status_text(p, driver.position_unit.unit))
@@ -162,6 +190,10 @@ def _record(
     path: Path,
     online: MRGIAResult | None,
 ) -> Record:
+    import numpy as np
+
+    from servoid.identify_outputs import Record
+
     valid = result.valid
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")

@@ -4,26 +4,20 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import limits
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.ident.control.compensation_study import (
-    ARMS,
-    CHANGES,
-    FAMILIES,
-    ArmSummary,
-    CompensationStudy,
-    compensation_study,
-    default_resolution,
-)
-from servoid.ident.control.references import amplitude_limit, reference_suite
-from servoid.ident.control.tracking import Sensor
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
-from servoid.modelfile import ModelFile, load_model
 from servoid.output_paths import output_dir
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.control.compensation_study import ArmSummary, CompensationStudy
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.modelfile import ModelFile
+
+# The study and the models are imported inside the functions that run: `servoid compensate --help` starts
+# without the numerical libraries.
 
 ORDER = 30
 
@@ -112,6 +106,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _plant(spec: str | None, content: ModelFile) -> tuple[BacklashModel, str]:
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.modelfile import load_model
+
     if spec is None:
         return content.model, "the model itself"
     if spec == "paper":
@@ -147,6 +144,8 @@ def _nominal_rows(study: CompensationStudy) -> list[list[str]]:
 
 
 def _robustness_rows(study: CompensationStudy) -> list[list[str]]:
+    from servoid.ident.control.compensation_study import ARMS
+
     rows = []
     entries: list[tuple[str, dict[str, ArmSummary], str]] = [("nominal", {a: study.summary(a) for a in ARMS}, "")]
     entries += [(p.label, p.summaries, p.note) for p in study.perturbations]  # type: ignore[misc]
@@ -177,6 +176,11 @@ def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, pa
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.ident.control.compensation_study import CHANGES, FAMILIES, compensation_study, default_resolution
+    from servoid.ident.control.references import amplitude_limit, reference_suite
+    from servoid.ident.control.tracking import Sensor
+    from servoid.modelfile import load_model
+
     limits.bounded_count("--samples", args.samples, limit=MAX_PATH_SAMPLES, what="a reference path's length")
     limits.seed("--seed", args.seed)
     if not args.no_plots:
@@ -207,10 +211,10 @@ def run(args: argparse.Namespace) -> int:
         from servoid import plots
 
         out_dir = args.out if args.out is not None else args.model.parent
-        paths["tracking_plot"] = str(plots.plot_tracking(study, out_dir / "compensation.png",
-                                                         output_unit=content.output_unit))  # fmt: skip
-        paths["robustness_plot"] = str(plots.plot_robustness(study, out_dir / "robustness.png",
-                                                             output_unit=content.output_unit))  # fmt: skip
+        tracking = plots.plot_tracking(study, output_unit=content.output_unit)
+        paths["tracking_plot"] = str(plots.save(tracking, out_dir / "compensation.png"))
+        robustness = plots.plot_robustness(study, output_unit=content.output_unit)
+        paths["robustness_plot"] = str(plots.save(robustness, out_dir / "robustness.png"))
     if args.json:
         _term.print_json(study_json(study, content, plant_name, paths))
         return 0

@@ -6,23 +6,20 @@ import argparse
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-from rich.text import Text
+from typing import TYPE_CHECKING, Any
 
 from servoid import limits
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sample
-from servoid.excitation.design import Design, Prior, ServoLimits, design
-from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
-from servoid.excitation.specs import grammar
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
-from servoid.modelfile import load_model
+from servoid.excitation.specs import KINDS, SignalSpec, format_spec, grammar, parse_spec
 from servoid.output_paths import output_file
-from servoid.recording import write_recording
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.excitation.design import Design
+    from servoid.excitation.report import ExcitationReport, Verdict
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+# The numerical libraries are imported inside the functions that run: `servoid excite --help` starts without them.
 
 ORDER = 5
 
@@ -126,6 +123,8 @@ def _consecutive(values: dict[str, float], prefix: str, first: int) -> list[floa
 
 def _prior_model(text: str) -> BacklashModel:
     """A model from ``a1=..,a2=..,b0=..,delay=1,m2=..,c1=..,c2=..``."""
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
     usage = "give --prior a1=..,b0=..,delay=1,m2=..,c1=..,c2=.. (a1.. and b0.. as many as the orders)"
     values: dict[str, float] = {}
     for item in filter(None, (part.strip() for part in text.split(","))):
@@ -150,6 +149,9 @@ def _prior_model(text: str) -> BacklashModel:
 
 def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
     """The model to report through and where it came from."""
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.modelfile import load_model
+
     if args.no_model:
         return None, "none"
     if args.model is not None:
@@ -160,6 +162,8 @@ def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
 
 
 def _design(args: argparse.Namespace) -> tuple[Design, str]:
+    from servoid.excitation.design import Prior, ServoLimits, design
+
     if args.spec is not None:
         raise ConfigError("give SPEC or --design, not both")
     if args.no_model:
@@ -167,7 +171,7 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
     if args.range is None:
         raise ConfigError("--design needs --range LO HI: the command range of the servo, unit of u")
     lo, hi = args.range
-    limits = ServoLimits(
+    servo = ServoLimits(
         position_min=lo, position_max=hi, max_step=args.max_step, sample_period_s=args.sample_period,
         settle_s=args.settle,
     )  # fmt: skip
@@ -183,7 +187,7 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
         model, source = _model(args)
         assert model is not None
         prior = Prior(model=model)
-    return design(prior, limits, seed=args.seed, samples=args.samples), source
+    return design(prior, servo, seed=args.seed, samples=args.samples), source
 
 
 def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: float | None) -> list[list[str]]:
@@ -222,12 +226,21 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
 
 
 def _print_verdicts(verdicts: Sequence[Verdict]) -> None:
+    from rich.text import Text
+
     colour = {"ok": "green", "warning": "yellow", "insufficient": "red"}
     for v in verdicts:
         _term.stdout.print(Text.assemble((f"{v.level:12s}", colour[v.level]), " ", v.message))
 
 
 def run(args: argparse.Namespace) -> int:
+    import numpy as np
+    from rich.text import Text
+
+    from servoid.excitation import sample
+    from servoid.excitation.report import assess, worst_level
+    from servoid.recording import write_recording
+
     output_file(args.out, option="--out", force=args.force)
     if not args.no_plot:
         output_file(args.plot, option="--plot", force=args.force)
@@ -258,12 +271,14 @@ def run(args: argparse.Namespace) -> int:
     meta = {"servoid excitation": "", "spec": format_spec(spec), "seed": args.seed, "input_unit": args.unit}
     paths = {"signal": str(write_recording(args.out, columns, metadata=meta))}
     if not args.no_plot:
+        from servoid.plots import save
         from servoid.plots.excitation import plot_excitation
 
-        paths["plot"] = str(plot_excitation(
-            u, report, args.plot, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
+        fig = plot_excitation(
+            u, report, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
             input_unit="" if args.unit == "unit" else args.unit, title=spec.kind, level=worst_level(verdicts),
-        ))  # fmt: skip
+        )  # fmt: skip
+        paths["plot"] = str(save(fig, args.plot))
 
     if args.json:
         obj: dict[str, Any] = {

@@ -8,22 +8,24 @@ import math
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import limits
 from servoid.cli import _live, _term
-from servoid.drivers import driver_from_url
-from servoid.drivers.base import Driver
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
-from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
-from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
+from servoid.excitation.specs import SignalSpec, UniformSpec, format_spec, parse_spec
+from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
-from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, WearEstimatorConfig
-from servoid.modelfile import ModelFile, load_model
-from servoid.monitor_run import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
+from servoid.monitor_config import EXIT_ALARM, MonitorConfig
 from servoid.output_paths import output_dir, output_file
-from servoid.session import SessionConfig
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.drivers.base import Driver
+    from servoid.modelfile import ModelFile
+    from servoid.monitor_run import MonitorProgress, MonitorResult
+
+# The drivers, the estimator and the loop are imported inside run(): `servoid monitor --help` starts without them.
 
 ORDER = 15
 
@@ -247,6 +249,8 @@ def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
 
 
 def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:
+    from servoid.drivers.simulated import SimulatedServo
+
     operating = None if args.operating is None else parse_spec(args.operating)
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
@@ -263,6 +267,8 @@ def commands(
     centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int
 ) -> Iterator[float]:
     """The endless command: ``centre + operating(k) + excitation(k)`` (each seeded, the second with ``seed + 1``)."""
+    from servoid.excitation import stream
+
     parts: list[Iterator[float]] = [itertools.repeat(centre)]
     if operating is not None:
         parts.append(stream(operating, seed=seed))
@@ -284,6 +290,13 @@ def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, 
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.monitoring.wear_estimator import WearEstimatorConfig
+    from servoid.modelfile import load_model
+    from servoid.monitor_run import run_monitor
+    from servoid.session import SessionConfig
+
     if args.duration is not None:
         limits.bounded_real("--duration", args.duration, limit=limits.MAX_DURATION_S)
     limits.seed("--seed", args.seed)

@@ -21,12 +21,14 @@ import re
 from collections.abc import Iterable
 from importlib import resources
 from string import Template
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import __version__
 from servoid.errors import ConfigError
 from servoid.export._text import one_line
-from servoid.modelfile import ModelFile
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.modelfile import ModelFile
 
 __all__ = ["SUMMARY", "OPTIONS", "DEFAULT_NAME", "MAX_NAME", "C_KEYWORDS", "render", "check_name", "header_names"]
 

@@ -22,12 +22,11 @@ become ``_``. Nested maps are the usual dotted parameter names
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Mapping
 from typing import Any
-
-import yaml
 
 from servoid import __version__
 from servoid.errors import ConfigError
@@ -44,13 +43,21 @@ _NODE = re.compile(r"(/\*\*|/?[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*)\
 _KEY_BAD = re.compile(r"[^A-Za-z0-9_]")
 
 
-class _Dumper(yaml.SafeDumper):
-    """Block maps, but arrays on one line (``a: [0.45, 0.55]``), as ROS 2 examples write them."""
+@functools.cache
+def _dumper() -> Any:
+    """A YAML dumper with block maps but arrays on one line (``a: [0.45, 0.55]``), as ROS 2 examples write them.
 
+    Made on first use: PyYAML is imported only when a YAML file is written.
+    """
+    import yaml
 
-_Dumper.add_representer(
-    list, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
-)
+    class Dumper(yaml.SafeDumper):
+        pass
+
+    Dumper.add_representer(
+        list, lambda dumper, data: dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=True)
+    )
+    return Dumper
 
 
 def _key(name: Any) -> str:
@@ -148,6 +155,8 @@ def render(content: ModelFile, *, node: str = DEFAULT_NODE, source_name: str = "
         f"# time in samples (sample period {f'{period:g} s' if period else 'not known'}).\n"
         "# backlash: up line y = x - c1, down line y = m2 (x + c2); band: smoothing band of the inverse.\n"
     )
-    body = yaml.dump({node: {"ros__parameters": ros_parameters(content)}}, Dumper=_Dumper, sort_keys=False,
+    import yaml
+
+    body = yaml.dump({node: {"ros__parameters": ros_parameters(content)}}, Dumper=_dumper(), sort_keys=False,
                      default_flow_style=False, allow_unicode=True, width=100)  # fmt: skip
     return header + body
