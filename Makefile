@@ -24,7 +24,7 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/servoid identify --snr 43 --samples 5000 --out $(DEMO_OUT)
-	$(VENV)/bin/servoid export $(DEMO_OUT)/model.json --format c --out $(DEMO_OUT)/backlash.h
+	$(VENV)/bin/servoid export $(DEMO_OUT)/model.json --format c --force --out $(DEMO_OUT)/backlash.h
 
 test: $(STAMP)
 	$(PY) -m pytest

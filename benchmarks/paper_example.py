@@ -27,7 +27,12 @@ import numpy as np
 
 from servoid.errors import EstimatorDiverged
 from servoid.ident import MRGIA, PAPER_PLANT, MRGIAConfig, identify, noise_epsilon, refine, run_mrgia, simulate
-from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_REPORTED_MAX_RELATIVE_ERROR, PAPER_SNR
+from servoid.ident.paper import (
+    PAPER_INPUT_AMPLITUDE,
+    PAPER_REPORTED_MAX_RELATIVE_ERROR,
+    PAPER_RHO_EXPONENT,
+    PAPER_SNR,
+)
 
 CHECKPOINTS = (600, 2000, 5000, 20_000)
 RHO_SCAN = (0.25, 0.5, 0.6, 0.75, 0.9, 1.0)
@@ -100,7 +105,7 @@ def main() -> None:
         flagged = {}
         for name, make in (
             ("MRGIA as printed, r=0.25", lambda e: MRGIAConfig.paper(epsilon=e)),
-            ("MRGIA + safeguards, r=0.25", lambda e: MRGIAConfig(epsilon=e)),
+            ("MRGIA + safeguards, r=0.25", lambda e: MRGIAConfig(rho_exponent=PAPER_RHO_EXPONENT, epsilon=e)),
             (
                 f"MRGIA + safeguards, r={best_r[label]:g}",
                 lambda e, r=best_r[label]: MRGIAConfig(rho_exponent=r, epsilon=e),

@@ -52,6 +52,16 @@ What a driver MAY implement
     the samples after it carry that error for a few periods; for such
     drivers (the default) the sampling session leaves a guard window after
     every sample it could not use (:class:`servoid.session.UsableRule`).
+``watchdog_s`` (instance attribute, set in ``__init__``)
+    The device's own watchdog as the driver configures it: seconds without
+    a request after which the servo switches itself off (or stops) -- what
+    covers a host killed with SIGKILL, a crash or a cut cable; None when the
+    device has none or it is off. The base refuses a sample period that would
+    let it expire between two samples (:meth:`Driver.set_sample_period`).
+``watchdog_fed_by_exchanges`` (class attribute)
+    True (the default) when the exchanges themselves feed the device's
+    watchdog, so that the sample period must stay below half of it; False
+    when something else does (CiA 402's heartbeat, sent by a thread).
 ``command_step`` (instance attribute, set in ``__init__`` or ``_open``)
     The smallest change of the command the device can apply, in native units
     (1 for a goal in whole encoder counts); None (the default) for a
@@ -75,7 +85,8 @@ command sent and which commands the servo may hold (:attr:`Driver.last_command`,
 holds either the new command or the one before, and the next command is kept
 within ``max_step`` of both), the context
 manager, idempotent :meth:`Driver.close` that always tries to leave the torque
-off, unwrapping of the device clock, counters, and wrapping of library errors
+off (and holds Ctrl-C, SIGTERM and SIGHUP until it has: a second Ctrl-C
+cannot cut the torque-off short), unwrapping of the device clock, counters, and wrapping of library errors
 into :mod:`servoid.errors` (``raise ... from``): a ``TimeoutError`` becomes
 :class:`DriverTimeout`, anything else :class:`DriverError`.
 
@@ -85,10 +96,14 @@ Drivers are not thread-safe; a driver belongs to the thread that opened it.
 from __future__ import annotations
 
 import abc
+import contextlib
 import logging
 import math
-from collections.abc import Callable, Mapping
+import signal
+import threading
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from types import FrameType
 from typing import Any, ClassVar
 
 from servoid import validation
@@ -322,6 +337,9 @@ class DriverStats:
     stale : int
         Replies that came after their request had timed out (matched by
         sequence number), discarded.
+    unconfirmed : int
+        Commands the servo's read-back showed it did not get (a corrupted
+        request it dropped); their samples are not used.
     """
 
     exchanges: int = 0
@@ -330,6 +348,7 @@ class DriverStats:
     timeouts: int = 0
     rejected: int = 0
     stale: int = 0
+    unconfirmed: int = 0
 
 
 @dataclass(frozen=True)
@@ -391,6 +410,43 @@ COMMON_OPTIONS: dict[str, Option] = {
 }
 
 
+#: Signals that would interrupt a torque-off half done; held while a driver closes.
+_HELD_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+@contextlib.contextmanager
+def _stop_signals_held() -> Iterator[None]:
+    """Hold SIGINT, SIGTERM and SIGHUP inside the block and deliver them after it (main thread only).
+
+    Python runs signal handlers in the main thread between two bytecodes, so
+    a second Ctrl-C would raise inside the torque-off request; masking the
+    signal in this thread alone would not help (the kernel hands it to
+    another thread, a bus reader's). The handlers are swapped for one that
+    notes the signal, and the first one noted is raised again afterwards,
+    to whatever handler was there before.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    noted: list[int] = []
+
+    def note(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - a signal handler's signature
+        noted.append(signum)
+
+    previous: dict[int, Any] = {}
+    for sig in _HELD_SIGNALS:
+        handler = signal.getsignal(sig)
+        if handler is not None:  # None: installed outside Python, cannot be restored
+            previous[sig] = signal.signal(sig, note)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        if noted:
+            signal.raise_signal(noted[0])
+
+
 class Driver(abc.ABC):
     """Base of every servo driver (see the module docstring for the contract).
 
@@ -410,6 +466,7 @@ class Driver(abc.ABC):
     clock_wrap_s: ClassVar[float | None] = None
     clock_resolution_s: ClassVar[float] = 0.0
     carries_slots: ClassVar[bool] = False
+    watchdog_fed_by_exchanges: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -423,6 +480,8 @@ class Driver(abc.ABC):
         self.command_unit = command_unit if command_unit is not None else self.position_unit
         #: Smallest change of the command the device applies, native unit (None: continuous).
         self.command_step: float | None = None
+        #: The device's own watchdog as configured, s (None: none, or off); see the module docstring.
+        self.watchdog_s: float | None = None
         self.stats = DriverStats()
         self.url: str = ""
         self._is_open = False
@@ -536,6 +595,11 @@ class Driver(abc.ABC):
         """Tell the driver (and through it the device) the period of the exchanges to come, in seconds."""
         self._require_open()
         period = validation.positive("period_s", period_s)
+        if self.watchdog_fed_by_exchanges and self.watchdog_s is not None and 2.0 * period > self.watchdog_s:
+            raise ConfigError(
+                f"period_s (={period!r}) must be below half the device's watchdog ({self.watchdog_s:g} s): it would "
+                "switch the servo off between two samples; sample faster or raise watchdog= in the URL"
+            )
         self._call(self._set_period, period)
         self.sample_period_s = period
 
@@ -573,18 +637,19 @@ class Driver(abc.ABC):
         """
         if not self._is_open:
             return
-        try:
-            self._set_torque(False)
-            self._torque = False
-        except Exception as exc:  # noqa: BLE001 - must not mask the error being handled
-            self.stats.errors += 1
-            log.warning("%s: could not switch the torque off while closing: %s", self.describe(), exc)
-        finally:
-            self._is_open = False
+        with _stop_signals_held():
             try:
-                self._close()
-            except Exception as exc:  # noqa: BLE001
-                log.warning("%s: error while closing: %s", self.describe(), exc)
+                self._set_torque(False)
+                self._torque = False
+            except Exception as exc:  # noqa: BLE001 - must not mask the error being handled
+                self.stats.errors += 1
+                log.warning("%s: could not switch the torque off while closing: %s", self.describe(), exc)
+            finally:
+                self._is_open = False
+                try:
+                    self._close()
+                except Exception as exc:  # noqa: BLE001
+                    log.warning("%s: error while closing: %s", self.describe(), exc)
 
     def __enter__(self) -> Driver:
         return self.open()

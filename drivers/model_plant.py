@@ -18,12 +18,17 @@ the online estimate converges on every transport, and the refinement has
 something to refine.
 """
 
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+    #: The bench servo: x(k) = 0.8 x(k-1) - 0.15 x(k-2) + 0.35 u(k-1), backlash 0.02 / 0.03 rad.
+    MODEL_PLANT: BacklashModel
 
 __all__ = ["MODEL_PLANT", "MODEL_UNIT", "MODEL_AMPLITUDE"]
-
-#: The bench servo: x(k) = 0.8 x(k-1) - 0.15 x(k-2) + 0.35 u(k-1), backlash 0.02 / 0.03 rad.
-MODEL_PLANT = BacklashModel(a=(-0.8, 0.15), b=(0.35,), delay=1, m2=1.0, c1=0.02, c2=0.03)
 
 #: Unit of the bench servo's command and position.
 MODEL_UNIT = "rad"
@@ -31,3 +36,14 @@ MODEL_UNIT = "rad"
 #: Half-width (rad) of a uniform input that visits every zone of MODEL_PLANT
 #: (about 31 % of samples on each line, 38 % in the play).
 MODEL_AMPLITUDE = 0.2
+
+
+def __getattr__(name: str) -> Any:
+    """``MODEL_PLANT``, built on first use (the help of ``servoid identify`` reads the amplitude without NumPy)."""
+    if name == "MODEL_PLANT":
+        from servoid.ident.models.pseudo_wiener import BacklashModel
+
+        plant = BacklashModel(a=(-0.8, 0.15), b=(0.35,), delay=1, m2=1.0, c1=0.02, c2=0.03)
+        globals()[name] = plant
+        return plant
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

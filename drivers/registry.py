@@ -23,7 +23,7 @@ from servoid.errors import ConfigError, MissingDependency
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.drivers.base import Driver, DriverURL
 
-__all__ = ["register", "schemes", "parse_url", "driver_class", "driver_from_url"]
+__all__ = ["register", "schemes", "parse_url", "driver_class", "driver_from_url", "extra_for"]
 
 #: scheme -> "module:Class", imported when a URL with that scheme is opened.
 _REGISTRY: dict[str, str] = {
@@ -33,8 +33,10 @@ _REGISTRY: dict[str, str] = {
     "dxl": "servoid.drivers.dynamixel:DynamixelDriver",
 }
 
-#: Third-party module -> the PyPI package that provides it (for error messages).
-_PACKAGES = {"serial": "pyserial", "can": "python-can", "canopen": "canopen", "dynamixel_sdk": "dynamixel-sdk"}
+#: Third-party module -> (the PyPI package that provides it, the servoid extra that installs it), for messages.
+_PACKAGES = {"serial": ("pyserial", "serial"), "can": ("python-can", "can"), "canopen": ("canopen", "can"),
+             "msgpack": ("msgpack", "can"), "dynamixel_sdk": ("dynamixel-sdk", "dxl"),
+             "scservo_sdk": ("feetech-servo-sdk", "feetech")}  # fmt: skip
 
 
 def register(scheme: str, target: str) -> None:
@@ -108,11 +110,24 @@ def driver_class(scheme: str) -> type[Driver]:
     except ModuleNotFoundError as exc:
         missing = (exc.name or "").split(".")[0]
         if missing in _PACKAGES:
+            package, extra = _PACKAGES[missing]
             raise MissingDependency(
-                f"the {scheme}:// driver needs the package {_PACKAGES[missing]!r}: pip install {_PACKAGES[missing]}"
+                f"the {scheme}:// driver needs the package {package!r}: pip install 'servoid[{extra}]'"
             ) from exc
         raise
     return getattr(module, class_name)  # type: ignore[no-any-return]
+
+
+def extra_for(module: str) -> str | None:
+    """The servoid extra that installs the top-level ``module`` (None for one servoid does not know).
+
+    Parameters
+    ----------
+    module : str
+        A module name as ``ModuleNotFoundError.name`` gives it (``"dynamixel_sdk"``).
+    """
+    found = _PACKAGES.get(module.split(".")[0])
+    return None if found is None else found[1]
 
 
 def driver_from_url(url: str) -> Driver:

@@ -21,7 +21,8 @@ from a URL: ``play_deg=0.8``); a pseudo-Wiener plant takes none. The text
 form ``NAME?key=value&...`` (the ``--servo`` option of ``servoid
 emulate``) reads like a ``sim://`` URL. The default is a twin everywhere:
 it is what a user meets on a bench; the pseudo-Wiener plants are asked for
-by name.
+by name. The names and the defaults are plain facts in
+:mod:`servoid.drivers.servo_facts` (what the command line's help reads).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from typing import Any
 from urllib.parse import parse_qsl
 
 from servoid.drivers.model_plant import MODEL_AMPLITUDE, MODEL_PLANT, MODEL_UNIT
+from servoid.drivers.servo_facts import DEFAULT_RATE_HZ, DEFAULT_SERVO, TWIN_AMPLITUDE_RAD
 from servoid.drivers.twin.params import ALIASES, TwinParams
 from servoid.drivers.twin.presets import preset, preset_names
 from servoid.errors import ConfigError
@@ -51,17 +53,6 @@ __all__ = [
     "TWIN_AMPLITUDE_RAD",
     "DEFAULT_RATE_HZ",
 ]
-
-#: The servo of a simulated device nobody chose one for (``sim://``, the serial emulator).
-DEFAULT_SERVO = "xm430"
-
-#: Half-width of the uniform set point a twin is excited with by default, output rad:
-#: several plays of every preset, well inside their travel.
-TWIN_AMPLITUDE_RAD = 0.1
-
-#: The sample rate of a live run unless told otherwise (``servoid identify --rate``), Hz; a
-#: simulated device that is not told the host's period steps its twin by one period of it.
-DEFAULT_RATE_HZ = 200.0
 
 
 @dataclass(frozen=True)

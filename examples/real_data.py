@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 from servoid.cli import main as servoid_main
-from servoid.importers import read_bam, read_emps, split, to_csv
+from servoid.readers import read_bam, read_emps
 
 SETTINGS = {
     "emps": {"na": 2, "nb": 1, "delay": 1, "decimate": 10},
@@ -40,8 +40,8 @@ def convert(which: str, data: Path, out: Path) -> tuple[Path, Path]:
         validate = read_emps(data / "emps" / "DATA_EMPS_PULSES.mat", decimate=s["decimate"])
     else:
         log = read_bam(data / "bam" / "bam_xl330_raw_2026-01-15_10h28m10.json", decimate=s["decimate"])
-        train, validate = split(log, s["train_fraction"])
-    return to_csv(train, out / "train.csv"), to_csv(validate, out / "validate.csv")
+        train, validate = log.split(s["train_fraction"])
+    return train.to_csv(out / "train.csv"), validate.to_csv(out / "validate.csv")
 
 
 def main() -> int:

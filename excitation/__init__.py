@@ -12,21 +12,55 @@ Conventions: ``u`` is in the unit of the command, time in samples,
 frequencies in cycles per sample (0 to 0.5).
 """
 
-from servoid.excitation.design import Design, Prior, ServoLimits, design
-from servoid.excitation.generate import SignalState, generate, sample, stream
-from servoid.excitation.report import ExcitationReport, InputStats, ModelExcitation, Verdict, assess
-from servoid.excitation.specs import (
-    KINDS,
-    ChirpSpec,
-    LevelsSpec,
-    MultisineSpec,
-    PRBSSpec,
-    SignalSpec,
-    StepsSpec,
-    UniformSpec,
-    format_spec,
-    parse_spec,
-)
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from servoid import lazy
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.excitation.design import Design, Prior, ServoLimits, design
+    from servoid.excitation.generate import SignalState, generate, sample, stream
+    from servoid.excitation.report import ExcitationReport, InputStats, ModelExcitation, Verdict, assess
+    from servoid.excitation.specs import (
+        KINDS,
+        ChirpSpec,
+        LevelsSpec,
+        MultisineSpec,
+        PRBSSpec,
+        SignalSpec,
+        StepsSpec,
+        UniformSpec,
+        format_spec,
+        parse_spec,
+    )
+
+#: Each public name and the module that defines it, imported when the name is first used.
+_EXPORTS: dict[str, str] = {
+    "KINDS": "servoid.excitation.specs",
+    "SignalSpec": "servoid.excitation.specs",
+    "UniformSpec": "servoid.excitation.specs",
+    "PRBSSpec": "servoid.excitation.specs",
+    "StepsSpec": "servoid.excitation.specs",
+    "MultisineSpec": "servoid.excitation.specs",
+    "ChirpSpec": "servoid.excitation.specs",
+    "LevelsSpec": "servoid.excitation.specs",
+    "parse_spec": "servoid.excitation.specs",
+    "format_spec": "servoid.excitation.specs",
+    "SignalState": "servoid.excitation.generate",
+    "generate": "servoid.excitation.generate",
+    "sample": "servoid.excitation.generate",
+    "stream": "servoid.excitation.generate",
+    "assess": "servoid.excitation.report",
+    "ExcitationReport": "servoid.excitation.report",
+    "InputStats": "servoid.excitation.report",
+    "ModelExcitation": "servoid.excitation.report",
+    "Verdict": "servoid.excitation.report",
+    "design": "servoid.excitation.design",
+    "Design": "servoid.excitation.design",
+    "Prior": "servoid.excitation.design",
+    "ServoLimits": "servoid.excitation.design",
+}
 
 __all__ = [
     "KINDS",
@@ -53,3 +87,5 @@ __all__ = [
     "Prior",
     "ServoLimits",
 ]
+
+lazy.install(__name__, _EXPORTS)

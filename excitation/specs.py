@@ -40,8 +40,9 @@ import re
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, ClassVar
 
-from servoid import validation
+from servoid import limits, validation
 from servoid.errors import ConfigError
+from servoid.limits import MAX_LEVELS
 
 __all__ = [
     "SignalSpec",
@@ -188,6 +189,8 @@ class StepsSpec(SignalSpec):
         super().__post_init__()
         self._set("hold", _hold("hold", self.hold))
         levels = validation.integer("levels", self.levels, minimum=0)
+        if levels > MAX_LEVELS:
+            raise ConfigError(f"levels (={levels}) must be <= {MAX_LEVELS} (servoid's limit on an excitation's levels)")
         if levels == 1:
             raise ConfigError("levels (=1) must be 0 (any value) or >= 2: one level is a constant")
         self._set("levels", levels)
@@ -314,7 +317,7 @@ class LevelsSpec(SignalSpec):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        count = validation.integer("count", self.count, minimum=1)
+        count = limits.bounded_count("count", self.count, limit=MAX_LEVELS, what="an excitation's levels")
         dither = self.amplitude / count if self.dither is None else validation.non_negative("dither", self.dither)
         if dither > self.amplitude or (count > 1 and dither == self.amplitude):
             raise ConfigError(

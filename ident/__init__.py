@@ -19,24 +19,60 @@ time is counted in samples; ``u`` is in the unit of the command and ``y``,
 ``x``, ``c1``, ``c2`` in the unit of the measured position.
 """
 
-from servoid.ident.identify import Identification, check_record, identify
-from servoid.ident.metrics import nrmse
-from servoid.ident.models.plant import Plant
-from servoid.ident.models.pseudo_wiener import M1, BacklashModel, ThetaLayout
-from servoid.ident.models.simulate import Simulation, free_run, noise_std_for_snr, simulate
-from servoid.ident.offline.refine import Refinement, arx_start, refine
-from servoid.ident.online.estimator import Estimator
-from servoid.ident.online.mrgia import (
-    MRGIA,
-    MRGIAConfig,
-    MRGIAResult,
-    RecoveryEvent,
-    Step,
-    convergence_margin,
-    noise_epsilon,
-    run_mrgia,
-)
-from servoid.ident.paper import PAPER_PLANT
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from servoid import lazy
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.identify import Identification, check_record, identify
+    from servoid.ident.metrics import nrmse
+    from servoid.ident.models.plant import Plant
+    from servoid.ident.models.pseudo_wiener import M1, BacklashModel, ThetaLayout
+    from servoid.ident.models.simulate import Simulation, free_run, noise_std_for_snr, simulate
+    from servoid.ident.offline.refine import Refinement, arx_start, refine
+    from servoid.ident.online.estimator import Estimator
+    from servoid.ident.online.mrgia import (
+        MRGIA,
+        MRGIAConfig,
+        MRGIAResult,
+        RecoveryEvent,
+        Step,
+        convergence_margin,
+        noise_epsilon,
+        run_mrgia,
+    )
+    from servoid.ident.paper import PAPER_PLANT
+
+#: Each public name and the module that defines it, imported when the name is first used.
+_EXPORTS: dict[str, str] = {
+    "BacklashModel": "servoid.ident.models.pseudo_wiener",
+    "M1": "servoid.ident.models.pseudo_wiener",
+    "ThetaLayout": "servoid.ident.models.pseudo_wiener",
+    "Estimator": "servoid.ident.online.estimator",
+    "PAPER_PLANT": "servoid.ident.paper",
+    "Simulation": "servoid.ident.models.simulate",
+    "simulate": "servoid.ident.models.simulate",
+    "free_run": "servoid.ident.models.simulate",
+    "noise_std_for_snr": "servoid.ident.models.simulate",
+    "Plant": "servoid.ident.models.plant",
+    "MRGIA": "servoid.ident.online.mrgia",
+    "MRGIAConfig": "servoid.ident.online.mrgia",
+    "MRGIAResult": "servoid.ident.online.mrgia",
+    "RecoveryEvent": "servoid.ident.online.mrgia",
+    "Step": "servoid.ident.online.mrgia",
+    "run_mrgia": "servoid.ident.online.mrgia",
+    "noise_epsilon": "servoid.ident.online.mrgia",
+    "convergence_margin": "servoid.ident.online.mrgia",
+    "Refinement": "servoid.ident.offline.refine",
+    "refine": "servoid.ident.offline.refine",
+    "arx_start": "servoid.ident.offline.refine",
+    "Identification": "servoid.ident.identify",
+    "identify": "servoid.ident.identify",
+    "check_record": "servoid.ident.identify",
+    "nrmse": "servoid.ident.metrics",
+}
 
 __all__ = [
     "BacklashModel",
@@ -65,3 +101,5 @@ __all__ = [
     "check_record",
     "nrmse",
 ]
+
+lazy.install(__name__, _EXPORTS)

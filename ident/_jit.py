@@ -1,4 +1,4 @@
-"""Compile hot loops with numba when it is available.
+"""Compile hot loops with numba when it is available, and say when a compilation starts.
 
 Every kernel in :mod:`servoid.ident` is plain Python over scalars and NumPy
 arrays, decorated with :func:`jit`. With numba installed (a dependency of
@@ -6,25 +6,32 @@ servoid) the decorator compiles it; ``kernel.py_func`` is always the pure
 Python original, which the tests run side by side with the compiled one to
 prove both give the same numbers. Without numba (an exotic platform) the
 decorator returns the function unchanged and servoid is merely slower.
+
+Compiled kernels are cached on disk (``cache=True``: ``__pycache__`` beside
+the sources, or numba's per-user cache directory where that is not
+writable), so only the first run after an install compiles, for some
+seconds. :func:`on_first_compile` registers a call made when a compilation
+actually starts (numba's ``numba:compile`` event fires on a cache miss only),
+so the command line can announce the wait instead of sitting silent. numba
+itself is imported at the first :func:`jit`, so that registering costs nothing.
 """
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Callable
 from typing import Any, TypeVar
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-_numba: Any
-try:  # pragma: no cover - which branch runs depends on the platform
-    import numba as _numba
+#: Whether numba is installed (found without importing it).
+HAVE_NUMBA = importlib.util.find_spec("numba") is not None
 
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover
-    _numba = None
-    HAVE_NUMBA = False
+__all__ = ["jit", "HAVE_NUMBA", "python_version", "on_first_compile"]
 
-__all__ = ["jit", "HAVE_NUMBA", "python_version"]
+#: Called once each, when the first compilation of this process starts.
+_hooks: list[Callable[[], None]] = []
+_listening = False
 
 
 def jit(func: F) -> F:
@@ -32,10 +39,42 @@ def jit(func: F) -> F:
     if not HAVE_NUMBA:
         func.py_func = func  # type: ignore[attr-defined]
         return func
-    compiled: F = _numba.njit(cache=True, nogil=True)(func)  # a Dispatcher: called as func is
-    return compiled
+    import numba
+
+    _listen()
+    compiled: Any = numba.njit(cache=True, nogil=True)(func)  # a Dispatcher: called as func is
+    return compiled  # type: ignore[no-any-return]
 
 
 def python_version(kernel: Callable[..., Any]) -> Callable[..., Any]:
     """The uncompiled Python function behind a :func:`jit` kernel."""
     return getattr(kernel, "py_func", kernel)
+
+
+def on_first_compile(hook: Callable[[], None]) -> None:
+    """Call ``hook()`` when a kernel compilation starts (not when one loads from the cache); once.
+
+    Parameters
+    ----------
+    hook : callable
+        Takes no argument; its return value is ignored.
+    """
+    _hooks.append(hook)
+
+
+def _listen() -> None:
+    global _listening
+    if _listening:
+        return
+    from numba.core import event
+
+    class _FirstCompile(event.Listener):  # numba's listener base, subclassed to hear the first compile
+        def on_start(self, ev: Any) -> None:
+            while _hooks:
+                _hooks.pop(0)()
+
+        def on_end(self, ev: Any) -> None:
+            pass
+
+    event.register("numba:compile", _FirstCompile())  # type: ignore[no-untyped-call]
+    _listening = True

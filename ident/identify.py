@@ -21,7 +21,11 @@ from servoid.ident.models.simulate import free_run
 from servoid.ident.offline.refine import Refinement, arx_start, refine
 from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 
-__all__ = ["Identification", "identify", "check_record"]
+__all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE"]
+
+#: A free-run NRMSE from here on says the model explains almost nothing of y (1 is y's mean):
+#: even output noise as strong as the signal itself (SNR 1) leaves a good model near 0.7.
+POOR_FIT_NRMSE = 0.9
 
 Method = Literal["mrgia", "mrgia+oe"]
 
@@ -262,6 +266,11 @@ def identify(
             f"the MRGIA's online estimate did not converge here (fit NRMSE "
             f"{'n/a' if mrgia_nrmse is None else f'{mrgia_nrmse:.3g}'} against {fit:.3g} refined from the "
             f"{refined_from} start){why}; the refined model is the one to use"
+        )
+    if fit >= POOR_FIT_NRMSE:
+        warnings.append(
+            f"the model explains almost nothing of y: free-run NRMSE {fit:.3g} (1 is no better than y's mean); "
+            "y may not depend on u here (check the columns, the delay and the orders): its parameters mean nothing"
         )
     return Identification(
         model=model,

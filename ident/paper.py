@@ -3,8 +3,13 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any
 
-from servoid.ident.models.pseudo_wiener import BacklashModel
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+    #: The plant of eq. (46) with m1 = 1, m2 = 1.5, c1 = 0.5, c2 = 1.
+    PAPER_PLANT: BacklashModel
 
 __all__ = [
     "PAPER_PLANT",
@@ -18,9 +23,6 @@ __all__ = [
     "RECOMMENDED_RHO_EXPONENT",
     "paper_theta0",
 ]
-
-#: The plant of eq. (46) with m1 = 1, m2 = 1.5, c1 = 0.5, c2 = 1.
-PAPER_PLANT = BacklashModel(a=(0.45, 0.55), b=(0.8,), delay=1, m2=1.5, c1=0.5, c2=1.0)
 
 #: Variance of the uniform bounded white-noise input of Section 4.
 PAPER_INPUT_VARIANCE = 1.93
@@ -55,3 +57,15 @@ def paper_theta0(na: int, nb: int) -> tuple[float, ...]:
     theta = [0.0] * (na + nb + 4)
     theta[na] = 1.0
     return tuple(theta)
+
+
+def __getattr__(name: str) -> Any:
+    """``PAPER_PLANT``, built on first use: the scalars above are read by the command line's help, which must
+    start without NumPy, and the model class needs it."""
+    if name == "PAPER_PLANT":
+        from servoid.ident.models.pseudo_wiener import BacklashModel
+
+        plant = BacklashModel(a=(0.45, 0.55), b=(0.8,), delay=1, m2=1.5, c1=0.5, c2=1.0)
+        globals()[name] = plant
+        return plant
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

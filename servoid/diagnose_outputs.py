@@ -17,7 +17,11 @@ from servoid.extendedfile import save_extended_model
 from servoid.ident.diagnosis.diagnose import Diagnosis
 from servoid.recording import Recording
 
-__all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows"]
+__all__ = ["write_diagnosis_outputs", "diagnosis_json", "candidate_rows", "DIAGNOSE_FILES"]
+
+#: What ``write_diagnosis_outputs`` writes into its folder, by name.
+DIAGNOSE_FILES = {"model": "model.json", "fit_plot": "diagnose_fit.png", "regimes_plot": "diagnose_regimes.png",
+                  "resid_plot": "diagnose_resid.png", "candidates_plot": "diagnose_candidates.png"}  # fmt: skip
 
 
 def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recording, validate: Recording, *,
@@ -26,7 +30,7 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
     out_dir.mkdir(parents=True, exist_ok=True)
     paths = {
         "model": str(save_extended_model(
-            out_dir / "model.json", diagnosis.model, method="mrgia+oe+effects", fit_nrmse=diagnosis.gap_after,
+            out_dir / DIAGNOSE_FILES["model"], diagnosis.model, method="mrgia+oe+effects", fit_nrmse=diagnosis.gap_after,
             source=source, samples=len(train), input_unit=input_unit, output_unit=output_unit,
             sample_period_s=train.sample_period,
         ))
@@ -34,11 +38,14 @@ def write_diagnosis_outputs(out_dir: Path, diagnosis: Diagnosis, train: Recordin
     if plots:
         from servoid import plots as _plots
 
-        paths["fit_plot"] = str(_plots.plot_diagnosis_fit(diagnosis, validate.y, out_dir / "diagnose_fit.png",
-                                                          t=validate.t, output_unit=output_unit))  # fmt: skip
-        paths["regimes_plot"] = str(_plots.plot_regimes(diagnosis, out_dir / "diagnose_regimes.png"))
-        paths["resid_plot"] = str(_plots.plot_residual_tests(diagnosis, out_dir / "diagnose_resid.png"))
-        paths["candidates_plot"] = str(_plots.plot_candidates(diagnosis, out_dir / "diagnose_candidates.png"))
+        figures = {
+            "fit_plot": _plots.plot_diagnosis_fit(diagnosis, validate.y, t=validate.t, output_unit=output_unit),
+            "regimes_plot": _plots.plot_regimes(diagnosis),
+            "resid_plot": _plots.plot_residual_tests(diagnosis),
+            "candidates_plot": _plots.plot_candidates(diagnosis),
+        }
+        for key, fig in figures.items():
+            paths[key] = str(_plots.save(fig, out_dir / DIAGNOSE_FILES[key]))
     return paths
 
 

@@ -26,6 +26,7 @@ __all__ = [
     "DriverError",
     "DriverTimeout",
     "ProtocolError",
+    "CommandUnconfirmed",
     "DeviceFault",
     "DeviceRestarted",
     "PositionOutOfRange",
@@ -79,6 +80,10 @@ class DriverTimeout(DriverError, TimeoutError):
 
 class ProtocolError(DriverError):
     """A reply was corrupted or did not follow the protocol (bad CRC, length, sequence)."""
+
+
+class CommandUnconfirmed(ProtocolError):
+    """The servo's read-back of a command differs from what was sent: the command was lost or corrupted on its way."""
 
 
 class DeviceFault(DriverError):

@@ -28,7 +28,11 @@ from servoid.ident.online.mrgia import MRGIAResult
 from servoid.modelfile import ModelFile, save_model
 from servoid.recording import write_recording
 
-__all__ = ["Record", "write_outputs", "summary_rows", "result_json"]
+__all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FILES"]
+
+#: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
+OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
+                "fit_plot": "fit.png", "backlash_plot": "backlash.png"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -105,7 +109,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         cols.update(record.extra)
         meta = {"servoid recording": "", "source": record.source,
                 "input_unit": record.input_unit, "unit": record.output_unit}  # fmt: skip
-        paths["recording"] = str(write_recording(out_dir / "recording.csv", cols, metadata=meta))
+        paths["recording"] = str(write_recording(out_dir / OUTPUT_FILES["recording"], cols, metadata=meta))
     else:
         paths["recording"] = str(record.written_to)
     content = ModelFile(
@@ -121,34 +125,22 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         servo=record.servo,
         noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
     )
-    paths["model"] = str(save_model(out_dir / "model.json", content))
+    paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], content))
     if plots:
         from servoid import plots as _plots
 
         refined = result.model if result.refinement is not None else None
-        paths["convergence_plot"] = str(
-            _plots.plot_convergence(result.mrgia, out_dir / "convergence.png", truth=record.truth, refined=refined)
-        )
+        convergence = _plots.plot_convergence(result.mrgia, truth=record.truth, refined=refined)
+        paths["convergence_plot"] = str(_plots.save(convergence, out_dir / OUTPUT_FILES["convergence_plot"]))
         y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
         simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, record.u, y0=y0)}
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
-        paths["fit_plot"] = str(
-            _plots.plot_fit(
-                record.y, simulated, out_dir / "fit.png", u=record.u, t=record.t, output_unit=record.output_unit
-            )  # fmt: skip
-        )
+        fit = _plots.plot_fit(record.y, simulated, u=record.u, t=record.t, output_unit=record.output_unit)
+        paths["fit_plot"] = str(_plots.save(fit, out_dir / OUTPUT_FILES["fit_plot"]))
         x_hat = simulate(result.model, record.u, y0=y0).x
-        paths["backlash_plot"] = str(
-            _plots.plot_backlash(
-                result.model,
-                x_hat,
-                record.y,
-                out_dir / "backlash.png",
-                output_unit=record.output_unit,
-                truth=record.truth,
-            )  # fmt: skip
-        )
+        loop = _plots.plot_backlash(result.model, x_hat, record.y, output_unit=record.output_unit, truth=record.truth)
+        paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
     return paths
 
 

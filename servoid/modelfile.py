@@ -33,22 +33,31 @@ among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 
 from __future__ import annotations
 
+import copy
 import datetime as _dt
+import functools
+import json
 import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from servoid import __version__, validation
+from servoid import __version__, limits, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.files import read_json
-from servoid.ident.control.compensate import default_band
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.serialise import dumps, number
+from servoid.schema_check import first_problem, json_path
 
-__all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model"]
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+# The model class, the band and the JSON writer (NumPy) are imported where they are used, so that the
+# schema's facts (VERSION, SCHEMA) reach the command line's help without loading NumPy.
+
+__all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile", "save_model", "load_model",
+           "json_schema"]  # fmt: skip
 
 SCHEMA = "servoid.model"
 VERSION = 2
@@ -94,6 +103,8 @@ class ModelFile:
     @property
     def compensation_band(self) -> float:
         """The smoothing band of the backlash inverse, output unit (stored, or servoid's default)."""
+        from servoid.ident.control.compensate import default_band
+
         return default_band(self.model, noise_std=self.noise_std) if self.band is None else self.band
 
     @property
@@ -114,6 +125,8 @@ class ModelFile:
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object of the schema."""
+        from servoid.ident.serialise import number
+
         out: dict[str, Any] = {
             "schema": SCHEMA,
             "version": VERSION,
@@ -142,6 +155,8 @@ class ModelFile:
 
     def to_json(self) -> str:
         """The file's text: :meth:`to_dict` pretty-printed, with a final newline."""
+        from servoid.ident.serialise import dumps
+
         return dumps(self.to_dict(), indent=2) + "\n"
 
 
@@ -160,16 +175,28 @@ def save_model(path: str | os.PathLike[str], content: ModelFile) -> Path:
 def load_model(path: str | os.PathLike[str]) -> ModelFile:
     """Read a ``model.json``.
 
+    Everything is checked before it is used: the file's size and nesting
+    (:mod:`servoid.limits`), every number finite and within
+    :data:`~servoid.limits.MAX_MAGNITUDE` (``NaN`` only where servoid 0.1
+    wrote it: version 1's ``stderr``), every string valid Unicode of bounded
+    length, the whole document against the shipped JSON Schema
+    (:func:`json_schema`), and the model's orders and delay against servoid's
+    limits.
+
     Raises
     ------
     DataError
         Missing file, not JSON, another schema, a version this servoid does
-        not know (older files are named as such), or missing fields.
+        not know (older files are named as such), missing fields, or a value
+        that breaks the schema or a limit (named, with its place in the file).
     ModelError
         The model inside is invalid (the message names the value).
     """
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.serialise import number
+
     p = Path(path)
-    data = read_json(p, what="model file")
+    data = read_json(p, what="model file", max_bytes=limits.MAX_JSON_BYTES, non_finite=True)
     if not isinstance(data, Mapping) or data.get("schema") != SCHEMA:
         found = data.get("schema") if isinstance(data, Mapping) else type(data).__name__
         raise DataError(f"{p}: not a servoid model file (schema {found!r}, expected {SCHEMA!r})")
@@ -186,10 +213,7 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     for key in required:
         if key not in data:
             raise DataError(f"{p}: missing field {key!r} (required in version {version})")
-    try:
-        model = BacklashModel.from_dict(data["model"])
-    except ModelError as exc:
-        raise ModelError(f"{p}: {exc}") from exc
+    _check_values(p, data, version)
     units = _section(p, data, "units")
     ident = _section(p, data, "identified")
     band = noise = None
@@ -221,6 +245,16 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
             f"{p}: {EFFECTS_KEY!r} must be a list of model extensions (see docs/diagnose.md), "
             f"got {type(data[EFFECTS_KEY]).__name__}"
         )
+    # the checks above name the usual slips in their own words; the schema holds the whole format
+    problem = first_problem(data, json_schema(version))
+    if problem is not None:
+        kind = ModelError if problem.path[:1] == ("model",) else DataError  # the model inside, or the file
+        raise kind(f"{p}: {problem} (schema {SCHEMA} version {version}, docs/model-schema.md)")
+    _check_sizes(p, data["model"])
+    try:
+        model = BacklashModel.from_dict(data["model"])
+    except ModelError as exc:
+        raise ModelError(f"{p}: {exc}") from exc
     known = {"schema", "version", "model", "stderr", "units", "method", "fit_nrmse", "identified", "servo",
              "compensation"}  # fmt: skip
     return ModelFile(
@@ -241,6 +275,71 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         noise_std=noise,
         read_version=version,
     )
+
+
+@functools.cache
+def _schema_text() -> str:
+    return resources.files("servoid").joinpath("model.schema.json").read_text(encoding="utf-8")
+
+
+def json_schema(version: int = VERSION) -> dict[str, Any]:
+    """The JSON Schema of a model file of ``version``: the shipped ``model.schema.json`` (version 2).
+
+    Version 1 is the same but for its ``version`` and no ``compensation``
+    section (it had none).
+
+    Parameters
+    ----------
+    version : int
+        One of :data:`READABLE_VERSIONS`.
+    """
+    schema: dict[str, Any] = json.loads(_schema_text())
+    if version == 1:
+        schema = copy.deepcopy(schema)
+        schema["properties"]["version"] = {"const": 1}
+        schema["required"] = [key for key in schema["required"] if key != "compensation"]
+    return schema
+
+
+def _check_values(path: Path, data: Any, version: int) -> None:
+    """Every number finite (NaN only in version 1's stderr) and within the limit; every string valid text."""
+    stack: list[tuple[Any, tuple[str | int, ...]]] = [(data, ())]
+    while stack:
+        node, where = stack.pop()
+        if isinstance(node, dict):
+            for key, value in node.items():
+                _text(path, key, (*where, f"<key {key[:40]!r}>"))
+                stack.append((value, (*where, key)))
+        elif isinstance(node, list):
+            stack.extend((value, (*where, i)) for i, value in enumerate(node))
+        elif isinstance(node, str):
+            _text(path, node, where)
+        elif isinstance(node, (int, float)) and not isinstance(node, bool):
+            if isinstance(node, float) and math.isnan(node) and version == 1 and where[:1] == ("stderr",):
+                continue  # servoid 0.1 wrote NaN where the data left a parameter undetermined
+            try:
+                limits.bounded_real(json_path(where), node)
+            except ConfigError as exc:
+                raise DataError(f"{path}: {exc}") from None
+
+
+def _text(path: Path, value: str, where: tuple[str | int, ...]) -> None:
+    try:
+        limits.text(json_path(where) or "a key", value)
+    except ConfigError as exc:
+        raise DataError(f"{path}: {exc}") from None
+
+
+def _check_sizes(path: Path, model: Mapping[str, Any]) -> None:
+    """The model's orders and delay within servoid's limits (before any work sized by them)."""
+    try:
+        limits.bounded_count("model.a (its length, na)", len(model["a"]), limit=limits.MAX_ORDER,
+                             what="the order of the linear block")  # fmt: skip
+        limits.bounded_count("model.b (its length, nb + 1)", len(model["b"]), limit=limits.MAX_ORDER,
+                             what="the order of the linear block")  # fmt: skip
+        limits.bounded_count("model.delay", model["delay"], limit=limits.MAX_DELAY, what="the delay in samples")
+    except ConfigError as exc:
+        raise DataError(f"{path}: {exc}") from None
 
 
 def _is_number(value: Any) -> bool:

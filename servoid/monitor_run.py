@@ -47,16 +47,16 @@ from typing import IO, Any
 
 import numpy as np
 
-from servoid import validation
 from servoid.drivers.base import Driver
 from servoid.errors import ConfigError, DataError, DriverError, EstimatorDiverged, ModelError
 from servoid.files import read_text
 from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
-from servoid.ident.monitoring.wear_estimator import WearEstimate, WearEstimator, WearEstimatorConfig
+from servoid.ident.monitoring.alarms import AlarmEvent, Alarms
+from servoid.ident.monitoring.wear_estimator import WearEstimate, WearEstimator
 from servoid.ident.serialise import dumps
 from servoid.modelfile import ModelFile
+from servoid.monitor_config import EXIT_ALARM, MonitorConfig
 from servoid.monitor_history import HistorySnapshot, MonitorHistory
 from servoid.recording import RecordingWriter, split_metadata
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, run_session
@@ -77,60 +77,6 @@ log = logging.getLogger("servoid.monitor_run")
 
 #: ``method`` of the model files the monitor writes.
 METHOD = "mrgia-tracking"
-
-#: Exit status of ``servoid monitor --fail-on-alarm`` when an alarm was raised.
-EXIT_ALARM = 3
-
-#: Quantities the alarm rule watches, as the wear estimator reports them.
-QUANTITIES = ("dead_zone", "m2", "fit")
-
-
-@dataclass(frozen=True, kw_only=True)
-class MonitorConfig:
-    """What the monitor estimates, checks and writes.
-
-    Parameters
-    ----------
-    estimator : WearEstimatorConfig
-        The servo's model, noise and random-walk settings.
-    bounds : tuple of Bound
-        Bounds on ``dead_zone`` (``c1 + c2``, output unit), ``m2`` and ``fit``
-        (free-run NRMSE); a quantity without a bound is not checked.
-    rule : AlarmRule
-        Persistence, margin and hysteresis of the alarm rule.
-    check_every : int
-        Samples between checks of the alarm rule and the compensation.
-    row_every : int
-        Samples between rows of ``estimates.csv``; a multiple of ``check_every``.
-    compensation_step : float
-        Relative change of ``c1 + c2`` or ``m2`` since the last written
-        compensation that writes a new one (when it holds for ``rule.persist`` checks).
-    stop_on_alarm : bool
-        End the run at the first alarm raised.
-    plot_every_s : float
-        Wall-clock seconds between refreshes of the live plot.
-    """
-
-    estimator: WearEstimatorConfig
-    bounds: tuple[Bound, ...] = ()
-    rule: AlarmRule = AlarmRule()
-    check_every: int = 100
-    row_every: int = 1000
-    compensation_step: float = 0.02
-    stop_on_alarm: bool = False
-    plot_every_s: float = 5.0
-
-    def __post_init__(self) -> None:
-        check = validation.integer("check_every", self.check_every, minimum=1)
-        row = validation.integer("row_every", self.row_every, minimum=1)
-        if row % check:
-            raise ConfigError(f"row_every (={row}) must be a multiple of check_every (={check}) samples")
-        validation.positive("compensation_step", self.compensation_step)
-        validation.positive("plot_every_s", self.plot_every_s)
-        for b in self.bounds:
-            if b.quantity not in QUANTITIES:
-                raise ConfigError(f"a bound on {b.quantity!r}: the monitor checks {', '.join(QUANTITIES)}")
-        object.__setattr__(self, "bounds", tuple(self.bounds))
 
 
 @dataclass(frozen=True)
@@ -621,9 +567,10 @@ class _Loop:
             if self._live is not None:
                 self._live.close()
                 self._live = None
+            from servoid.plots import save
             from servoid.plots.monitor import plot_monitor
 
-            self.files["plot"] = plot_monitor(self._snapshot(), self.plot_path)
+            self.files["plot"] = save(plot_monitor(self._snapshot()), self.plot_path)
 
     def result(self, session: SessionResult) -> MonitorResult:
         est = self.estimator.estimate()

@@ -9,11 +9,19 @@ from __future__ import annotations
 
 import math
 import numbers
-from typing import Any
-
-import numpy as np
+import sys
+from typing import TYPE_CHECKING, Any
 
 from servoid.errors import ConfigError
+from servoid.limits import digits_of
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+# NumPy is imported only by the checks that build arrays: the command line's
+# parsers use the scalar checks, and must start without loading NumPy. NumPy
+# registers its scalar types with the ``numbers`` ABCs, so the scalar checks
+# accept them without naming them.
 
 __all__ = [
     "real",
@@ -29,16 +37,20 @@ __all__ = [
 
 def show(value: Any) -> str:
     """``repr`` of a value for a message, without NumPy's type wrappers (``1.5``, not ``np.float64(1.5)``)."""
-    if isinstance(value, np.generic):
+    numpy = sys.modules.get("numpy")  # a NumPy scalar exists only once NumPy is loaded
+    if numpy is not None and isinstance(value, numpy.generic):
         value = value.item()
     return repr(value)
 
 
 def real(name: str, value: Any) -> float:
     """Return ``value`` as a finite float, or raise :class:`ConfigError` naming it."""
-    if isinstance(value, bool) or not isinstance(value, (numbers.Real, np.floating, np.integer)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ConfigError(f"{name} (={show(value)}) must be a real number")
-    out = float(value)
+    try:
+        out = float(value)
+    except OverflowError:  # an int beyond a float's range; its repr may run to thousands of digits
+        raise ConfigError(f"{name} (an integer of about {digits_of(value)} digits) must be finite") from None
     if not math.isfinite(out):
         raise ConfigError(f"{name} (={show(value)}) must be finite")
     return out
@@ -74,9 +86,9 @@ def in_unit_interval(name: str, value: Any, *, open_low: bool = True, open_high:
 
 def integer(name: str, value: Any, *, minimum: int | None = None) -> int:
     """Return ``value`` as an int (bools rejected), optionally ``>= minimum``."""
-    if isinstance(value, bool) or not isinstance(value, (numbers.Integral, np.integer)):
-        if isinstance(value, (float, np.floating)) and float(value).is_integer():
-            value = int(value)
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        if isinstance(value, numbers.Real) and float(value).is_integer():
+            value = int(float(value))
         else:
             raise ConfigError(f"{name} (={show(value)}) must be an integer")
     out = int(value)
@@ -94,6 +106,8 @@ def signal(name: str, values: Any, *, min_length: int = 1) -> np.ndarray:
         If ``values`` is not 1-D numeric, is shorter than ``min_length``, or
         holds NaN or infinity (the message gives the first bad index).
     """
+    import numpy as np
+
     try:
         arr = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError) as exc:

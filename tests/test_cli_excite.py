@@ -66,7 +66,7 @@ def test_excite_table_says_what_it_reports_through(tmp_path, capsys):
 def test_excite_through_a_model_file_an_inline_prior_or_none(tmp_path, capsys):
     model = PAPER_PLANT.__class__(a=(0.2,), b=(1.0,), delay=1, m2=1.0, c1=0.05, c2=0.05)
     path = save_model(tmp_path / "model.json", ModelFile(model=model))
-    common = ["steps:amplitude=1,hold=2", "--samples", "2000", "--out", str(tmp_path / "s.csv"), "--no-plot"]
+    common = ["steps:amplitude=1,hold=2", "--samples", "2000", "--out", str(tmp_path / "s.csv"), "--no-plot", "--force"]
     _, from_file = run_json(capsys, "excite", *common, "--model", str(path))
     assert from_file["report"]["through_model"]["model"] == model.to_dict() and from_file["report"]["needed_order"] == 2
     _, inline = run_json(capsys, "excite", *common, "--prior", "a1=0.2,b0=1,m2=1,c1=0.05,c2=0.05")

@@ -199,7 +199,7 @@ BAM = DATA / "bam" / "bam_xl330_raw_2026-01-15_10h28m10.json"
 
 @pytest.mark.skipif(not (EMPS / "DATA_EMPS.mat").exists(), reason=f"EMPS data not found in {EMPS}")
 def test_emps_reads_and_diagnoses():
-    from servoid.importers import read_emps
+    from servoid.readers import read_emps
 
     train = read_emps(EMPS / "DATA_EMPS.mat", decimate=10)
     val = read_emps(EMPS / "DATA_EMPS_PULSES.mat", decimate=10)
@@ -216,11 +216,11 @@ def test_emps_reads_and_diagnoses():
 
 @pytest.mark.skipif(not BAM.exists(), reason=f"BAM XL330 log not found at {BAM}")
 def test_xl330_reads_and_diagnoses():
-    from servoid.importers import read_bam, split
+    from servoid.readers import read_bam
 
     rec = read_bam(BAM)
     assert len(rec) == 1124 and rec.metadata["unit"] == "rad"
-    train, val = split(rec, 0.67)
+    train, val = rec.split(0.67)
     result = diagnose(
         train.u,
         train.y,
@@ -229,15 +229,3 @@ def test_xl330_reads_and_diagnoses():
         DiagnoseConfig(identification=MRGIAConfig(na=2, nb=0, delay=1, rho_exponent=0.75)),
     )
     assert result.effect in EFFECT_NAMES and result.gap_after <= result.gap_before
-
-
-def test_importers_name_bad_files(tmp_path):
-    from servoid.errors import DataError
-    from servoid.importers import read_bam, read_emps
-
-    bad = tmp_path / "x.json"
-    bad.write_text('{"entries": [{"timestamp": 0}]}')
-    with pytest.raises(DataError, match="lacks timestamp, goal_position or position"):
-        read_bam(bad)
-    with pytest.raises(DataError, match="not a MATLAB"):
-        read_emps(bad)

@@ -16,8 +16,9 @@ ROOT = Path(__file__).resolve().parents[1]
 #: import name -> folder, as pyproject.toml's package-dir maps them
 PACKAGES = {"servoid.ident": ROOT / "ident", "servoid.excitation": ROOT / "excitation",
             "servoid.drivers": ROOT / "drivers", "servoid": ROOT / "servoid"}  # fmt: skip
-#: the modules of the app layer every pillar may use: the exception root and the argument checks
-SHARED = {"servoid.errors", "servoid.validation"}
+#: the modules of the app layer every pillar may use: the exception root, the argument checks, the limits, the
+#: lazy package loader
+SHARED = {"servoid.errors", "servoid.validation", "servoid.limits", "servoid.lazy"}
 
 
 def _modules() -> dict[str, Path]:

@@ -12,9 +12,31 @@ import pytest
 from conftest import paper_record
 
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
-from servoid.ident import MRGIA, PAPER_PLANT, BacklashModel, MRGIAConfig, Step, noise_epsilon, run_mrgia, simulate
+from servoid.ident import (
+    MRGIA,
+    PAPER_PLANT,
+    BacklashModel,
+    MRGIAConfig,
+    Step,
+    defaults,
+    noise_epsilon,
+    run_mrgia,
+    simulate,
+)
+from servoid.ident.paper import PAPER_RHO_EXPONENT, RECOMMENDED_RHO_EXPONENT
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def paper_settings(**kwargs) -> MRGIAConfig:
+    """The paper's Section 4 settings (rho exponent 0.25) with servoid's safeguards: what these tests were written for."""
+    return MRGIAConfig(rho_exponent=PAPER_RHO_EXPONENT, **kwargs)
+
+
+def test_the_default_settings_are_the_ones_the_command_line_runs():
+    assert MRGIAConfig().rho_exponent == defaults.RHO_EXPONENT == RECOMMENDED_RHO_EXPONENT == 0.75
+    assert (MRGIAConfig().na, MRGIAConfig().nb, MRGIAConfig().delay) == (defaults.NA, defaults.NB, defaults.DELAY)
+    assert MRGIAConfig.paper().rho_exponent == PAPER_RHO_EXPONENT == 0.25
 
 
 def max_rel(values: np.ndarray) -> float:
@@ -23,7 +45,7 @@ def max_rel(values: np.ndarray) -> float:
 
 
 def test_noise_free_paper_example_converges_to_machine_precision(paper_clean):
-    res = run_mrgia(paper_clean.u[:2000], paper_clean.y[:2000], MRGIAConfig())
+    res = run_mrgia(paper_clean.u[:2000], paper_clean.y[:2000], paper_settings())
     assert res.settled and not res.recoveries
     assert max_rel(res.values()) < 1e-9
     # it is the estimate, not the start, that is right: at k = 50 it is still far off
@@ -68,11 +90,11 @@ def test_pure_python_path_gives_the_same_numbers(paper_clean, tmp_path):
 def test_a_stuck_run_is_detected_and_recovered():
     # Seed 1 of the paper's example: the down line is never reached (c2-hat ~ 5)
     rec = paper_record(3000, seed=1)
-    plain = run_mrgia(rec.u, rec.y, MRGIAConfig(recover=False))
+    plain = run_mrgia(rec.u, rec.y, paper_settings(recover=False))
     assert not plain.settled, "the stuck run must be flagged"
     assert min(plain.coverage) < 0.05
     assert max_rel(plain.values()) > 1.0
-    fixed = run_mrgia(rec.u, rec.y, MRGIAConfig())
+    fixed = run_mrgia(rec.u, rec.y, paper_settings())
     assert [r.sample for r in fixed.recoveries] == [300]
     assert fixed.recoveries[0].coverage_down < 0.2
     assert fixed.settled
@@ -81,19 +103,19 @@ def test_a_stuck_run_is_detected_and_recovered():
 
 def test_online_recovery_matches_batch():
     rec = paper_record(1500, seed=1)
-    est = MRGIA(MRGIAConfig())
+    est = MRGIA(paper_settings())
     for u, y in zip(rec.u, rec.y):
         est.update(u, y)
-    batch = run_mrgia(rec.u, rec.y, MRGIAConfig())
+    batch = run_mrgia(rec.u, rec.y, paper_settings())
     assert [r.sample for r in est.recoveries] == [r.sample for r in batch.recoveries] == [300]
     assert np.array_equal(est.theta, batch.theta)
 
 
 def test_divergence_is_reported_with_the_sample_index(paper_clean):
-    cfg = MRGIAConfig(p0=1e308)  # h^T P h overflows at the first update
+    cfg = paper_settings(p0=1e308)  # h^T P h overflows at the first update
     with pytest.raises(EstimatorDiverged) as info:
         run_mrgia(paper_clean.u, paper_clean.y, cfg)
-    first_update = run_mrgia(paper_clean.u[:50], paper_clean.y[:50], MRGIAConfig(), record_every=1)
+    first_update = run_mrgia(paper_clean.u[:50], paper_clean.y[:50], paper_settings(), record_every=1)
     k = int(np.argmax(np.any(first_update.theta_history != first_update.theta_history[0], axis=1)))
     assert info.value.sample == k
     assert f"sample {k}" in str(info.value)
@@ -111,7 +133,7 @@ def test_divergence_is_reported_with_the_sample_index(paper_clean):
 
 def test_projection_refuses_infeasible_updates(paper_clean):
     """With projection every recorded estimate is a valid model; as printed, some are not."""
-    hist = run_mrgia(paper_clean.u[:300], paper_clean.y[:300], MRGIAConfig()).values_history()
+    hist = run_mrgia(paper_clean.u[:300], paper_clean.y[:300], paper_settings()).values_history()
     na = 2
     assert np.all(hist[1:, na + 1] > 0) and np.all(hist[:, na + 2 :] >= 0)
     literal = run_mrgia(paper_clean.u[:300], paper_clean.y[:300], MRGIAConfig.paper()).values_history()
@@ -123,7 +145,7 @@ def test_noisy_paper_example_with_faster_forgetting(paper_noisy):
     res = run_mrgia(paper_noisy.u, paper_noisy.y, cfg)
     assert res.settled
     assert max_rel(res.values()) < 1.5e-2
-    paper = run_mrgia(paper_noisy.u, paper_noisy.y, MRGIAConfig(epsilon=cfg.epsilon))
+    paper = run_mrgia(paper_noisy.u, paper_noisy.y, paper_settings(epsilon=cfg.epsilon))
     assert max_rel(paper.values()) > max_rel(res.values())
 
 
@@ -147,8 +169,8 @@ def test_skip_propagates_and_reprimes(paper_clean):
     valid[[50, 51, 200]] = False
     y_gaps = y.copy()
     y_gaps[~valid] = np.nan  # lost samples may be NaN: they are not read
-    batch = run_mrgia(u, y_gaps, MRGIAConfig(), valid=valid)
-    est = MRGIA(MRGIAConfig())
+    batch = run_mrgia(u, y_gaps, paper_settings(), valid=valid)
+    est = MRGIA(paper_settings())
     steps = []
     for k in range(400):
         if valid[k]:

@@ -64,8 +64,12 @@ def test_the_online_estimate_is_the_batch_estimate_over_the_used_samples(use_lat
     counts = result.counts
     assert counts["late"] > 0 and counts["timeout"] > 0 and counts["missed"] > 0
     valid = result.valid
-    assert np.array_equal(valid, usable(result.status, use_late=use_late))
-    assert valid[result.status == "late"].all() == use_late
+    # the simulated servo carries the slot: the guard window follows the timeouts only
+    assert np.array_equal(valid, usable(result.status, use_late=use_late, guard=10, after=("timeout",)))
+    after_timeout = np.zeros(valid.size, dtype=bool)
+    for k in np.flatnonzero(result.status == "timeout"):
+        after_timeout[k + 1 : k + 11] = True
+    assert valid[(result.status == "late") & ~after_timeout].all() == use_late
     batch = run_mrgia(result.u, np.where(valid, result.y, np.nan), MRGIAConfig(na=2, nb=0, delay=1), valid=valid)
     np.testing.assert_array_equal(est.theta, batch.theta)
     assert est.model.max_relative_error(s.truth) < 0.05
@@ -154,7 +158,10 @@ def test_a_streaming_session_hands_out_every_sample_and_keeps_none():
     assert [x.k for x in seen] == list(range(2000)) and tuple(seen) == kept.samples
     assert est.samples == 2000  # the estimator saw each sample before the callback did
     # the rule applied to the streamed statuses gives the session's own mask
-    assert usable([x.status for x in seen], guard=kept.config.guard_samples).tolist() == kept.valid.tolist()
+    statuses = [x.status for x in seen]
+    assert (
+        usable(statuses, guard=kept.config.guard_samples, after=kept.config.guard_after).tolist() == kept.valid.tolist()
+    )
 
 
 def test_usable_rule_leaves_a_guard_window_after_each_unusable_sample():
@@ -169,7 +176,7 @@ def test_usable_rule_leaves_a_guard_window_after_each_unusable_sample():
     assert [rule(s) for s in ("missed", "ok", "ok")] == [False, False, True]
 
 
-def test_the_guard_defaults_by_whether_the_protocol_carries_the_slot():
+def test_the_guard_follows_timeouts_everywhere_and_late_slots_where_the_protocol_carries_no_slot():
     from servoid.drivers.can.odrive import OdriveDriver
     from servoid.drivers.dynamixel import DynamixelDriver
     from servoid.drivers.serial import SerialDriver
@@ -180,9 +187,14 @@ def test_the_guard_defaults_by_whether_the_protocol_carries_the_slot():
     by_class = {cls: cls.carries_slots for cls in (SimDriver, SerialDriver, OdriveDriver, DynamixelDriver)}
     assert by_class == {SimDriver: True, SerialDriver: True, OdriveDriver: False, DynamixelDriver: False}
     with SimDriver(servo="model") as sim:
-        assert cfg.resolved(sim).guard_samples == 0
+        slots = cfg.resolved(sim)
+    own_clock = cfg.resolved(OdriveDriver(interface="virtual", channel="unused", node=3))
+    # whether a servo applied a command without an intact acknowledgement is unknown on every transport
+    assert slots.guard_samples == own_clock.guard_samples == DEFAULT_GUARD_SAMPLES == 10
+    assert slots.guard_after == ("timeout",) and own_clock.guard_after == ("late", "missed", "timeout")
+    status = ["ok", "late", "ok", "missed", "ok", "timeout", "ok", "ok", "ok"]
+    assert slots.usable_rule().mask(status).tolist() == [1, 0, 1, 0, 1, 0, 0, 0, 0]
     assert SessionConfig(period_s=0.002, guard_samples=3).resolved(sim).guard_samples == 3
-    assert DEFAULT_GUARD_SAMPLES == 10
 
 
 def test_with_replies_dropped_every_step_the_servo_received_stays_within_max_step():

@@ -17,6 +17,7 @@ from typing import Any
 from urllib.parse import urlencode
 
 from servoid import validation
+from servoid.drivers.can._udp import LOOPBACK, check_bind, open_udp_bus
 from servoid.errors import ConfigError, DriverError, MissingDependency
 
 __all__ = [
@@ -82,12 +83,17 @@ class BusAddress:
     port : int, optional
         UDP port of ``udp_multicast`` (default :data:`UDP_PORT`); processes
         talk to each other only on the same group and port.
+    bind : str, optional
+        ``udp_multicast``: IPv4 address of the interface the bus uses (default
+        127.0.0.1: this host only; ``0.0.0.0`` for every interface, to reach
+        drives on other hosts). See :mod:`servoid.drivers.can._udp`.
     """
 
     interface: str
     channel: str = ""
     bitrate: int | None = None
     port: int | None = None
+    bind: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.interface, str) or not self.interface:
@@ -111,6 +117,12 @@ class BusAddress:
             if self.interface != "udp_multicast":
                 raise ConfigError(f"port (={port}) applies to the udp_multicast interface only, not {self.interface!r}")
             object.__setattr__(self, "port", port)
+        if self.bind is not None:
+            if self.interface != "udp_multicast":
+                raise ConfigError(
+                    f"bind (={self.bind}) applies to the udp_multicast interface only, not {self.interface!r}"
+                )
+            object.__setattr__(self, "bind", check_bind(self.bind))
 
     def url(self, protocol: str, node: int, **options: Any) -> str:
         """The ``can://`` URL a driver uses to reach a node on this bus."""
@@ -119,11 +131,16 @@ class BusAddress:
             query["bitrate"] = self.bitrate
         if self.interface == "udp_multicast":
             query["port"] = self.port if self.port is not None else UDP_PORT
+            if self.bind is not None:
+                query["bind"] = self.bind
         query.update(options)
         return f"can://{self.interface}/{self.channel}?{urlencode(query)}"
 
     def describe(self) -> str:
-        where = f"{self.channel}:{self.port or UDP_PORT}" if self.interface == "udp_multicast" else self.channel
+        if self.interface == "udp_multicast":
+            where = f"{self.channel}:{self.port or UDP_PORT} on {self.bind or LOOPBACK}"
+        else:
+            where = self.channel
         return f"{self.interface} {where}"
 
     def open(self, *, can_filters: Sequence[Mapping[str, Any]] | None = None) -> Any:
@@ -150,9 +167,10 @@ class BusAddress:
             kwargs["port"] = self.port
         if can_filters is not None:
             kwargs["can_filters"] = list(can_filters)
-        if self.interface == "udp_multicast":
-            import_vendor("msgpack")
         try:
+            if self.interface == "udp_multicast":
+                import_vendor("msgpack")
+                return open_udp_bus(can, self.channel, self.port or UDP_PORT, bind=self.bind, can_filters=can_filters)
             return can.Bus(**kwargs)
         except (OSError, can.CanError) as exc:
             hint = f" ({NO_KERNEL_CAN})" if self.interface == "socketcan" and not kernel_has_can() else ""

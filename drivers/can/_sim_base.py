@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import abc
 import time
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -42,6 +43,13 @@ class SimDrive(abc.ABC):
         (where the protocol has a restart the host can see).
     seed : int
         Seed of the dropped replies.
+
+    Attributes
+    ----------
+    on_event : callable or None
+        Called with one line (``"node 1: power stage off ..."``) when the
+        drive switches its power stage off or its watchdog fires, from the
+        drive's thread.
     """
 
     protocol: ClassVar[str] = ""
@@ -74,6 +82,7 @@ class SimDrive(abc.ABC):
         self.replies = 0
         self._muted = False
         self._reply_delay = 0.0
+        self.on_event: Callable[[str], None] | None = None
 
     @abc.abstractmethod
     def start(self) -> SimDrive:
@@ -91,6 +100,10 @@ class SimDrive(abc.ABC):
     @abc.abstractmethod
     def status(self) -> str:
         """One line for a terminal."""
+
+    def _event(self, what: str) -> None:
+        if self.on_event is not None:
+            self.on_event(f"node {self.node}: {what}")
 
     def mute(self, muted: bool = True) -> None:
         """Stop (or resume) transmitting; the drive still receives and obeys (a broken transmitter)."""

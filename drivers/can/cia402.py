@@ -18,7 +18,15 @@ PRE-OPERATIONAL:
    the drive's loop closes on), both synchronous (transmission type 1), and
    switch PDOs 2-4 off;
 5. configure the SYNC counter (0x1019 = 240; a drive without one gets plain SYNCs);
-6. NMT start (OPERATIONAL).
+6. the drive's watchdog on its master (``watchdog``, default 0.5 s; 0: off): the
+   abort connection option (0x6007) is "disable voltage", and the driver
+   sends its heartbeat as node ``host_node`` (default 127) every quarter of
+   the time, from python-can's cyclic sender, until it closes; from each
+   torque-on to the next torque-off the heartbeat consumer (0x1016) watches
+   it. A host killed with SIGKILL, hung, or cut off leaves the drive without
+   heartbeat: it switches its power stage off within the time, and reports
+   EMCY 0x8130;
+7. NMT start (OPERATIONAL).
 
 Each cyclic exchange is RPDO1 then SYNC, answered by TPDO1: the drive
 applies the target on the SYNC and reports the statusword and the actual
@@ -50,6 +58,7 @@ user. The driver has no device clock to offer (``device_time`` is None).
 
 from __future__ import annotations
 
+import logging
 import math
 import threading
 from collections import deque
@@ -64,6 +73,8 @@ from servoid.drivers.can.driver import DEFAULT_NODES, DEFAULT_TIMEOUT_S, CanDriv
 from servoid.errors import ConfigError, DeviceFault, DeviceRestarted, DriverError, DriverTimeout, ProtocolError
 
 __all__ = ["Cia402Driver"]
+
+log = logging.getLogger("servoid.drivers.can")
 
 _OE = "OPERATION ENABLED"
 
@@ -87,6 +98,27 @@ _NMT_OPERATIONAL, _NMT_PRE_OPERATIONAL = 0x01, 0x80
 #: ``encoder=`` choices: which position the driver reads.
 ENCODERS = ("auto", "main", "additional")
 
+#: Heartbeat consumer time the driver gives the drive, s (URL ``watchdog``): far above any
+#: scheduling stall of a healthy host, well below what a runaway servo should get.
+DEFAULT_WATCHDOG_S = 0.5
+
+#: Node id of the host's heartbeat (URL ``host_node``): the highest, which drives rarely take.
+DEFAULT_HOST_NODE = 127
+
+
+def _watchdog(text: str) -> float:
+    seconds = float(text)
+    if not (0 <= seconds <= 65.535):
+        raise ValueError("the heartbeat consumer time is 0 (off) .. 65.535 s")
+    return round(seconds * 1000) / 1000
+
+
+def _node(text: str) -> int:
+    value = int(text)
+    if not 1 <= value <= 127:
+        raise ValueError("a CANopen node id is 1..127")
+    return value
+
 
 def _counts(text: str) -> int:
     value = int(text)
@@ -106,7 +138,7 @@ class Cia402Driver(CanDriver):
 
     Parameters
     ----------
-    interface, channel, node, mode, bitrate, port, timeout, limits
+    interface, channel, node, mode, bitrate, port, bind, timeout, limits
         As for :class:`~servoid.drivers.can.driver.CanDriver`; node 1..127.
     counts_per_rev : int, optional
         Increments per revolution of the loop's encoder; default: read from the drive (0x608F).
@@ -119,10 +151,17 @@ class Cia402Driver(CanDriver):
     fault_reset : bool
         Reset a drive found in FAULT when switching the torque on (controlword
         bit 7); default False, which reports the fault instead.
+    watchdog : float
+        Seconds without the host's heartbeat after which the drive switches
+        its power stage off (CiA 301 heartbeat consumer, whole ms up to 65.535 s;
+        0: off).
+    host_node : int
+        Node id the host's heartbeat is sent as (1..127, not the drive's).
     """
 
     protocol = "cia402"
     carries_slots: ClassVar[bool] = True  # the SYNC counter (0x1019) carries the session's slots
+    watchdog_fed_by_exchanges: ClassVar[bool] = False  # the heartbeat thread feeds it, whatever the sample rate
     options: ClassVar[Mapping[str, Option]] = {
         **CanDriver.options,
         "counts_per_rev": Option(_counts, "encoder increments per revolution (default: the drive's 0x608F)"),
@@ -130,6 +169,11 @@ class Cia402Driver(CanDriver):
             _encoder, "position read: auto (default: 0x60E4 sub 1 if the drive has it, else 0x6064), main or additional"
         ),
         "fault_reset": Option(parse_bool, "reset a drive found in FAULT on enable: 1 or 0 (default 0)"),
+        "watchdog": Option(
+            _watchdog,
+            f"s without the host's heartbeat before the drive switches off, 0: off (default {DEFAULT_WATCHDOG_S:g})",
+        ),
+        "host_node": Option(_node, "node id of the host's heartbeat, 1..127 (default 127)"),
     }
 
     def __init__(
@@ -141,15 +185,18 @@ class Cia402Driver(CanDriver):
         mode: str = "position",
         bitrate: int | None = None,
         port: int | None = None,
+        bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         counts_per_rev: int | None = None,
         encoder: str = "auto",
         fault_reset: bool = False,
+        watchdog: float = DEFAULT_WATCHDOG_S,
+        host_node: int = DEFAULT_HOST_NODE,
         limits: Limits | None = None,
     ) -> None:
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            timeout=timeout, limits=limits,
+            bind=bind, timeout=timeout, limits=limits,
         )  # fmt: skip
         if not 1 <= self.node <= 127:
             raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")
@@ -160,6 +207,14 @@ class Cia402Driver(CanDriver):
             raise ConfigError(f"encoder (={encoder!r}) must be one of {', '.join(ENCODERS)}")
         self.encoder = encoder
         self.fault_reset = bool(fault_reset)
+        try:
+            self.watchdog_s = _watchdog(str(watchdog)) or None
+            self.host_node = _node(str(host_node))
+        except ValueError as exc:
+            raise ConfigError(f"watchdog (={watchdog!r}) or host_node (={host_node!r}) is invalid: {exc}") from None
+        if self.watchdog_s is not None and self.host_node == self.node:
+            raise ConfigError(f"host_node (={self.host_node}) must differ from the drive's node (={self.node})")
+        self._heartbeat: Any = None  # python-can's cyclic sender of the host's heartbeat
         self.command_step = 1.0  # targets are whole increments, or whole per mille of the rated torque
         if self.counts_per_rev is not None:
             self._set_units((self.counts_per_rev, 1), rated_torque_mnm=None)
@@ -272,6 +327,7 @@ class Cia402Driver(CanDriver):
         self._position_object = (0x6064, 0) if read is None else (0x60E4, 1)
         self._sdo_call(lambda: self._map_pdos(0x607A if self.mode == "position" else 0x6071), "map the PDOs")
         self._counter_overflow = self._sdo_write_optional(0x1019, profile.SYNC_COUNTER_OVERFLOW)
+        self._start_heartbeat()
         node.emcy.add_callback(self._on_emcy)
         self._info = self._read_identity(round(main[0] / main[1]), rated)
         self._info.update(
@@ -327,11 +383,42 @@ class Cia402Driver(CanDriver):
         self._rpdo = node.rpdo[1]
         self._cw, self._target = self._rpdo[0x6040], self._rpdo[target_index]
 
+    def _start_heartbeat(self) -> None:
+        """Start sending the host's heartbeat, and check the drive can watch it (0x1016, 0x6007 disable voltage).
+
+        The drive watches it from each torque-on to the next torque-off
+        (:meth:`_watch_host`): while the torque is off there is nothing to
+        switch off, and a host busy compiling or plotting then may fall silent.
+        """
+        if self.watchdog_s is None:
+            return
+        if self._sdo_write_optional(0x1016, 0, subindex=1) is None:
+            log.warning("%s has no heartbeat consumer (0x1016): it will not switch off if the host dies", self._who())
+            self.watchdog_s = None
+            return
+        self._sdo_write_optional(0x6007, 2)  # disable voltage: off, and no fault to reset before the next run
+        period = max(self.watchdog_s / 4, 0.01)
+        self._heartbeat = self._network.send_periodic(0x700 + self.host_node, bytes([0x05]), period)  # OPERATIONAL
+
+    def _watch_host(self, watching: bool) -> None:
+        """Arm (or disarm) the drive's heartbeat consumer on the host's node."""
+        if self._heartbeat is None or self.watchdog_s is None:
+            return
+        value = profile.heartbeat_consumer(self.host_node, round(self.watchdog_s * 1000)) if watching else 0
+        self._sdo_call(lambda: setattr(self._node.sdo[0x1016][1], "raw", value), "set its heartbeat consumer (0x1016)")
+
     def _close(self) -> None:
         network, self._network = self._network, None
         if network is None:
             return
         try:
+            if self._heartbeat is not None:
+                try:
+                    self._node.sdo[0x1016][1].raw = 0  # an orderly goodbye is no lost heartbeat
+                except Exception as exc:  # noqa: BLE001 - the drive may be gone; its watchdog then acts
+                    log.info("%s: could not switch the heartbeat consumer off: %s", self._who(), exc)
+                self._heartbeat.stop()
+                self._heartbeat = None
             self._node.nmt.send_command(_NMT_PRE_OPERATIONAL)  # stop the PDOs
         finally:
             network.disconnect()
@@ -344,6 +431,7 @@ class Cia402Driver(CanDriver):
     def _set_torque(self, enabled: bool) -> None:
         self._last_slot = None  # the drive's count of cycles starts afresh
         if enabled:
+            self._watch_host(True)  # from now on, a host that falls silent leaves the drive switched off
             self._enable()
             return
         if self._restarted:
@@ -352,6 +440,7 @@ class Cia402Driver(CanDriver):
         state = profile.state_of(statusword)
         if state in _POWERED:
             raise DeviceFault(f"{self._who()} did not switch off: still {state} (statusword 0x{statusword:04X})")
+        self._watch_host(False)
 
     def _enable(self) -> None:
         self._emcy.clear()
@@ -509,11 +598,12 @@ class Cia402Driver(CanDriver):
         except canopen.SdoAbortedError as exc:
             raise ProtocolError(f"{self._who()} refused to {what}: {exc}") from exc
 
-    def _sdo_write_optional(self, index: int, value: int) -> int | None:
+    def _sdo_write_optional(self, index: int, value: int, *, subindex: int | None = None) -> int | None:
         """Write an object the drive may not have; ``value`` if it took it, None if it refused."""
         canopen = import_vendor("canopen")
         try:
-            self._node.sdo[index].raw = value
+            entry = self._node.sdo[index] if subindex is None else self._node.sdo[index][subindex]
+            entry.raw = value
         except canopen.SdoCommunicationError as exc:
             raise DriverTimeout(f"{self._who()} stopped answering SDO requests (writing 0x{index:04X})") from exc
         except (canopen.SdoAbortedError, KeyError):

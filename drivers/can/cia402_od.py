@@ -15,11 +15,14 @@ Objects (index, meaning, type)::
     0x1001 error register        U8
     0x1006 communication cycle period  U32  us (the SYNC interval; 0: not used)
     0x1008/0x1009/0x100A device name, hardware and software version (strings)
+    0x1016 consumer heartbeat time  U32 (sub 1): node id in bits 16..23, time in ms in bits 0..15 (0: off)
     0x1017 producer heartbeat    U16  ms
     0x1018 identity              vendor id, product code, revision, serial (U32)
     0x1019 synchronous counter overflow value  U8  (0: SYNC without counter; 2..240)
     0x1400..0x1403 / 0x1600..    RPDO communication / mapping
     0x1800..0x1803 / 0x1A00..    TPDO communication / mapping
+    0x6007 abort connection option code  I16  (what a heartbeat loss does: 0 nothing, 1 fault,
+                                 2 disable voltage, 3 quick stop)
     0x603F error code            U16  (the EMCY code of the active fault)
     0x6040 controlword           U16
     0x6041 statusword            U16
@@ -58,6 +61,8 @@ __all__ = [
     "SUPPORTED_MODE_BITS",
     "EMCY_COMMUNICATION",
     "CW_FAULT_RESET",
+    "ABORT_OPTIONS",
+    "heartbeat_consumer",
     "object_dictionary",
     "gear_fraction",
     "state_of",
@@ -82,6 +87,14 @@ EMCY_COMMUNICATION = 0x8130
 
 #: Controlword bit 7: a rising edge resets a fault (transition 15).
 CW_FAULT_RESET = 0x0080
+
+#: Abort connection option code (0x6007): what the drive does when its master's heartbeat is lost.
+ABORT_OPTIONS = {0: "no action", 1: "fault", 2: "disable voltage", 3: "quick stop"}
+
+
+def heartbeat_consumer(node: int, time_ms: int) -> int:
+    """The value of 0x1016 sub 1 that watches ``node``'s heartbeat with ``time_ms`` (CiA 301)."""
+    return (node & 0x7F) << 16 | (time_ms & 0xFFFF)
 
 
 def _p402() -> Any:
@@ -175,6 +188,7 @@ def object_dictionary(node: int, *, additional: bool = True) -> Any:
     add(var("Manufacturer device name", 0x1008, 0, STR, "const", ""))
     add(var("Manufacturer hardware version", 0x1009, 0, STR, "const", ""))
     add(var("Manufacturer software version", 0x100A, 0, STR, "const", ""))
+    add(record("Consumer heartbeat time", 0x1016, [("Consumer heartbeat time 1", U32, "rw", 0)]))
     add(var("Producer heartbeat time", 0x1017, 0, U16, "rw", 0))
     add(record("Identity object", 0x1018, [
         ("Vendor-ID", U32, "ro", 0), ("Product code", U32, "ro", 0),
@@ -215,6 +229,7 @@ def object_dictionary(node: int, *, additional: bool = True) -> Any:
         for index in (0x1600 + n, 0x1A00 + n):
             sub0 = dictionary[index][0]
             sub0.access_type, sub0.default = "rw", 0
+    add(var("Abort connection option code", 0x6007, 0, I16, "rw", 1))
     add(var("Error code", 0x603F, 0, U16, "ro", 0, mappable=True))
     add(var("Controlword", 0x6040, 0, U16, "rw", 0, mappable=True))
     add(var("Statusword", 0x6041, 0, U16, "ro", 0, mappable=True))

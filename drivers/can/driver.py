@@ -75,6 +75,8 @@ class CanDriver(Driver):
         Bit rate in bit/s, for interfaces that set it.
     port : int, optional
         UDP port, for ``udp_multicast``.
+    bind : str, optional
+        Interface address, for ``udp_multicast`` (default: loopback only).
     timeout : float
         Longest wait for a reply, s (:data:`DEFAULT_TIMEOUT_S`).
     limits : Limits, optional
@@ -89,6 +91,7 @@ class CanDriver(Driver):
         "mode": Option(_mode, "position (command in rad, default) or torque (command in Nm)"),
         "bitrate": Option(int, "bit rate in bit/s, for interfaces that set it"),
         "port": Option(int, "UDP port of the udp_multicast interface (default 43113)"),
+        "bind": Option(str, "udp_multicast: IPv4 address of the interface to use (default 127.0.0.1, this host only)"),
         "timeout": Option(_positive_float, f"longest wait for a reply, s (default {DEFAULT_TIMEOUT_S})"),
     }
 
@@ -101,13 +104,14 @@ class CanDriver(Driver):
         mode: str = "position",
         bitrate: int | None = None,
         port: int | None = None,
+        bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
         limits: Limits | None = None,
         position_unit: UnitConversion | None = None,
         command_unit: UnitConversion | None = None,
     ) -> None:
         super().__init__(limits=limits, position_unit=position_unit, command_unit=command_unit)
-        self.address = BusAddress(interface, channel, bitrate, port)
+        self.address = BusAddress(interface, channel, bitrate, port, bind)
         self.node = validation.integer("node", node, minimum=0)
         if mode not in MODE_NAMES:
             raise ConfigError(f"mode (={mode!r}) must be one of {', '.join(MODE_NAMES)}")

@@ -14,6 +14,18 @@ an axis that left closed-loop control, is :class:`~servoid.errors.DeviceFault`
 active errors and the disarm reason). Torque on is Set_Axis_State
 CLOSED_LOOP_CONTROL, torque off is IDLE, each confirmed by a heartbeat.
 
+The axis watchdog (``watchdog=S``): every frame the driver sends feeds it,
+and an axis left in closed-loop control by a host that died (SIGKILL, a
+crash, a cut cable) disarms within S seconds. Its settings are endpoints
+whose ids change with every firmware build, so the driver writes them
+(RxSdo) only from the board's own ``flat_endpoints.json`` (``endpoints=PATH``,
+checked against the firmware version the board reports), and reads them
+back; without it, set them on the board once (odrivetool:
+``odrv0.axis0.config.watchdog_timeout = 0.5``, ``enable_watchdog = True``,
+``save_configuration()``). An axis that disarmed on its watchdog alone
+(WATCHDOG_TIMER_EXPIRED, what the last host left) has that error cleared
+when the torque is switched on again; any other error is reported.
+
 The bus is read in the caller's thread (no background reader): frames are
 handled in the order they came, so a heartbeat that announces an error is
 seen before the estimates that follow it.
@@ -27,16 +39,18 @@ answer an exchange a little early.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+from servoid import validation
 from servoid.drivers.base import Limits, Option, Reading, UnitConversion
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import import_vendor
 from servoid.drivers.can.driver import DEFAULT_NODES, DEFAULT_TIMEOUT_S, CanDriver
-from servoid.errors import ConfigError, DeviceFault, DriverTimeout
+from servoid.errors import ConfigError, DeviceFault, DriverTimeout, ProtocolError
 
 __all__ = ["OdriveDriver"]
 
@@ -46,18 +60,47 @@ _TWO_PI = 2 * math.pi
 STATE_TIMEOUT_S = 1.0
 
 
+def _read_endpoints(path: str) -> tuple[str, dict[str, tuple[int, str]]]:
+    """``(firmware version, {name: (id, type)})`` of the watchdog's endpoints, from a flat_endpoints.json."""
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+        endpoints = data["endpoints"]
+        table = {name: (int(endpoints[name]["id"]), str(endpoints[name]["type"])) for name in proto.WATCHDOG_ENDPOINTS}
+        firmware = str(data["fw_version"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ConfigError(
+            f"endpoints (={path!r}) must be an ODrive flat_endpoints.json with fw_version and the endpoints "
+            f"{' and '.join(proto.WATCHDOG_ENDPOINTS)} ({type(exc).__name__}: {exc})"
+        ) from None
+    if table[proto.WATCHDOG_ENDPOINTS[0]][1] != "float" or table[proto.WATCHDOG_ENDPOINTS[1]][1] != "bool":
+        raise ConfigError(
+            f"endpoints (={path!r}): the watchdog's endpoints have types {table}, expected float and bool"
+        )
+    return firmware, table
+
+
 class OdriveDriver(CanDriver):
     """An ODrive axis over CAN Simple (see the module docstring).
 
     Parameters
     ----------
-    interface, channel, node, mode, bitrate, port, timeout, limits
+    interface, channel, node, mode, bitrate, port, bind, timeout, limits
         As for :class:`~servoid.drivers.can.driver.CanDriver`; node 0..63
         (``odrv0.axis0.config.can.node_id``).
+    watchdog : float, optional
+        Axis watchdog timeout to set, s (0: switch it off); needs ``endpoints``.
+        None (default) leaves the board's own setting.
+    endpoints : str, optional
+        Path of the board's ``flat_endpoints.json`` (its endpoint ids).
     """
 
     protocol = "odrive"
-    options: ClassVar[Mapping[str, Option]] = CanDriver.options
+    options: ClassVar[Mapping[str, Option]] = {
+        **CanDriver.options,
+        "watchdog": Option(float, "axis watchdog timeout to set, s, 0: off (needs endpoints=; default: the board's)"),
+        "endpoints": Option(str, "path of the board's flat_endpoints.json, whose ids watchdog= is written with"),
+    }
 
     def __init__(
         self,
@@ -68,13 +111,16 @@ class OdriveDriver(CanDriver):
         mode: str = "position",
         bitrate: int | None = None,
         port: int | None = None,
+        bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
+        watchdog: float | None = None,
+        endpoints: str | None = None,
         limits: Limits | None = None,
     ) -> None:
         turns = UnitConversion("rad", scale=_TWO_PI)
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            timeout=timeout, limits=limits, position_unit=turns,
+            bind=bind, timeout=timeout, limits=limits, position_unit=turns,
             command_unit=turns if mode == "position" else UnitConversion("Nm", scale=1.0),
         )  # fmt: skip
         if self.node > 63:
@@ -86,6 +132,16 @@ class OdriveDriver(CanDriver):
         self._outstanding = False  # a request whose reply may still come
         self._position = 0.0
         self._info: dict[str, Any] = {}
+        if watchdog is not None:
+            watchdog = validation.non_negative("watchdog", watchdog)
+            if endpoints is None:
+                raise ConfigError(
+                    f"watchdog (={watchdog:g}) needs endpoints=<the board's flat_endpoints.json>: an ODrive's endpoint "
+                    "ids change with its firmware; or set it on the board (odrv0.axis0.config.watchdog_timeout, "
+                    "enable_watchdog = True, save_configuration())"
+                )
+        self._watchdog_asked = watchdog
+        self._endpoints = _read_endpoints(endpoints) if endpoints is not None else None
 
     # ---- primitives ------------------------------------------------------------------------
     def _open(self) -> None:
@@ -106,6 +162,8 @@ class OdriveDriver(CanDriver):
                 proto.SET_CONTROLLER_MODE, proto.CONTROLLER_MODE_FORMAT.pack(control, proto.INPUT_MODE_PASSTHROUGH)
             )
             self._info = self._read_identity()
+            if self._watchdog_asked is not None:
+                self._configure_watchdog(self._watchdog_asked)
         except BaseException:
             self._bus.shutdown()
             self._bus = None
@@ -118,6 +176,7 @@ class OdriveDriver(CanDriver):
 
     def _set_torque(self, enabled: bool) -> None:
         if enabled:
+            self._clear_own_watchdog_error()
             self._check_heartbeat(closed_loop=False)
             # hold where it is: the first closed-loop input is the present position (or no torque)
             self._send_command(self._position if self.mode == "position" else 0.0)
@@ -245,6 +304,47 @@ class OdriveDriver(CanDriver):
             active, disarm = proto.ERROR_FORMAT.unpack_from(reply)
             detail = f"; active errors 0x{active:08X}, disarm reason 0x{disarm:08X} ({proto.error_names(disarm)})"
         raise DeviceFault(f"ODrive {self._who()} reported {beat.describe()}{detail}")
+
+    # ---- the axis watchdog -------------------------------------------------------------------------
+    def _configure_watchdog(self, seconds: float) -> None:
+        """Write the watchdog's timeout, then whether it is on (RxSdo), and read both back (TxSdo)."""
+        assert self._endpoints is not None
+        firmware, table = self._endpoints
+        found = self._info.get("firmware_version")
+        if found is not None and found != firmware:
+            raise ConfigError(
+                f"the endpoints file is for firmware {firmware}, ODrive {self._who()} runs {found}: its ids would "
+                "name other settings; give the board's own flat_endpoints.json"
+            )
+        wanted = {proto.WATCHDOG_ENDPOINTS[0]: float(seconds), proto.WATCHDOG_ENDPOINTS[1]: seconds > 0}
+        for name, value in wanted.items():
+            ident, kind = table[name]
+            self._send(proto.RXSDO, proto.SDO_FORMAT.pack(proto.SDO_WRITE, ident, 0, proto.sdo_value(kind, value)))
+        for name, value in wanted.items():
+            ident, kind = table[name]
+            got = self._read_endpoint(ident, kind)
+            if got is None or (got != value and not (kind == "float" and abs(float(got) - float(value)) < 1e-6)):
+                raise ProtocolError(f"ODrive {self._who()} did not take {name} = {value} (it reads {got!r})")
+        self.watchdog_s = seconds or None
+
+    def _read_endpoint(self, ident: int, kind: str) -> float | bool | int | None:
+        self._send(proto.RXSDO, proto.SDO_FORMAT.pack(proto.SDO_READ, ident, 0, bytes(4)))
+        deadline = time.perf_counter() + max(self.timeout, 0.05)
+        while (remaining := deadline - time.perf_counter()) > 0:
+            reply = self._await(proto.TXSDO, remaining)
+            if reply is None:
+                return None
+            _, got_id, _, value = proto.SDO_FORMAT.unpack_from(reply)
+            if got_id == ident:
+                return proto.sdo_decode(kind, value)
+        return None
+
+    def _clear_own_watchdog_error(self) -> None:
+        """Clear WATCHDOG_TIMER_EXPIRED alone (the last host died): the axis disarmed as it should have."""
+        beat = self._heartbeat
+        if beat is not None and beat.axis_error == proto.WATCHDOG_TIMER_EXPIRED:
+            self._send(proto.CLEAR_ERRORS)
+            self._heartbeat = None  # the next heartbeat tells whether it is clear
 
     def _read_identity(self) -> dict[str, Any]:
         info: dict[str, Any] = {"driver": "can", "protocol": "ODrive CAN Simple", "node": self.node, "mode": self.mode}

@@ -14,6 +14,14 @@ https://docs.odriverobotics.com/v/latest/manual/can-protocol.html (firmware
 * Set_Input_Pos carries ``Input_Pos`` (float32), ``Vel_FF`` (int16, 0.001
   turn/s) and ``Torque_FF`` (int16, 0.001 Nm).
 
+Arbitrary settings (firmware 0.6): RxSdo (0x004) reads (opcode 0) or writes
+(opcode 1) the endpoint ``id`` -- ``opcode u8, id u16, reserved u8, value``
+(4 bytes, little-endian) -- and a read is answered by TxSdo (0x005:
+``reserved u8, id u16, reserved u8, value``). Endpoint ids change with every
+firmware build: they come from the board's ``flat_endpoints.json``
+(``{"fw_version": ..., "endpoints": {"axis0.config.watchdog_timeout": {"id":
+..., "type": "float"}, ...}}``), never from a table here.
+
 The heartbeat (0x001) starts with ``Axis_Error`` (u32) and ``Axis_State``
 (u8) in both firmware lines; the bytes after differ (0.5: error flags, 0.6:
 procedure result and trajectory-done flag) and are not used. Axis error
@@ -57,12 +65,23 @@ __all__ = [
     "CONTROLLER_MODE_FORMAT",
     "ERROR_FORMAT",
     "VERSION_FORMAT",
+    "RXSDO",
+    "TXSDO",
+    "SDO_FORMAT",
+    "SDO_READ",
+    "SDO_WRITE",
+    "WATCHDOG_TIMER_EXPIRED",
+    "WATCHDOG_ENDPOINTS",
+    "sdo_value",
+    "sdo_decode",
 ]
 
 GET_VERSION = 0x000  # 0.6: protocol, hardware and firmware versions (0.5 reserves 0x000 for CANopen NMT)
 HEARTBEAT = 0x001
 ESTOP = 0x002
 GET_ERROR = 0x003  # 0.6: active errors, disarm reason
+RXSDO = 0x004  # 0.6: read or write an endpoint by id
+TXSDO = 0x005  # 0.6: the answer to an endpoint read
 SET_AXIS_STATE = 0x007
 GET_ENCODER_ESTIMATES = 0x009
 SET_CONTROLLER_MODE = 0x00B
@@ -105,6 +124,28 @@ AXIS_STATE_FORMAT = struct.Struct("<I")
 CONTROLLER_MODE_FORMAT = struct.Struct("<II")  # control mode, input mode
 ERROR_FORMAT = struct.Struct("<II")  # active errors, disarm reason
 VERSION_FORMAT = struct.Struct("<8B")  # protocol, hw major/minor/variant, fw major/minor/revision/unreleased
+SDO_FORMAT = struct.Struct("<BHB4s")  # opcode (RxSdo) or reserved (TxSdo), endpoint id, reserved, value
+SDO_READ, SDO_WRITE = 0, 1
+
+#: Axis error bit the axis watchdog sets when it expires (firmware 0.6).
+WATCHDOG_TIMER_EXPIRED = 0x1000000
+
+#: The endpoints of the axis watchdog: its timeout (s) and whether it is on.
+WATCHDOG_ENDPOINTS = ("axis0.config.watchdog_timeout", "axis0.config.enable_watchdog")
+
+_SDO_TYPES = {"float": "<f", "bool": "<?", "uint8": "<B", "uint16": "<H", "uint32": "<I", "int32": "<i"}
+
+
+def sdo_value(kind: str, value: float | bool | int) -> bytes:
+    """``value`` as the 4 value bytes of an RxSdo write of an endpoint of type ``kind``."""
+    return struct.pack(_SDO_TYPES[kind], value).ljust(4, b"\0")
+
+
+def sdo_decode(kind: str, data: bytes) -> float | bool | int:
+    """The value in the 4 value bytes of a TxSdo, for an endpoint of type ``kind``."""
+    fmt = _SDO_TYPES[kind]
+    return struct.unpack_from(fmt, data)[0]  # type: ignore[no-any-return]
+
 
 _NODE_MASK = 0x7E0
 

@@ -41,8 +41,15 @@ keeps listening and obeying, but sends nothing: a broken transmitter),
 ``drop`` (a lost TPDO now and then), ``restart_after`` (the drive resets at
 a SYNC: boot-up message, PRE-OPERATIONAL, configuration lost, power off).
 
-Not modelled: a SYNC/heartbeat watchdog (real drives fault when the master
-goes quiet, 0x6007), the quick stop ramp, event-driven PDOs.
+Heartbeat consumer (CiA 301, 0x1016): with a node and a time configured,
+the drive watches that node's heartbeat from the first one it hears; when
+none comes for the time (the master died, the cable was cut), it sends EMCY
+0x8130, acts as the abort connection option code says (0x6007: 1 fault, the
+default; 2 disable voltage; 3 quick stop, then disabled) and goes to NMT
+PRE-OPERATIONAL (0x1029's default). ``on_event`` hears it, and every time the
+power stage goes off.
+
+Not modelled: node guarding, the quick stop ramp, event-driven PDOs.
 
 Examples
 --------
@@ -65,6 +72,7 @@ from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can._sim_base import SimDrive
+from servoid.drivers.can._sim_facts import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
 from servoid.drivers.can.driver import DEFAULT_NODES
 from servoid.drivers.servos import Servo, parse_servo
 from servoid.errors import ConfigError
@@ -72,12 +80,6 @@ from servoid.errors import ConfigError
 __all__ = ["SimCia402Drive", "SIM_COUNTS_PER_REV", "SIM_RATED_TORQUE_MNM"]
 
 log = logging.getLogger("servoid.drivers.can.sim")
-
-#: Encoder increments per revolution of the simulated drive with the pseudo-Wiener plant (a 17-bit encoder).
-SIM_COUNTS_PER_REV = 1 << 17
-
-#: Rated torque of the simulated drive, mNm (target torque 1000 per mille = 1 Nm).
-SIM_RATED_TORQUE_MNM = 1000
 
 #: EMCY code of a twin that turned its output off on overspeed (CiA 301/402: speed controller).
 _EMCY_SPEED = 0x8400
@@ -197,6 +199,11 @@ class SimCia402Drive(SimDrive):
         self._rx: dict[int, Any] = {}
         self._tx_maps: list[Any] = []
         self._subscribed: list[tuple[int, Any]] = []
+        self.abort_option = 1  # 0x6007
+        self._consumer: tuple[int, float] | None = None  # (node, seconds) of 0x1016 sub 1
+        self._heard: float | None = None  # monotonic time of the watched node's last heartbeat
+        self._watch: threading.Thread | None = None
+        self._watching = threading.Event()
 
     # ---- life cycle ----------------------------------------------------------------------
     def start(self) -> SimCia402Drive:
@@ -232,11 +239,18 @@ class SimCia402Drive(SimDrive):
         network.connect()
         node.nmt.send_command(0x81)  # reset: boot-up message
         node.nmt.send_command(0x80)  # pre-operational
+        self._watching.set()
+        self._watch = threading.Thread(target=self._watch_heartbeat, name=f"sim-cia402-{self.node}-hb", daemon=True)
+        self._watch.start()
         return self
 
     def stop(self) -> None:
         """Leave the bus; idempotent."""
         network, self._network = self._network, None
+        self._watching.clear()
+        if self._watch is not None:
+            self._watch.join(timeout=2.0)
+            self._watch = None
         if network is not None:
             network.disconnect()
 
@@ -248,8 +262,11 @@ class SimCia402Drive(SimDrive):
 
     @state.setter
     def state(self, state: str) -> None:
+        was_powered = self._state in _POWERED
         self._state = state
         self.axis.power(state == _OE)  # the plant follows targets in Operation Enabled only
+        if was_powered and state not in _POWERED:
+            self._event(f"power stage off ({state})")
 
     @property
     def power_on(self) -> bool:
@@ -338,6 +355,12 @@ class SimCia402Drive(SimDrive):
                     raise canopen.SdoAbortedError(0x06090030)
                 self.counter_overflow = int(value)
                 self.axis.set_counter(self.counter_overflow or None)
+            elif index == 0x1016 and subindex == 1:
+                self._watch_node(int(value))
+            elif index == 0x6007:
+                if value not in profile.ABORT_OPTIONS:
+                    raise canopen.SdoAbortedError(0x06090030)
+                self.abort_option = int(value)
 
     def _on_nmt(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
         with self._lock:
@@ -375,6 +398,42 @@ class SimCia402Drive(SimDrive):
                     for var in pdo:
                         var.set_data(self._node.get_data(var.index, var.subindex))
                     pdo.transmit()
+
+    # ---- the heartbeat consumer -----------------------------------------------------------------
+    def _watch_node(self, value: int) -> None:
+        """0x1016 sub 1 written: watch node ``value >> 16 & 0x7F`` for ``value & 0xFFFF`` ms (0: nothing)."""
+        if self._consumer is not None:
+            self._network.unsubscribe(0x700 + self._consumer[0], self._on_heartbeat)
+        node, time_ms = value >> 16 & 0x7F, value & 0xFFFF
+        self._consumer = (node, time_ms / 1000.0) if node and time_ms else None
+        self._heard = None  # CiA 301: watching starts with the first heartbeat heard
+        if self._consumer is not None:
+            self._network.subscribe(0x700 + node, self._on_heartbeat)
+
+    def _on_heartbeat(self, can_id: int, data: bytes, timestamp: float) -> None:  # noqa: ARG002
+        with self._lock:
+            self._heard = time.monotonic()
+
+    def _watch_heartbeat(self) -> None:
+        """The consumer's timer, a thread of its own: nothing arrives to wake the drive when the master died."""
+        while self._watching.is_set():
+            with self._lock:
+                consumer, heard = self._consumer, self._heard
+                if consumer is not None and heard is not None and time.monotonic() - heard > consumer[1]:
+                    self._heartbeat_lost(consumer[0], time.monotonic() - heard)
+            time.sleep(0.005)
+
+    def _heartbeat_lost(self, node: int, silent_s: float) -> None:
+        """CiA 301 heartbeat event: EMCY, the abort connection option (0x6007), NMT PRE-OPERATIONAL."""
+        self._heard = None  # one event per loss; watching resumes with the next heartbeat
+        action = profile.ABORT_OPTIONS.get(self.abort_option, "fault")
+        if self.abort_option == 1:
+            self.state, self.error_code = "FAULT", profile.EMCY_COMMUNICATION
+        elif self.abort_option in (2, 3):
+            self.state = _SOD
+        self._node.emcy.send(profile.EMCY_COMMUNICATION, 0x11)  # generic + communication error
+        self._node.nmt.state = "PRE-OPERATIONAL"
+        self._event(f"heartbeat of node {node} lost (none for {silent_s * 1e3:.0f} ms): {action}, now {self.state}")
 
     # ---- helpers -------------------------------------------------------------------------------
     def _target(self) -> float:

@@ -41,6 +41,16 @@ asked of a twin without one, the axis reports BAD_CONFIG. With the
 pseudo-Wiener plant (``servo="model"``) positions are turns of the plant's
 output, as before the twins.
 
+The axis watchdog (``config.enable_watchdog``, ``config.watchdog_timeout``),
+as the firmware runs it: every frame addressed to the axis feeds it (CAN
+Simple's ``do_command`` does so before anything else), and in closed-loop
+control a silence longer than the timeout disarms the axis to IDLE with
+WATCHDOG_TIMER_EXPIRED. Both settings can be given as saved on the board
+(``watchdog_s``) or written over RxSdo with the ids of
+:meth:`SimOdriveAxis.flat_endpoints` (this simulated firmware's endpoint
+table, as a real board's ``flat_endpoints.json`` gives its own).
+``on_event`` hears the watchdog expiring and the power stage going off.
+
 Faults for tests: :meth:`SimOdriveAxis.inject_axis_error` (the axis disarms
 to IDLE and says why in the heartbeat, as the firmware does), applied at
 the next Set_Input_* so that tests are deterministic, as is
@@ -79,6 +89,13 @@ _BAD_CONFIG = next(bit for bit, name in proto.AXIS_ERRORS.items() if name == "BA
 #: Axis error of a twin that turned its output off on overspeed (ODrive 0.6's name for it).
 _OVERSPEED = next(bit for bit, name in proto.AXIS_ERRORS.items() if name == "VELOCITY_LIMIT_VIOLATION")
 
+#: Data frames only the axis sends (the host asks for them with remote frames).
+_SENT_BY_THE_AXIS = frozenset({proto.GET_VERSION, proto.HEARTBEAT, proto.GET_ERROR, proto.TXSDO,
+                               proto.GET_ENCODER_ESTIMATES})  # fmt: skip
+
+#: This simulated firmware's endpoints (name -> id, type); a real board's ids come from its flat_endpoints.json.
+_ENDPOINTS = {"axis0.config.watchdog_timeout": (0x0101, "float"), "axis0.config.enable_watchdog": (0x0102, "bool")}
+
 
 class SimOdriveAxis(SimDrive):
     """A simulated ODrive axis on a python-can bus (see the module docstring).
@@ -101,6 +118,9 @@ class SimOdriveAxis(SimDrive):
     mute_after, drop, seed
         Injected faults (:class:`~servoid.drivers.can._sim_base.SimDrive`),
         counted in encoder estimates sent in closed-loop control.
+    watchdog_s : float, optional
+        The axis watchdog as saved on the board (``config.watchdog_timeout``
+        with ``config.enable_watchdog``); None: off.
 
     Attributes
     ----------
@@ -122,6 +142,7 @@ class SimOdriveAxis(SimDrive):
         mute_after: int | None = None,
         drop: float = 0.0,
         seed: int = 0,
+        watchdog_s: float | None = None,
     ) -> None:
         node = validation.integer("node", node, minimum=0)
         if node > 63:
@@ -147,6 +168,9 @@ class SimOdriveAxis(SimDrive):
         self._bus: Any = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
+        self.watchdog_timeout = 0.0 if watchdog_s is None else validation.positive("watchdog_s", watchdog_s)
+        self.enable_watchdog = watchdog_s is not None
+        self._fed = time.monotonic()  # when a frame for the axis last came
 
     # ---- life cycle ----------------------------------------------------------------------
     def start(self) -> SimOdriveAxis:
@@ -178,8 +202,23 @@ class SimOdriveAxis(SimDrive):
 
     @axis_state.setter
     def axis_state(self, state: int) -> None:
+        was_on = self._axis_state == proto.CLOSED_LOOP_CONTROL
         self._axis_state = state
         self.axis.power(state == proto.CLOSED_LOOP_CONTROL)
+        if state == proto.CLOSED_LOOP_CONTROL:
+            self._fed = time.monotonic()  # the watchdog counts from entering closed loop
+        elif was_on:
+            self._event(f"power stage off ({proto.state_name(state)})")
+
+    @staticmethod
+    def flat_endpoints() -> dict[str, Any]:
+        """This simulated firmware's endpoint table, in the shape of a board's ``flat_endpoints.json``."""
+        return {
+            "fw_version": ".".join(map(str, SIM_VERSION[4:7])),
+            "hw_version": ".".join(map(str, SIM_VERSION[1:4])),
+            "endpoints": {name: {"id": ident, "type": kind, "access": "rw"}
+                          for name, (ident, kind) in _ENDPOINTS.items()},
+        }  # fmt: skip
 
     @property
     def power_on(self) -> bool:
@@ -221,9 +260,19 @@ class SimOdriveAxis(SimDrive):
             if now >= next_beat:
                 self._send_heartbeat()
                 next_beat = now + self.heartbeat_s
-            msg = self._bus.recv(min(next_beat - now, 0.05))
+            msg = self._bus.recv(min(next_beat - now, 0.005 if self._watching() else 0.05))
             if msg is not None:
                 self._on_frame(msg)
+            self._check_watchdog()
+
+    def _watching(self) -> bool:
+        return self.enable_watchdog and self.watchdog_timeout > 0 and self.power_on
+
+    def _check_watchdog(self) -> None:
+        if self._watching() and time.monotonic() - self._fed > self.watchdog_timeout:
+            silent = time.monotonic() - self._fed
+            self._event(f"axis watchdog expired ({silent * 1e3:.0f} ms without a frame): WATCHDOG_TIMER_EXPIRED")
+            self._disarm(proto.WATCHDOG_TIMER_EXPIRED)
 
     def _on_frame(self, msg: Any) -> None:
         if msg.is_error_frame:
@@ -231,6 +280,9 @@ class SimOdriveAxis(SimDrive):
         node, command = proto.split_id(msg.arbitration_id)
         if node != self.node:
             return
+        if not msg.is_remote_frame and command in _SENT_BY_THE_AXIS:
+            return  # the axis's own frame, looped back by the UDP bus: a CAN controller never receives its own
+        self._fed = time.monotonic()  # any frame for the axis feeds its watchdog, as CAN Simple's do_command
         at = msg.timestamp or time.time()  # when the bus took the frame (the kernel's stamp over UDP)
         if msg.is_remote_frame:
             self._answer(command)
@@ -252,6 +304,19 @@ class SimOdriveAxis(SimDrive):
             self._send_heartbeat()
         elif command == proto.ESTOP:
             self._disarm(0x2000000)  # ESTOP_REQUESTED
+        elif command == proto.RXSDO and len(data) >= proto.SDO_FORMAT.size:
+            self._on_sdo(*proto.SDO_FORMAT.unpack_from(data))
+
+    def _on_sdo(self, opcode: int, ident: int, _reserved: int, value: bytes) -> None:
+        name = next((n for n, (i, _) in _ENDPOINTS.items() if i == ident), None)
+        if name is None:
+            return  # an id this firmware does not have: no answer
+        kind = _ENDPOINTS[name][1]
+        attribute = name.rsplit(".", 1)[1]
+        if opcode == proto.SDO_WRITE:
+            setattr(self, attribute, proto.sdo_decode(kind, value))
+        elif opcode == proto.SDO_READ:
+            self._send(proto.TXSDO, proto.SDO_FORMAT.pack(0, ident, 0, proto.sdo_value(kind, getattr(self, attribute))))
 
     def _on_input(self, value: float, *, torque: bool, at: float) -> None:
         self.inputs += 1
@@ -269,6 +334,7 @@ class SimOdriveAxis(SimDrive):
             self.axis.step(value, torque=torque, at=at, slot=slot)
             twin = self.axis.twin
             if twin is not None and twin.twin.read().fault == "overspeed":
+                self._event("the twin's output stage turned itself off (overspeed): VELOCITY_LIMIT_VIOLATION")
                 self._disarm(_OVERSPEED)
 
     def _on_state_request(self, requested: int) -> None:

@@ -36,6 +36,8 @@ __all__ = [
     "PERCENT_PER_PWM_UNIT",
     "RAD_PER_S_PER_VELOCITY_UNIT",
     "SECONDS_PER_RETURN_DELAY_UNIT",
+    "SECONDS_PER_BUS_WATCHDOG_UNIT",
+    "BUS_WATCHDOG_EXPIRED",
     "TICK_WRAP_S",
     "PRESENT_BLOCK",
 ]
@@ -129,7 +131,7 @@ POSITION_I_GAIN = _rw("Position I Gain", 82, 2)
 POSITION_P_GAIN = _rw("Position P Gain", 84, 2, 800)
 FEEDFORWARD_2ND_GAIN = _rw("Feedforward 2nd Gain", 88, 2)
 FEEDFORWARD_1ST_GAIN = _rw("Feedforward 1st Gain", 90, 2)
-BUS_WATCHDOG = _rw("Bus Watchdog", 98, 1)
+BUS_WATCHDOG = _rw("Bus Watchdog", 98, 1, 0, signed=True)  # 1..127 x 20 ms; -1: expired (Bus Watchdog Error)
 GOAL_PWM = _rw("Goal PWM", 100, 2, 0, signed=True)
 GOAL_CURRENT = _rw("Goal Current", 102, 2, 0, signed=True)
 GOAL_VELOCITY = _rw("Goal Velocity", 104, 4, 0, signed=True)
@@ -215,6 +217,9 @@ PERCENT_PER_PWM_UNIT = 100.0 / 885.0
 RAD_PER_S_PER_VELOCITY_UNIT = 0.229 * 2.0 * math.pi / 60.0
 #: Return Delay Time unit: 2 us.
 SECONDS_PER_RETURN_DELAY_UNIT = 2e-6
+#: Bus Watchdog (98): 1..127 units of 20 ms (0: off); the servo sets -1 when it expired.
+SECONDS_PER_BUS_WATCHDOG_UNIT = 0.02
+BUS_WATCHDOG_EXPIRED = -1
 #: The Realtime Tick counts milliseconds 0..32767 and wraps.
 TICK_WRAP_S = 32.768
 

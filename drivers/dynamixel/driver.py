@@ -5,10 +5,17 @@ URL::
     dxl:///dev/ttyUSB0?id=1&baud=1000000&mode=position
 
 Per sample, :meth:`DynamixelDriver.exchange` writes the goal with a
-GroupSyncWrite (a broadcast, never answered) and then READs addresses
-120..135 in one transaction: Realtime Tick, Present PWM, Current, Velocity
-and Position. Both are one packet each way; the goal of the sample is in the
-servo before the position is read.
+GroupSyncWrite (a broadcast, never answered) and then READs from the goal's
+address to 135 in one transaction: the goal itself (Goal Position 116, Goal
+Current 102 or Goal PWM 100, by mode), Realtime Tick, Present PWM, Current,
+Velocity and Position -- one contiguous block of the control table. Both
+are one packet each way; the goal of the sample is in the servo before the
+position is read. The goal read back confirms the write: a SYNC_WRITE the
+servo received corrupted is dropped without a word (a broadcast is never
+answered), and only the read-back shows it. A goal that differs from the one
+written raises :class:`~servoid.errors.CommandUnconfirmed` (counted in
+``stats.unconfirmed``): the sample is not used, and the session's guard
+window follows it.
 
 Units
 -----
@@ -29,7 +36,12 @@ torque off, make sure Status Return Level is 2 (every instruction answered),
 and only then, with the torque off, write the EEPROM entries that differ from
 what was asked: Operating Mode and Return Delay Time (``return_delay_us``,
 default 0 us; the factory's 500 us costs half a millisecond per sample;
-``return_delay_us=keep`` leaves it). The command limits default to the
+``return_delay_us=keep`` leaves it). Bus Watchdog (98) is cleared (a -1 left
+by a host that died locks the goals) and, on every torque-on, set to
+``watchdog`` (default 0.5 s, in units of 20 ms; 0: off): a host killed with
+SIGKILL, or a cut cable, stops the servo within that time -- it holds where
+it is, its goals locked until the next open (the e-manual's behaviour; X
+series servos keep the torque on while stopped). The command limits default to the
 servo's own (Min/Max Position Limit, Current Limit or PWM Limit), narrowed by
 ``min``/``max`` if given. Switching the torque on first sets the goal to the
 present position, so the servo does not jump.
@@ -57,6 +69,10 @@ Pitfalls of the SDK handled here
   Hardware Error Status and names the fault).
 * The SDK's busy flag stays set when a call raises: it is reset after every
   failure.
+* A status packet whose LENGTH field was corrupted makes the SDK ask the port
+  for a negative number of bytes (``os.read`` fails with Errno 22); the port
+  here gives nothing instead, and the packet's CRC then fails: a rejected
+  frame (``stats.rejected``), not a driver error.
 * Not thread-safe (neither is the SDK): a driver belongs to the thread that
   opened it, and :meth:`exchange` from another thread raises.
 """
@@ -66,6 +82,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import logging
+import math
 import os
 import select
 import threading
@@ -79,7 +96,7 @@ from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, Uni
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ALERT, MAX_ID, ErrorNumber, Instruction, describe_error
-from servoid.errors import ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
+from servoid.errors import CommandUnconfirmed, ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
 
 __all__ = ["DynamixelDriver", "MODES", "SUPPORTED_BAUD_RATES", "POSITION_UNIT", "COMMAND_UNITS"]
 
@@ -121,6 +138,10 @@ SETUP_ATTEMPTS = 3
 
 #: Latency timer (ms) assumed for a pseudo-terminal (an emulator) when the URL does not say.
 PTY_LATENCY_MS = 10.0
+
+#: Bus Watchdog of the servo while its torque is on, s (URL ``watchdog``): it stops within this
+#: time of the host's last packet. Far above any sample period servoid uses (1 kHz .. 50 Hz).
+DEFAULT_WATCHDOG_S = 0.5
 
 #: Time a rebooted servo gets to answer again (s).
 REBOOT_TIMEOUT_S = 3.0
@@ -166,6 +187,14 @@ def _latency(value: Any) -> float | None:
     if not number > 0:
         raise ValueError("the latency timer is a positive number of milliseconds, or 'auto'")
     return number
+
+
+def _watchdog(value: Any) -> float:
+    seconds = float(value)
+    units = math.ceil(seconds / ct.SECONDS_PER_BUS_WATCHDOG_UNIT - 1e-9) if seconds > 0 else 0
+    if not (math.isfinite(seconds) and seconds >= 0 and units <= 127):
+        raise ValueError("the Bus Watchdog takes 0 (off) or up to 2.54 s, in steps of 20 ms")
+    return units * ct.SECONDS_PER_BUS_WATCHDOG_UNIT
 
 
 def _flag(value: Any) -> bool:
@@ -221,6 +250,10 @@ class _Port(PortHandler):  # type: ignore[misc]
         # The SDK calls this in a tight loop until the reply is complete or the
         # timeout expires; waiting in select() instead frees the core for the
         # servo emulator or the estimator, and wakes as soon as bytes arrive.
+        if length <= 0:
+            # the SDK's own arithmetic on a corrupted LENGTH field (it waits for LENGTH + 7 bytes and has
+            # more already): nothing to read, and the CRC over the bytes it has then refuses the packet
+            return b""
         fd = getattr(self.ser, "fd", None)
         if fd is None or self.poll == "spin":
             return super().readPort(length)  # type: ignore[no-any-return]
@@ -270,6 +303,9 @@ class DynamixelDriver(Driver):
         else 1 ms).
     reboot : bool
         Reboot a servo that reports a hardware error at open (default: refuse it).
+    watchdog : float
+        Bus Watchdog, seconds without an instruction packet before the servo
+        stops (rounded up to 20 ms; 0 switches it off; at most 2.54).
     limits : Limits, optional
         Command limits in the mode's unit; narrowed to the servo's own at open.
     """
@@ -288,6 +324,10 @@ class DynamixelDriver(Driver):
             _latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"
         ),
         "reboot": Option(_flag, "1: reboot a servo that reports a hardware error at open (default 0)"),
+        "watchdog": Option(
+            _watchdog,
+            f"Bus Watchdog: s without a packet before the servo stops, 0: off (default {DEFAULT_WATCHDOG_S:g})",
+        ),
     }
 
     def __init__(
@@ -300,6 +340,7 @@ class DynamixelDriver(Driver):
         return_delay_us: int | None = 0,
         latency_ms: float | None = None,
         reboot: bool = False,
+        watchdog: float = DEFAULT_WATCHDOG_S,
         limits: Limits | None = None,
     ) -> None:
         if not isinstance(port, str) or not port:
@@ -311,6 +352,7 @@ class DynamixelDriver(Driver):
         self.return_delay_us = _checked("return_delay_us", return_delay_us, _return_delay)
         self.latency_ms = _checked("latency_ms", latency_ms, _latency)
         self.reboot_on_error = bool(reboot)
+        watchdog_s = _checked("watchdog", watchdog, _watchdog)
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
@@ -324,6 +366,7 @@ class DynamixelDriver(Driver):
         self._attempts = 1  # SETUP_ATTEMPTS inside _setup()
         self._info: dict[str, Any] = {}
         self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
+        self.watchdog_s = watchdog_s or None
 
     @classmethod
     def from_url(cls, url: DriverURL) -> DynamixelDriver:
@@ -377,6 +420,8 @@ class DynamixelDriver(Driver):
             low, high = self._position_range
             start = min(max(self._read_value(ct.PRESENT_POSITION), low), high)
         self._write_value(self._goal, start)
+        units = round((self.watchdog_s or 0.0) / ct.SECONDS_PER_BUS_WATCHDOG_UNIT)
+        self._write_value(ct.BUS_WATCHDOG, units)  # armed from the torque coming on: a dead host stops the servo
         self._write_value(ct.TORQUE_ENABLE, 1)
 
     def _torque_off(self) -> None:
@@ -392,11 +437,23 @@ class DynamixelDriver(Driver):
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
-        return self._present()
+        reading, goal = self._present()
+        if goal != value:
+            self.stats.unconfirmed += 1
+            if self._read_value(ct.BUS_WATCHDOG) == ct.BUS_WATCHDOG_EXPIRED:
+                raise DeviceFault(
+                    f"{self.describe()}: servo {self.servo_id}'s Bus Watchdog expired (no packet for "
+                    f"{self.watchdog_s:g} s: the host stalled): it stopped and locks its goals until reopened"
+                )
+            raise CommandUnconfirmed(
+                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {value} just "
+                f"written: the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
+            )
+        return reading
 
     def _read(self) -> Reading:
         self._require_owner()
-        return self._present()
+        return self._present()[0]
 
     def _identity(self) -> dict[str, Any]:
         return dict(self._info)
@@ -426,6 +483,8 @@ class DynamixelDriver(Driver):
             state = self._read_block(0, ct.HARDWARE_ERROR_STATUS.end, "READ of the control table")
         if ct.decode_value(ct.TORQUE_ENABLE, state, ct.TORQUE_ENABLE.address):
             self._write_value(ct.TORQUE_ENABLE, 0, allow_alert=True)  # the EEPROM is locked while it is on
+        # a Bus Watchdog that expired (-1, a host that died) locks the goals until it is cleared
+        self._write_value(ct.BUS_WATCHDOG, 0, allow_alert=True)
         if ct.decode_value(ct.OPERATING_MODE, state, ct.OPERATING_MODE.address) != self._operating_mode:
             self._write_value(ct.OPERATING_MODE, int(self._operating_mode))
         return_delay = ct.decode_value(ct.RETURN_DELAY_TIME, state, ct.RETURN_DELAY_TIME.address)
@@ -526,17 +585,20 @@ class DynamixelDriver(Driver):
                 )
 
     # ---- transactions ----------------------------------------------------------------------------
-    def _present(self) -> Reading:
-        address, length = ct.PRESENT_BLOCK
+    def _present(self) -> tuple[Reading, int]:
+        """The present values and the goal the servo holds, in one READ from the goal to Present Position."""
+        address = self._goal.address
+        length = ct.PRESENT_POSITION.end - address
         data = self._read_block(address, length, "READ of the present values")
-        return Reading(
+        reading = Reading(
             position=float(ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)),
-            device_time=ct.decode_value(ct.REALTIME_TICK, data, 0) / 1000.0,
+            device_time=ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address) / 1000.0,
             velocity=ct.decode_value(ct.PRESENT_VELOCITY, data, ct.PRESENT_VELOCITY.address - address)
             * ct.RAD_PER_S_PER_VELOCITY_UNIT,
             current=ct.decode_value(ct.PRESENT_CURRENT, data, ct.PRESENT_CURRENT.address - address)
             * ct.AMPERE_PER_UNIT,
         )
+        return reading, ct.decode_value(self._goal, data, 0)
 
     def _read_block(self, address: int, length: int, what: str, *, allow_alert: bool = False) -> bytes:
         # The READ packet as the SDK's readTxRx builds it; sent through txRxPacket so that the

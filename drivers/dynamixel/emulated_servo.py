@@ -65,6 +65,15 @@ What the emulated servo does
   on again until a reboot.
 * REBOOT restores the RAM area and clears hardware errors; the plant keeps its
   physical state (the gear does not move because the electronics restarted).
+* Bus Watchdog (98), as the e-manual gives it: with the torque on and a value
+  of 1..127 (x 20 ms), no instruction packet for that long stops the servo --
+  it holds where it is (the goal becomes the present position; 0 current or
+  PWM in those modes), Bus Watchdog reads -1 and the goals are read-only
+  (a write gets a Data Range Error) until 0 is written to it. The emulator
+  feeds it with every intact instruction packet that reaches the servo
+  (:meth:`EmulatedServo.heard`) and checks it while the line is quiet
+  (:meth:`EmulatedServo.check_watchdog`). ``on_event`` hears the watchdog
+  expiring and the torque going off.
 """
 
 from __future__ import annotations
@@ -74,6 +83,7 @@ from collections.abc import Callable
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
+from servoid.drivers.dynamixel._emulator_facts import CURRENT_GAIN, PWM_GAIN
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
 from servoid.drivers.sampled import PlantSample, SampledPlant
@@ -83,10 +93,6 @@ from servoid.errors import ConfigError
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
 
-#: Plant input per ampere in current mode (rad/A).
-CURRENT_GAIN = 1.0
-#: Plant input per percent of PWM in PWM mode (rad/%).
-PWM_GAIN = 0.01
 
 _POSITION_MODES = (OperatingMode.POSITION, OperatingMode.EXTENDED_POSITION, OperatingMode.CURRENT_BASED_POSITION)
 #: Operating mode -> the goal entry whose write advances the plant.
@@ -104,7 +110,9 @@ _VALID_VALUES: dict[Field, range | frozenset[int]] = {
     ct.STATUS_RETURN_LEVEL: range(0, 3),
     ct.TORQUE_ENABLE: range(0, 2),
     ct.LED: range(0, 2),
+    ct.BUS_WATCHDOG: range(0, 128),  # -1 is the servo's own: a host cannot write it
 }
+_GOALS = (ct.GOAL_PWM, ct.GOAL_CURRENT, ct.GOAL_VELOCITY, ct.GOAL_POSITION)
 
 
 class EmulatedServo:
@@ -136,6 +144,8 @@ class EmulatedServo:
     ----------
     slot_source : callable or None
         In-process tests: returns the host's slot of the goal being written.
+    on_event : callable or None
+        Called with one line when the Bus Watchdog expires or the torque goes off.
     """
 
     def __init__(
@@ -177,6 +187,9 @@ class EmulatedServo:
         self._boot = self._clock.now_ns()
         #: Number of reboots.
         self.reboots = 0
+        self.on_event: Callable[[str], None] | None = None
+        self._heard_ns = self._boot  # when the last intact instruction packet reached the servo
+        self._powered = False  # Torque Enable as the plant last followed it
 
     # ---- state -----------------------------------------------------------------------
     def value(self, field: Field) -> int:
@@ -266,6 +279,8 @@ class EmulatedServo:
         return ErrorNumber.NONE
 
     def _check_value(self, field: Field, value: int) -> ErrorNumber:
+        if field in _GOALS and self.value(ct.BUS_WATCHDOG) == ct.BUS_WATCHDOG_EXPIRED:
+            return ErrorNumber.DATA_RANGE  # goals are read-only after the Bus Watchdog expired
         valid = _VALID_VALUES.get(field)
         if valid is not None and value not in valid:
             return ErrorNumber.DATA_RANGE
@@ -357,10 +372,46 @@ class EmulatedServo:
 
     def _follow_torque(self) -> None:
         """The plant follows goals while Torque Enable is 1 (a new count of samples each time it comes on)."""
+        was, self._powered = self._powered, self.torque
         if self.torque:
+            if not was:
+                self._heard_ns = self._clock.now_ns()  # the watchdog measures from the torque coming on
             self._sampled.enable()
         else:
             self._sampled.disable()
+            if was:
+                self._event("torque off")
+
+    # ---- the Bus Watchdog -------------------------------------------------------------------
+    def heard(self, at_ns: int) -> None:
+        """An intact instruction packet reached the servo at ``at_ns``: it feeds the Bus Watchdog."""
+        self._heard_ns = max(self._heard_ns, at_ns)
+
+    def watchdog_deadline_ns(self) -> int | None:
+        """When the Bus Watchdog expires if nothing is heard before (None: it is not running)."""
+        units = self.value(ct.BUS_WATCHDOG)
+        if units <= 0 or not self.torque:
+            return None
+        return self._heard_ns + round(units * ct.SECONDS_PER_BUS_WATCHDOG_UNIT * NS_PER_S)
+
+    def check_watchdog(self, now_ns: int) -> bool:
+        """Stop the servo if its Bus Watchdog has expired by ``now_ns``; whether it did now."""
+        deadline = self.watchdog_deadline_ns()
+        if deadline is None or now_ns < deadline:
+            return False
+        silent_ms = (now_ns - self._heard_ns) / 1e6
+        self._put(ct.BUS_WATCHDOG, ct.BUS_WATCHDOG_EXPIRED)
+        mode = self.value(ct.OPERATING_MODE)
+        if mode in _POSITION_MODES:
+            self._put(ct.GOAL_POSITION, self.value(ct.PRESENT_POSITION))  # it stops where it is
+        self._put(ct.GOAL_CURRENT, 0 if mode == OperatingMode.CURRENT else self.value(ct.GOAL_CURRENT))
+        self._put(ct.GOAL_PWM, 0 if mode == OperatingMode.PWM else self.value(ct.GOAL_PWM))
+        self._event(f"bus watchdog expired after {silent_ms:.0f} ms without an instruction: stopped, goals locked")
+        return True
+
+    def _event(self, what: str) -> None:
+        if self.on_event is not None:
+            self.on_event(f"servo {self.id}: {what}")
 
     def _step(self) -> None:
         u = self.plant_input()
@@ -381,6 +432,7 @@ class EmulatedServo:
         if twin.twin.read().fault is not None and not self.alert:
             # the twin turned its output stage off by itself (an ODrive twin's overspeed): the X series says
             # so with a hardware error, as its own protections do, rather than answer for a coasting servo
+            self._event(f"the twin turned its output stage off ({twin.twin.read().fault}): Overload Error")
             self.inject_hardware_error(HardwareError.OVERLOAD)
         r = twin.reading
         self._put(

@@ -108,11 +108,21 @@ class LinkFaults:
         Set ``mute`` after the servo sent this many more status packets (counts down).
     drop : float
         Probability that a status packet is lost on the way back.
+    corrupt_goals : int
+        Treat this many of the next SYNC_WRITE packets on the bus as received
+        with a bad CRC: every servo drops them, unanswered (a goal lost on its
+        way, which only a read-back of the goal shows).
+    corrupt_lengths : int
+        Send this many of the servo's next status packets with their LENGTH
+        field cut to 3 (fewer bytes than the packet's own header holds), the
+        rest of the packet unchanged.
     """
 
     mute: bool = False
     corrupt_replies: int = 0
     corrupt_requests: int = 0
+    corrupt_goals: int = 0
+    corrupt_lengths: int = 0
     stale_replies: int = 0
     mute_after: int | None = None
     drop: float = 0.0
@@ -342,11 +352,19 @@ class DynamixelEmulator:
         :mod:`~servoid.drivers.dynamixel.emulated_servo`); None: one sample per goal.
     flip : float
         Probability per byte of one flipped bit, in both directions (a noisy line).
+    flip_rx, flip_tx : float, optional
+        The same for the instruction packets the servos receive (a corrupted
+        command: a goal lost on its way) and for the status packets they
+        send; each defaults to ``flip``.
     seed : int
         Seed of the flipped bits and lost replies.
     trace : path, optional
         File to which every reading of the present values is written as it
         is sent, before any corruption: ``<id> <tick ms> <position counts>``.
+    on_event : callable, optional
+        Called with one line (``"servo 1: bus watchdog expired ..."``,
+        ``"servo 1: torque off"``) when a servo's Bus Watchdog expires or its
+        torque goes off, from the serving thread.
 
     Examples
     --------
@@ -366,8 +384,11 @@ class DynamixelEmulator:
         clock: Clock | None = None,
         period_s: float | None = None,
         flip: float = 0.0,
+        flip_rx: float | None = None,
+        flip_tx: float | None = None,
         seed: int = 0,
         trace: str | Path | None = None,
+        on_event: Callable[[str], None] | None = None,
     ) -> None:
         id_list = [int(i) for i in ids]
         if not id_list or len(set(id_list)) != len(id_list):
@@ -380,9 +401,16 @@ class DynamixelEmulator:
             for i in id_list
         ]  # fmt: skip
         self.flip = validation.in_unit_interval("flip", flip, open_low=False, open_high=False)
+        # None: follow ``flip`` (which tests may change while the emulator runs)
+        self._flip_rx = None if flip_rx is None else validation.in_unit_interval("flip_rx", flip_rx, open_low=False,
+                                                                                  open_high=False)  # fmt: skip
+        self._flip_tx = None if flip_tx is None else validation.in_unit_interval("flip_tx", flip_tx, open_low=False,
+                                                                                  open_high=False)  # fmt: skip
         self._rng = np.random.default_rng(seed)
         self._trace: IO[str] | None = open(trace, "w", encoding="ascii") if trace is not None else None  # noqa: SIM115
         self.bus = DynamixelBus(servos)
+        for emulated in servos:
+            emulated.on_event = on_event
         # compile (or load) the kernels now, not while a reply is awaited
         if spec.model is not None:
             Plant(spec.model).step(0.0)
@@ -400,6 +428,16 @@ class DynamixelEmulator:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._closed = False
+
+    @property
+    def flip_rx(self) -> float:
+        """Bit-flip probability per byte of the instruction packets received."""
+        return self.flip if self._flip_rx is None else self._flip_rx
+
+    @property
+    def flip_tx(self) -> float:
+        """Bit-flip probability per byte of the status packets sent."""
+        return self.flip if self._flip_tx is None else self._flip_tx
 
     # ---- access for tests and users -----------------------------------------------------
     def servo(self, servo_id: int) -> EmulatedServo:
@@ -466,9 +504,10 @@ class DynamixelEmulator:
         self.close()
 
     def serve_forever(self) -> None:
-        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground)."""
+        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground); run the Bus Watchdogs."""
         while not self._stop.is_set():
-            ready, _, _ = select.select([self._master, self._wake_r], [], [], IDLE_DISCARD_S)
+            ready, _, _ = select.select([self._master, self._wake_r], [], [], self._quiet_for_s())
+            self._check_watchdogs()
             if self._wake_r in ready:
                 os.read(self._wake_r, 64)
                 continue
@@ -484,14 +523,26 @@ class DynamixelEmulator:
                     break
                 raise
             received = self.clock.now_ns()
-            for frame in self._reader.feed(self._flipped(data)):
+            for frame in self._reader.feed(self._flipped(data, self.flip_rx)):
                 self._serve_frame(frame, received)
 
-    def _flipped(self, data: bytes) -> bytes:
-        """``data`` with one random bit flipped in each byte hit (probability ``flip`` per byte)."""
-        if not self.flip:
+    def _quiet_for_s(self) -> float:
+        """How long to wait for bytes: until a partial frame is stale, or the next Bus Watchdog expires."""
+        deadlines = [d for d in (s.watchdog_deadline_ns() for s in self.bus.servos) if d is not None]
+        if not deadlines:
+            return IDLE_DISCARD_S
+        return min(IDLE_DISCARD_S, max(0.0, (min(deadlines) - self.clock.now_ns()) / NS_PER_S))
+
+    def _check_watchdogs(self) -> None:
+        now = self.clock.now_ns()
+        for servo in self.bus.connected():
+            servo.check_watchdog(now)
+
+    def _flipped(self, data: bytes, probability: float) -> bytes:
+        """``data`` with one random bit flipped in each byte hit (``probability`` per byte)."""
+        if not probability:
             return data
-        hit = np.flatnonzero(self._rng.random(len(data)) < self.flip)
+        hit = np.flatnonzero(self._rng.random(len(data)) < probability)
         if not hit.size:
             return data
         out = bytearray(data)
@@ -520,8 +571,17 @@ class DynamixelEmulator:
             if target is not None and self._faults[id(target)].corrupt_requests > 0:
                 self._faults[id(target)].corrupt_requests -= 1
                 frame = CorruptPacket(frame.id, frame.encode())
+            elif frame.instruction == Instruction.SYNC_WRITE:
+                losing = next((f for f in self._faults.values() if f.corrupt_goals > 0), None)
+                if losing is not None:
+                    losing.corrupt_goals -= 1
+                    frame = CorruptPacket(frame.id, frame.encode())
         if isinstance(frame, CorruptPacket):
             self.stats.corrupt_received += 1
+        elif isinstance(frame, Packet) and not frame.is_status:
+            for servo in self.bus.connected():  # an intact instruction packet feeds the Bus Watchdog of its servos
+                if frame.id in (servo.id, BROADCAST_ID):
+                    servo.heard(received)
         last = received
         for servo, reply in self.bus.handle(frame):
             faults = self._faults[id(servo)]
@@ -542,10 +602,13 @@ class DynamixelEmulator:
             if faults.corrupt_replies > 0:
                 faults.corrupt_replies -= 1
                 reply = reply[:-1] + bytes((reply[-1] ^ 0xFF,))
+            if faults.corrupt_lengths > 0:
+                faults.corrupt_lengths -= 1
+                reply = reply[:5] + bytes((3, 0)) + reply[7:]  # LEN (5, 6): 3, where the header alone has 4
             # each servo waits its Return Delay Time after the bus went quiet
             self.clock.sleep_until_ns(last + round(servo.return_delay_s * NS_PER_S))
             try:
-                os.write(self._master, self._flipped(reply))
+                os.write(self._master, self._flipped(reply, self.flip_tx))
                 self.stats.replies += 1
             except BlockingIOError:
                 self.stats.dropped_replies += 1
@@ -577,7 +640,7 @@ class EmulatorProcess:
     **options
         Passed to :class:`DynamixelEmulator` (all but ``clock``: ``servo``,
         ``model_number``, ``firmware``, ``return_delay_us``, ``period_s``,
-        ``flip``, ``seed``, ``trace``).
+        ``flip``, ``flip_rx``, ``flip_tx``, ``seed``, ``trace``).
 
     Examples
     --------

@@ -111,6 +111,7 @@ class SerialDriver(Driver):
         self._info: dict[str, Any] = {}
         self._stream: deque[Reply] = deque()
         self.command_step = 1.0  # set points travel as whole encoder counts
+        self.watchdog_s = watchdog or None
 
     @classmethod
     def from_url(cls, url: DriverURL) -> SerialDriver:

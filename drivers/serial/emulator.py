@@ -31,8 +31,10 @@ import os
 import select
 import signal
 import subprocess
+import threading
 import time
 from dataclasses import dataclass
+from typing import IO
 
 from servoid import validation
 from servoid.drivers.serial.build import firmware_binary
@@ -210,6 +212,9 @@ class FirmwareEmulator:
         self.process: subprocess.Popen[bytes] | None = None
         self.port = ""
         self.boot_id = 0
+        self._err: list[str] = []  # the firmware's stderr lines so far, read by a thread as they come
+        self._seen = 0  # how many of them events() has handed out
+        self._reader: threading.Thread | None = None
 
     @property
     def url(self) -> str:
@@ -229,7 +234,20 @@ class FirmwareEmulator:
             raise DriverError(f"the firmware did not start ({' | '.join(lines)}): {err}")
         self.port = lines[0].split(" ", 1)[1]
         self.boot_id = int(lines[1].split(" ", 1)[1], 16)
+        # a thread drains stderr as the firmware writes it: a full pipe would block the firmware
+        self._reader = threading.Thread(target=self._drain, args=(self.process.stderr,), daemon=True)
+        self._reader.start()
         return self
+
+    def _drain(self, stream: IO[bytes]) -> None:
+        for line in stream:
+            self._err.append(line.decode(errors="replace").rstrip("\n"))
+
+    def events(self) -> list[str]:
+        """The firmware's new lines on stderr: the torque going off, the watchdog acting (with the monotonic time)."""
+        lines = self._err[self._seen :]
+        self._seen += len(lines)
+        return lines
 
     def _first_lines(self, count: int) -> list[str]:
         # raw reads with a deadline: a buffered readline() would swallow the second line
@@ -255,11 +273,17 @@ class FirmwareEmulator:
         if proc.poll() is None:
             proc.send_signal(signal.SIGTERM)
         try:
-            _, err = proc.communicate(timeout=5)
+            proc.wait(timeout=5)
         except subprocess.TimeoutExpired:
             proc.kill()
-            _, err = proc.communicate()
-        return err.decode(errors="replace").strip()
+            proc.wait()
+        if self._reader is not None:
+            self._reader.join(timeout=5)
+            self._reader = None
+        for stream in (proc.stdout, proc.stderr):
+            if stream is not None:
+                stream.close()
+        return "\n".join(self._err).strip()
 
     @property
     def running(self) -> bool:

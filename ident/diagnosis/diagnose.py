@@ -41,6 +41,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
+from servoid.ident.defaults import DEFAULT_PENALTY, MAX_EFFECTS, REVERSAL_WINDOW
 from servoid.ident.diagnosis.residuals import (
     RegimeBreakdown,
     ResidualTests,
@@ -61,9 +62,6 @@ from servoid.ident.models.extended import (
 from servoid.ident.online.mrgia import MRGIAConfig
 
 __all__ = ["DiagnoseConfig", "Candidate", "Round", "Diagnosis", "diagnose", "select"]
-
-#: Default relative cut of the validation gap each extra parameter must buy.
-DEFAULT_PENALTY = 0.10
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,8 +87,8 @@ class DiagnoseConfig:
     identification: MRGIAConfig
     candidates: tuple[str, ...] = CANDIDATE_NAMES
     penalty: float = DEFAULT_PENALTY
-    max_effects: int = 2
-    reversal_window: int = 5
+    max_effects: int = MAX_EFFECTS
+    reversal_window: int = REVERSAL_WINDOW
     max_nfev: int | None = None
 
     def __post_init__(self) -> None:

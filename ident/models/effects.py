@@ -1,4 +1,4 @@
-"""The library of candidate physical effects: the one place their names are defined.
+"""The library of candidate physical effects: what each one (named in :mod:`.effect_names`) does to the model.
 
 Each effect is a small parametric block added to the pseudo-Wiener model
 (linear block, then backlash) of :mod:`servoid.ident.models.pseudo_wiener`. Input-side effects
@@ -49,6 +49,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid.errors import ModelError
+from servoid.ident.models.effect_names import (
+    CANDIDATE_NAMES,
+    COULOMB_FRICTION,
+    DEAD_ZONE,
+    EFFECT_NAMES,
+    EXTRA_DELAY,
+    EXTRA_POLE,
+    INPUT_SATURATION,
+    NONE,
+    SUMMARIES,
+)
 
 __all__ = [
     "NONE",
@@ -64,14 +75,6 @@ __all__ = [
     "KernelArgs",
     "get_effect",
 ]
-
-#: The name the diagnosis gives when nothing significant is missing.
-NONE = "none"
-COULOMB_FRICTION = "coulomb_friction"
-INPUT_SATURATION = "input_saturation"
-DEAD_ZONE = "dead_zone"
-EXTRA_DELAY = "extra_delay"
-EXTRA_POLE = "extra_pole"
 
 
 @dataclass(frozen=True)
@@ -297,26 +300,22 @@ EFFECTS: dict[str, Effect] = {
     e.name: e
     for e in (
         Effect(COULOMB_FRICTION, ("force",), ("u",), "linear block input",
-               "a force opposing the direction of motion, F_c sign(x(k-1) - x(k-2)), subtracted from the input",
+               SUMMARIES[COULOMB_FRICTION],
                _apply_friction, _friction_starts, _friction_bounds),
         Effect(INPUT_SATURATION, ("limit",), ("u",), "input",
-               "the drive's limit: the linear block sees clip(u, -L, L)",
+               SUMMARIES[INPUT_SATURATION],
                _apply_saturation, _saturation_starts, _saturation_bounds),
         Effect(DEAD_ZONE, ("width",), ("u",), "input",
-               "an input dead band: |u| <= delta does nothing, beyond it u - delta sign(u)",
+               SUMMARIES[DEAD_ZONE],
                _apply_dead_zone, _dead_zone_starts, _dead_zone_bounds),
         Effect(EXTRA_DELAY, ("samples",), ("samples",), "linear block",
-               "the true delay is d + m samples",
+               SUMMARIES[EXTRA_DELAY],
                _apply_delay, _no_starts, _no_bounds, integer=True, choices=(1, 2, 3)),
         Effect(EXTRA_POLE, ("pole",), ("",), "linear block",
-               "one more real pole p with unit static gain: A(q)(1 - p/q), (1 - p) B(q)",
+               SUMMARIES[EXTRA_POLE],
                _apply_pole, _pole_starts, _pole_bounds),
     )
 }  # fmt: skip
-
-#: Every name the diagnosis can give: the candidates and ``"none"``.
-CANDIDATE_NAMES: tuple[str, ...] = tuple(EFFECTS)
-EFFECT_NAMES: tuple[str, ...] = (*CANDIDATE_NAMES, NONE)
 
 
 def get_effect(name: str) -> Effect:

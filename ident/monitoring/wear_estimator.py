@@ -52,17 +52,12 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.models.kernels import backlash_step
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, RecoveryEvent, Step, noise_epsilon
 
 __all__ = ["WearEstimatorConfig", "WearEstimate", "WearEstimator"]
-
-#: Default random-walk variance per update, relative to (c1 + c2)^2 of the
-#: servo's model: the trade-off measured in benchmarks/random_walk.py (RMS
-#: error 0.006 and a lag of ~400 samples on a ramp of c1 + c2 from 1.0 to 1.5
-#: over 200 000 samples at SNR 40, steady-state scatter 0.005).
-DEFAULT_PROCESS_NOISE = 1e-7
 
 #: Default P(0) relative to (c1 + c2)^2: a standard deviation of 10 % of the
 #: dead zone, enough to absorb the wear since the model was identified.

@@ -38,6 +38,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
+from servoid.ident import defaults
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 from servoid.ident.online import _mrgia_kernel as _k
 from servoid.ident.paper import PAPER_P0, PAPER_RHO_EXPONENT, PAPER_SIGMA0, paper_theta0
@@ -56,6 +57,10 @@ __all__ = [
 
 #: Samples per call of the compiled loop when progress is reported.
 PROGRESS_CHUNK = 1 << 16
+
+#: Smallest ``rho_exponent``: below about 1e-16, ``rho(1) = 2^-r`` rounds to 1 and eq. (30)'s
+#: ``mu = rho(t-1)/rho(t) (1 - rho(t))`` to 0, by which eq. (21) divides.
+MIN_RHO_EXPONENT = 1e-6
 
 
 class Step(enum.IntEnum):
@@ -77,16 +82,19 @@ _STEPS: dict[int, Step] = {int(s): s for s in Step}
 
 @dataclass(frozen=True, kw_only=True)
 class MRGIAConfig:
-    """Settings of the MRGIA; the defaults are the paper's (Section 4).
+    """Settings of the MRGIA; the defaults are :mod:`servoid.ident.defaults` (what ``servoid identify`` runs).
+
+    :meth:`paper` gives the paper's Section 4 settings (rho exponent 0.25, no
+    projection, no recovery).
 
     Parameters
     ----------
     na, nb, delay : int
         Orders ``n_a >= 1``, ``n_b >= 0`` and delay ``d >= 1`` of eq. (1).
     rho_exponent : float
-        ``r`` in the convergence factor ``rho(k) = (k + 1)^-r``, in (0, 1]. The
-        paper uses 0.25; larger values forget more slowly and average output
-        noise (:data:`servoid.ident.paper.RECOMMENDED_RHO_EXPONENT`).
+        ``r`` in the convergence factor ``rho(k) = (k + 1)^-r``, in
+        [:data:`MIN_RHO_EXPONENT`, 1]; default 0.75. The paper uses 0.25; larger values forget more slowly
+        and average output noise (:data:`servoid.ident.paper.RECOMMENDED_RHO_EXPONENT`).
     epsilon : float
         Threshold on ``|y(k) - y(k-1)|`` for the switching functions ``g4``,
         ``g5`` of eqs (37), (38), in the unit of ``y``. 0 gives eqs (35), (36)
@@ -124,11 +132,11 @@ class MRGIAConfig:
         data do not excite for a long time cannot wind up (inf: no cap).
     """
 
-    na: int = 2
-    nb: int = 0
-    delay: int = 1
-    rho_exponent: float = PAPER_RHO_EXPONENT
-    epsilon: float = 0.0
+    na: int = defaults.NA
+    nb: int = defaults.NB
+    delay: int = defaults.DELAY
+    rho_exponent: float = defaults.RHO_EXPONENT
+    epsilon: float = defaults.EPSILON
     p0: float = PAPER_P0
     theta0: tuple[float, ...] | None = None
     sigma0: float = PAPER_SIGMA0
@@ -148,6 +156,8 @@ class MRGIAConfig:
         nb = validation.integer("nb", self.nb, minimum=0)
         delay = validation.integer("delay", self.delay, minimum=1)
         r = validation.in_unit_interval("rho_exponent", self.rho_exponent, open_high=False)
+        if r < MIN_RHO_EXPONENT:
+            raise ConfigError(f"rho_exponent (={r!r}) must be >= {MIN_RHO_EXPONENT:g}: rho(k) would stay at 1")
         validation.non_negative("epsilon", self.epsilon)
         validation.positive("p0", self.p0)
         validation.positive("sigma0", self.sigma0)
@@ -172,9 +182,12 @@ class MRGIAConfig:
         object.__setattr__(self, "_theta0", th)
 
     @classmethod
-    def paper(cls, *, na: int = 2, nb: int = 0, delay: int = 1, epsilon: float = 0.0) -> MRGIAConfig:
-        """The algorithm exactly as the paper prints it: no projection, no recovery."""
-        return cls(na=na, nb=nb, delay=delay, epsilon=epsilon, project=False, recover=False)
+    def paper(
+        cls, *, na: int = defaults.NA, nb: int = defaults.NB, delay: int = defaults.DELAY, epsilon: float = 0.0
+    ) -> MRGIAConfig:
+        """The algorithm exactly as the paper prints it: no projection, no recovery, the paper's rho exponent."""
+        return cls(na=na, nb=nb, delay=delay, epsilon=epsilon, rho_exponent=PAPER_RHO_EXPONENT, project=False,
+                   recover=False)  # fmt: skip
 
     @classmethod
     def random_walk(

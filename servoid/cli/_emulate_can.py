@@ -3,19 +3,21 @@
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import sys
 import threading
+import time
+from pathlib import Path
 from types import FrameType
 
 from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.can._bus import UDP_GROUP, UDP_PORT, BusAddress
+from servoid.drivers.can._sim_facts import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
 from servoid.drivers.can.driver import DEFAULT_NODES, PROTOCOLS
-from servoid.drivers.can.sim_cia402 import SIM_COUNTS_PER_REV, SIM_RATED_TORQUE_MNM
-from servoid.drivers.servos import parse_servo, servo_names
+from servoid.drivers.servo_facts import SERVO_NAMES
 from servoid.errors import ConfigError
-
-HELP = "a simulated CAN servo drive (CANopen CiA 402 or ODrive CAN Simple)"
+from servoid.output_paths import output_file
 
 DESCRIPTION = f"""\
 Start a simulated CAN servo drive with a servo behind it, and print the
@@ -34,7 +36,7 @@ talk to it as to a drive on a real bus.
 The servo (--servo, default the twin of the protocol: cia402 = a maxon
 EPOS4-class drive with a motor encoder, a planetary gear and a load encoder;
 odrive = an ODrive v3.6 with a reducer, motor and load encoder) is any of
-{", ".join(servo_names())}, with twin parameters overridden
+{", ".join(SERVO_NAMES)}, with twin parameters overridden
 URL-style: --servo 'cia402?play_arcmin=3&load_inertia_kgm2=0.05'.
   cia402 twin   0x6064 / 0x607A in motor-encoder increments (the loop's),
                 0x608F their resolution, 0x6091 the gear ratio, the load
@@ -56,6 +58,14 @@ axis does: sample it at the same rate (servoid identify --rate), or the plant
 seen is another one (--rate 0: one sample per Set_Input_*). A twin's sample
 is one period of servo time: the CiA 402 drive's from the SYNC period the
 driver writes (0x1006), the ODrive's --rate.
+
+Watchdogs: the CiA 402 drive watches the heartbeat the driver configures
+(0x1016) and switches its power stage off when it stops; the ODrive axis runs
+its axis watchdog when --watchdog S is given (as saved on a board with
+odrivetool), fed by every frame, and --endpoints FILE writes its endpoint
+table (flat_endpoints.json) for the driver's watchdog=/endpoints= options.
+Each such event, and every power stage going off, is a line on stderr with
+the monotonic time.
 
 The first line on stdout is the URL; status lines go to stderr. The drive
 runs until Ctrl-C (or SIGTERM).
@@ -89,6 +99,9 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--channel", default=None, help=f"channel: multicast group for udp_multicast (default {UDP_GROUP}), "
                                                    "can0 / vcan0 for socketcan")  # fmt: skip
     p.add_argument("--port", type=int, default=None, help=f"UDP port for udp_multicast (default {UDP_PORT})")
+    p.add_argument("--bind", metavar="ADDRESS",
+                   help="udp_multicast: IPv4 address of the interface to listen on (default 127.0.0.1: this host "
+                        "only, no datagram from the network reaches the drive; 0.0.0.0: every interface)")  # fmt: skip
     p.add_argument("--servo", metavar="NAME[?K=V&...]",
                    help="the servo behind the drive: a twin preset with overrides, or model "
                         "(default: the protocol's twin, cia402 or odrive)")  # fmt: skip
@@ -97,11 +110,22 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
                    help=f"odrive: the axis's own sample rate, Hz (default {DEFAULT_RATE_HZ:g}, that of servoid identify; "
                         "0: one sample per input); cia402 follows the SYNC counter")  # fmt: skip
-    p.add_argument("--quiet", action="store_true", help="no status lines on stderr")
+    p.add_argument("--watchdog", type=float, metavar="S",
+                   help="odrive: the axis watchdog timeout as saved on the board, s (default: off)")  # fmt: skip
+    p.add_argument("--endpoints", type=Path, metavar="FILE",
+                   help="odrive: write the simulated firmware's flat_endpoints.json here (for the driver's endpoints=)")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="replace --endpoints if it exists")
+    p.add_argument("--quiet", action="store_true", help="no status lines on stderr (events are still shown)")
+
+
+def _print_event(line: str) -> None:
+    """A drive's own decision (watchdog, power stage off), with the monotonic time a watching process can compare."""
+    print(f"{line} (monotonic {time.monotonic():.6f} s)", file=sys.stderr, flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers.can.simulated import simulated_drive
+    from servoid.drivers.servos import parse_servo
 
     if args.interface == "virtual":
         raise ConfigError(
@@ -109,17 +133,27 @@ def run(args: argparse.Namespace) -> int:
             "to reach the drive from another process"
         )
     port = args.port if args.port is not None or args.interface != "udp_multicast" else UDP_PORT
-    bus = BusAddress(args.interface, args.channel or "", port=port)
+    bus = BusAddress(args.interface, args.channel or "", port=port, bind=args.bind)
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per input)")
     servo = parse_servo(args.servo if args.servo is not None else args.protocol)
     if args.protocol == "cia402":
+        if args.watchdog is not None or args.endpoints is not None:
+            raise ConfigError(
+                "--watchdog and --endpoints are the ODrive's; a CiA 402 drive's watchdog is set by its driver"
+            )
         options: dict[str, object] = {"counts_per_rev": args.counts_per_rev}
     else:
         if args.counts_per_rev is not None:
             raise ConfigError("--counts-per-rev applies to --protocol cia402 with --servo model")
-        options = {"period_s": 1.0 / args.rate if args.rate else None}
+        options = {"period_s": 1.0 / args.rate if args.rate else None, "watchdog_s": args.watchdog}
+        if args.endpoints is not None:
+            from servoid.drivers.can.sim_odrive import SimOdriveAxis
+
+            output_file(args.endpoints, option="--endpoints", force=args.force)
+            args.endpoints.write_text(json.dumps(SimOdriveAxis.flat_endpoints(), indent=2) + "\n", encoding="utf-8")
     drive = simulated_drive(args.protocol, bus=bus, node=args.node, servo=servo, **options)
+    drive.on_event = _print_event
     stop = threading.Event()
 
     def _terminate(signum: int, frame: FrameType | None) -> None:  # noqa: ARG001 - signal handler signature

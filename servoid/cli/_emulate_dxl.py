@@ -5,16 +5,15 @@ from __future__ import annotations
 import argparse
 import os
 import signal
+import time
 from pathlib import Path
 
 from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.dynamixel import control_table as ct
-from servoid.drivers.dynamixel.emulated_servo import CURRENT_GAIN, PWM_GAIN
-from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
-from servoid.drivers.servos import parse_servo, servo_names
+from servoid.drivers.dynamixel._emulator_facts import CURRENT_GAIN, PWM_GAIN
+from servoid.drivers.servo_facts import SERVO_NAMES
 from servoid.errors import ConfigError
-
-HELP = "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"
+from servoid.output_paths import new_link, remove_own_link
 
 DESCRIPTION = f"""\
 Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
@@ -23,7 +22,7 @@ driver, talks to as to a U2D2 adapter. Several IDs share one bus.
 
 Behind every servo is --servo (default xm430: the twin of a Dynamixel
 XM430-W350, its motor, gear play, horn encoder and position PID at its own
-rate; any of {", ".join(servo_names())}, twin parameters
+rate; any of {", ".join(SERVO_NAMES)}, twin parameters
 overridden URL-style: --servo 'xm430?play_deg=0.8'), sampled at --rate: like
 a real servo, whose loop runs on its own clock, it takes each goal written
 with the torque on as the next sample (one period of servo time), and when
@@ -75,6 +74,11 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
+def _print_event(line: str) -> None:
+    """A servo's own decision (Bus Watchdog, torque off), with the monotonic time a watching process can compare."""
+    print(f"{line} (monotonic {time.monotonic():.6f} s)", flush=True)
+
+
 def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = EPILOG
     parser.add_argument("--ids", type=_ids, default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)")
@@ -89,23 +93,25 @@ def register(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--servo", metavar="NAME[?K=V&...]",
                         help="the servo behind each ID: a twin preset with overrides, or model (default xm430)")  # fmt: skip
     parser.add_argument("--link", type=Path, metavar="PATH",
-                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts)")  # fmt: skip
+                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts); "
+                             "PATH must not exist: nothing is replaced")  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
+    from servoid.drivers.servos import parse_servo
+
     if not (args.rate >= 0 and args.rate < float("inf")):
         raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per goal)")
     period_s = 1.0 / args.rate if args.rate else None
     servo = parse_servo(args.servo if args.servo is not None else "xm430")
-    emulator = DynamixelEmulator(args.ids, servo=servo, return_delay_us=args.return_delay_us,
-                                 model_number=args.model_number, period_s=period_s)  # fmt: skip
     link: Path | None = args.link
+    if link is not None:
+        new_link(link, option="--link")
+    emulator = DynamixelEmulator(args.ids, servo=servo, return_delay_us=args.return_delay_us,
+                                 model_number=args.model_number, period_s=period_s, on_event=_print_event)  # fmt: skip
     try:
         if link is not None:
-            if link.exists() and not link.is_symlink():
-                raise ConfigError(f"--link (={link}) exists and is not a symbolic link; not replacing it")
-            if link.is_symlink():
-                link.unlink()
             os.symlink(emulator.port, link)
         port = str(link) if link is not None else emulator.port
         model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
@@ -127,5 +133,5 @@ def run(args: argparse.Namespace) -> int:
         return 0
     finally:
         emulator.close()
-        if link is not None and link.is_symlink():
-            link.unlink()
+        if link is not None:
+            remove_own_link(link, emulator.port)

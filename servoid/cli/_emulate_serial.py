@@ -7,10 +7,9 @@ import signal
 import time
 
 from servoid.cli import _term
-from servoid.drivers.servos import parse_servo, servo_names
+from servoid.drivers.servo_facts import SERVO_NAMES
 from servoid.errors import ConfigError
-
-HELP = "the serial bench servo: reference C firmware + a simulated servo behind its HAL on a pseudo-terminal"
+from servoid.output_paths import new_link
 
 DESCRIPTION = """\
 Build the reference firmware of the serial bench controller (C, in
@@ -32,7 +31,7 @@ plant (a1 -0.8, a2 0.15, b0 0.35, delay 1, m2 1, c1 0.02 rad, c2 0.03 rad)
 through a --cpr-count encoder, --servo paper the paper's Section 4 plant
 (excite it with --amplitude 2.4). The protocol is in
 docs/serial-protocol.md. Runs until Ctrl-C.
-""".format(names=", ".join(servo_names()))
+""".format(names=", ".join(SERVO_NAMES))
 
 
 def register(p: argparse.ArgumentParser) -> None:
@@ -43,7 +42,9 @@ def register(p: argparse.ArgumentParser) -> None:
                    help="with --servo model: encoder counts per revolution (default 65536); a twin has its own")  # fmt: skip
     p.add_argument("--noise", type=float, default=0.0, metavar="RAD",
                    help="encoder noise standard deviation in rad (default 0; a twin: its output encoder's)")  # fmt: skip
-    p.add_argument("--link", metavar="PATH", help="also make PATH a symlink to the port (a stable name)")
+    p.add_argument("--link", metavar="PATH",
+                   help="also make PATH a symlink to the port (a stable name); PATH must not exist: nothing is "
+                        "replaced, and the link is removed at exit if it still points to the port")  # fmt: skip
     faults = p.add_argument_group("fault injection")
     faults.add_argument("--flip", type=float, default=0.0, metavar="P",
                         help="probability per byte of a flipped bit, both directions (default 0)")  # fmt: skip
@@ -58,6 +59,7 @@ def _interrupt(signum: int, frame: object) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers.serial.emulator import FirmwareEmulator, FirmwareOptions
+    from servoid.drivers.servos import parse_servo
 
     for name in ("flip", "drop"):
         value = getattr(args, name)
@@ -67,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
         name = {"bench": "model"}.get(args.plant, args.plant)
         raise ConfigError(f"--plant (={args.plant}) is gone: the servo behind the firmware is --servo {name}")
     servo = parse_servo(args.servo)
+    if args.link is not None:
+        new_link(args.link, option="--link")
     options = FirmwareOptions(
         servo=servo, counts_per_rev=args.cpr, noise=args.noise, seed=args.seed,
         flip_tx=args.flip, flip_rx=args.flip, drop=args.drop, link=args.link,
@@ -83,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
         try:
             while emu.running:
                 time.sleep(0.2)
+                for line in emu.events():  # the watchdog dropping the torque, as the firmware says it
+                    _term.stderr.print(line, soft_wrap=True)
         except KeyboardInterrupt:
             pass
         status = "stopped" if emu.running else "the firmware exited"

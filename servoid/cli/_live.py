@@ -16,25 +16,30 @@ import argparse
 import math
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
-from servoid.drivers import driver_from_url
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
-from servoid.drivers.servos import DEFAULT_RATE_HZ
-from servoid.drivers.simulated import SimulatedServo
+from servoid.drivers.servo_facts import DEFAULT_RATE_HZ
 from servoid.errors import ConfigError
-from servoid.excitation import UniformSpec, parse_spec, sample
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, MRGIAResult, noise_epsilon
-from servoid.identify_outputs import Record
-from servoid.recording import Recording
-from servoid.session import SessionConfig, SessionProgress, SessionResult, run_session, usable
-from servoid.session.listeners import EstimatorFeed
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+    from servoid.drivers.base import Limits
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
+    from servoid.identify_outputs import Record
+    from servoid.recording import Recording
+    from servoid.session import SessionProgress, SessionResult
+
+# The libraries a run needs are imported inside the functions that run it, so that the
+# commands' --help (which add_options serves) starts without them.
 
 __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "excitation", "DEFAULT_RATE_HZ"]
+
+#: Samples of a simulated or live run when --samples is not given.
+DEFAULT_SAMPLES = 5000
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -49,33 +54,52 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                       help="half-width of the uniform excitation, in the driver's unit "
                            f"(default: the simulated servo's reference, else {MODEL_AMPLITUDE} for the bench servo)")  # fmt: skip
     live.add_argument("--guard", type=int, metavar="N",
-                      help="samples left out after each one that could not be used (late, missed, timed out): "
-                          "a device on its own clock applies a late command in a later sample and the next "
-                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
-                          "(sim, serial, CiA 402), else 10")  # fmt: skip
+                      help="samples left out after one whose command the servo may have applied otherwise than "
+                           "recorded: a timed-out exchange (the command or its reply lost), and for a device on its "
+                           "own clock (Dynamixel, ODrive) a late or missed slot too; the next samples carry that "
+                           "error (default 10)")  # fmt: skip
     live.add_argument(
         "--use-late", action="store_true", help="let the estimator use samples exchanged late (default: leave them out)"
     )
 
 
-def excitation(args: argparse.Namespace, amplitude: float, centre: float) -> np.ndarray:
-    """The input of a live run: ``--excitation SPEC`` around ``centre``, else uniform noise ``centre +/- amplitude``."""
-    if args.excitation is not None:
-        if args.amplitude is not None:
-            raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
-        spec = parse_spec(args.excitation)
-    else:
-        spec = UniformSpec(amplitude=amplitude)
-    return centre + sample(spec, args.samples, seed=args.seed)
+def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "") -> np.ndarray:
+    """The input of a live run.
+
+    ``--excitation file:...`` replays a file's commands as they are, after
+    checking them against the driver's ``limits``; a spec (``--excitation
+    SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
+    amplitude``. ``--samples`` long (a file: all of it by default).
+    """
+    from servoid.excitation import UniformSpec, parse_spec, sample
+    from servoid.readers.excitation_file import is_file_spec, read_excitation
+
+    if args.excitation is not None and args.amplitude is not None:
+        raise ConfigError("give --amplitude or --excitation (whose spec has its own amplitude), not both")
+    if is_file_spec(args.excitation):
+        replay = read_excitation(args.excitation)
+        replay.check_within(limits.low, limits.high, limits.max_step, unit=unit)
+        u: np.ndarray = replay.first(args.samples)
+        return u
+    spec = parse_spec(args.excitation) if args.excitation is not None else UniformSpec(amplitude=amplitude)
+    return limits.centre + sample(spec, args.samples or DEFAULT_SAMPLES, seed=args.seed)
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
     """The samples of a recording to identify from: all, or for a live recording those its session used."""
+    import numpy as np
+
+    from servoid.session import usable
+    from servoid.session.samples import GUARD_AFTER_ANY, STATUSES
+
     if rec.status is None:
         return None
     guard = rec.metadata.get("guard_samples", "0")
     guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
-    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples)
+    # recordings from before guard_after had the window after every unusable sample
+    after = [s for s in rec.metadata.get("guard_after", ",".join(GUARD_AFTER_ANY)).split(",") if s in STATUSES]
+    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples,
+                              after=after)  # fmt: skip
     used &= np.isfinite(rec.y)
     return used
 
@@ -94,8 +118,15 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                           "--driver 'sim://xm430?snr=40'")  # fmt: skip
     if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
-    if args.samples < 1:
+    if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.identify_outputs import OUTPUT_FILES
+    from servoid.session import SessionConfig, run_session
+    from servoid.session.listeners import EstimatorFeed
+
     driver = driver_from_url(args.driver)
     quiet = args.json
     with driver:
@@ -110,17 +141,18 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
-        u = excitation(args, amplitude, driver.limits.centre)
+        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit)
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
-        path = args.out / "recording.csv"
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "servo": _flat(identity)}
+        path = args.out / OUTPUT_FILES["recording"]
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
+                "servo": _flat(identity)}  # fmt: skip
         if not quiet:
-            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {args.samples} samples "
-                               f"({args.samples / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
+            _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
+                               f"({u.size / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
                                f"recording to {path}")  # fmt: skip
-        with _term.live_progress("live", args.samples) as bar:
+        with _term.live_progress("live", u.size) as bar:
 
             def update(p: SessionProgress) -> None:
                 bar(p.done, _status_text(p, driver.position_unit.unit))
@@ -156,6 +188,10 @@ def _record(
     path: Path,
     online: MRGIAResult | None,
 ) -> Record:
+    import numpy as np
+
+    from servoid.identify_outputs import Record
+
     valid = result.valid
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
@@ -187,6 +223,8 @@ def session_rows(result: SessionResult) -> tuple[list[str], list[list[str]]]:
         rows.append(["exchange", f"median {acq['exchange_median_s'] * 1e6:.0f} us, "
                                  f"99 % {acq['exchange_p99_s'] * 1e6:.0f} us"])  # fmt: skip
     rows.append(["frames rejected / stale", f"{acq['frames_rejected']} / {acq['replies_stale']}"])
+    if acq["commands_unconfirmed"]:
+        rows.append(["commands not confirmed", str(acq["commands_unconfirmed"])])
     rows.append(["commands clamped", str(acq["commands_clamped"])])
     return ["", "value"], rows
 

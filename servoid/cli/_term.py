@@ -1,7 +1,11 @@
 """Terminal output for the command line: progress bars and tables on stderr/stdout via rich.
 
 Everything meant for a human goes through here, so ``--json`` runs can keep
-stdout for the one JSON object.
+stdout for the one JSON object. The consoles never read markup in what they
+print (a unit, a path, a driver URL are the user's text: ``--unit '[/]'`` is
+a unit, not a closing tag); styles are given as styles. rich is imported on
+first use (``stdout`` and ``stderr`` are made then), so that ``servoid
+--help`` starts without it.
 """
 
 from __future__ import annotations
@@ -10,14 +14,14 @@ import contextlib
 import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
-from rich.console import Console
-from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-from rich.table import Table
+if TYPE_CHECKING:  # pragma: no cover
+    from rich.console import Console
 
-from servoid.ident.serialise import dumps
+    #: The consoles for stdout and stderr, made on first use.
+    stdout: Console
+    stderr: Console
 
 __all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
 
@@ -27,14 +31,27 @@ PIPE_WIDTH = 160
 
 
 def _console(stream: TextIO, *, to_stderr: bool) -> Console:
+    from rich.console import Console
+
     # no file=: rich looks sys.stdout/stderr up at each write, so a stream
     # swapped later (pytest's capture, a redirect) is still the one written to
     width = None if stream.isatty() or os.environ.get("COLUMNS") else PIPE_WIDTH
-    return Console(stderr=to_stderr, highlight=False, width=width)
+    return Console(stderr=to_stderr, highlight=False, markup=False, width=width)
 
 
-stdout = _console(sys.stdout, to_stderr=False)
-stderr = _console(sys.stderr, to_stderr=True)
+def __getattr__(name: str) -> Any:
+    """``stdout`` and ``stderr``, made on first use."""
+    if name not in ("stdout", "stderr"):
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    console = _console(sys.stdout if name == "stdout" else sys.stderr, to_stderr=name == "stderr")
+    globals()[name] = console
+    return console
+
+
+def _console_named(name: str) -> Console:
+    """``stdout`` or ``stderr`` from inside this module (a bare global name does not reach ``__getattr__``)."""
+    made: Console | None = globals().get(name)
+    return made if made is not None else __getattr__(name)
 
 
 @contextlib.contextmanager
@@ -43,8 +60,10 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
     if not enabled:
         yield lambda done, total: None
         return
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
-    with Progress(*columns, console=stderr, transient=True) as bar:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn())
+    with Progress(*columns, console=_console_named("stderr"), transient=True) as bar:
         task = bar.add_task(label, total=total)
 
         def update(done: int, total: int) -> None:
@@ -56,32 +75,42 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
 @contextlib.contextmanager
 def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str], None]]:
     """A progress bar with a status line on stderr; yields ``update(done, text)``."""
-    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TextColumn("{task.fields[text]}"))
-    with Progress(*columns, console=stderr, transient=True) as bar:
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+    columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[text]}", markup=False))  # fmt: skip
+    with Progress(*columns, console=_console_named("stderr"), transient=True) as bar:
         task = bar.add_task(label, total=total, text="")
 
         def update(done: int, text: str) -> None:
-            bar.update(task, completed=done, text=escape(text))
+            bar.update(task, completed=done, text=text)
 
         yield update
 
 
 def table(title: str, columns: Sequence[str], rows: Sequence[Sequence[Any]], *, console: Console | None = None) -> None:
     """Print a table; numbers are right-aligned."""
-    tab = Table(title=title, title_justify="left")
+    from rich.table import Table
+    from rich.text import Text
+
+    tab = Table(title=Text(title), title_justify="left")
     for i, col in enumerate(columns):
-        tab.add_column(col, justify="left" if i == 0 else "right")
+        tab.add_column(Text(col), justify="left" if i == 0 else "right")
     for row in rows:
-        tab.add_row(*(escape(str(c)) for c in row))
-    (console or stdout).print(tab)
+        tab.add_row(*(Text(str(c)) for c in row))
+    (console or _console_named("stdout")).print(tab)
 
 
 def print_json(obj: Any) -> None:
     """Write exactly one JSON object to stdout."""
+    from servoid.ident.serialise import dumps
+
     sys.stdout.write(dumps(obj, indent=2) + "\n")
     sys.stdout.flush()
 
 
 def warn(message: str) -> None:
     """A warning line on stderr."""
-    stderr.print(f"[yellow]warning:[/yellow] {escape(message)}")
+    from rich.text import Text
+
+    _console_named("stderr").print(Text.assemble(("warning:", "yellow"), " ", message))

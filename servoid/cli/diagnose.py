@@ -5,21 +5,25 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from servoid.cli import _term
-from servoid.diagnose_outputs import candidate_rows, diagnosis_json, write_diagnosis_outputs
+from servoid import limits
+from servoid.cli import _data, _model, _term
 from servoid.errors import ConfigError, DataError
-from servoid.ident.diagnosis.diagnose import DEFAULT_PENALTY, DiagnoseConfig, diagnose
-from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE
-from servoid.ident.online.mrgia import MRGIAConfig
-from servoid.ident.paper import RECOMMENDED_RHO_EXPONENT
-from servoid.recording import Recording, read_recording
+from servoid.ident import defaults
+from servoid.ident.models.effect_names import CANDIDATE_NAMES, NONE, SUMMARIES
+from servoid.output_paths import output_dir
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.recording import Recording
+
+# The numerical libraries are imported inside run(): `servoid diagnose --help` starts without them.
 
 ORDER = 20
 
 HELP = "find where model and measurement disagree, name the missing effect, show the gap shrink"
 
-_LIBRARY = "\n".join(f"  {name:17s} {e.summary}" for name, e in EFFECTS.items())
+_LIBRARY = "\n".join(f"  {name:17s} {summary}" for name, summary in SUMMARIES.items())
 
 DESCRIPTION = f"""\
 Identify the backlash model on a training recording, simulate it on a
@@ -37,9 +41,7 @@ extended model for a further effect (--max-effects).
 The effects (parameters in the unit of u unless said):
 {_LIBRARY}
 
-Recordings: CSV with a header row and columns u, y (and t in seconds,
-optional); lines starting with '#' are metadata ('# unit: rad'). Both must
-have the same sample period and units.
+{_data.formats_help("Recordings: ", 0, ". Both are read with the same options and must have the same sample period and units.")}
 
 Outputs in --out: model.json (base model plus "effects"), diagnose_fit.png
 (measured vs both models, residuals), diagnose_regimes.png (where the error
@@ -51,6 +53,8 @@ examples:
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 1 --delay 1 --json > diagnosis.json
   servoid diagnose --train a.csv --validate b.csv --na 2 --nb 0 --delay 1 --effects coulomb_friction,dead_zone
+  servoid diagnose --train DATA_EMPS.mat --validate DATA_EMPS_PULSES.mat --columns u=qg,y=qm --nb 1
+  servoid diagnose --train bag_a/ --validate bag_b/ --topics y=/joint_states:wrist,u=/cmd
   python examples/real_data.py emps --out emps/    (the EMPS benchmark, converted and diagnosed)
 """
 
@@ -61,28 +65,25 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
     rec = p.add_argument_group("recordings")
-    rec.add_argument("--train", required=True, type=Path, metavar="A.csv", help="training recording (all fitting)")
-    rec.add_argument("--validate", required=True, type=Path, metavar="B.csv",
+    rec.add_argument("--train", required=True, type=Path, metavar="A", help="training recording (all fitting)")
+    rec.add_argument("--validate", required=True, type=Path, metavar="B",
                      help="validation recording (scores only, never fitted)")  # fmt: skip
     rec.add_argument("--unit", metavar="UNIT", help="unit of y (default: the recordings' '# unit:' line)")
+    _data.add_options(p)
     mdl = p.add_argument_group("base model")
-    mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
-    mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
-    mdl.add_argument("--delay", type=int, default=1, help="input delay d >= 1 in samples (default 1)")
-    mdl.add_argument("--rho-exponent", type=float, default=RECOMMENDED_RHO_EXPONENT, metavar="R",
-                     help=f"MRGIA convergence exponent (default {RECOMMENDED_RHO_EXPONENT})")  # fmt: skip
-    mdl.add_argument("--epsilon", type=float, default=0.0, metavar="E",
-                     help="MRGIA noise threshold on |y(k) - y(k-1)|, unit of y (default 0)")  # fmt: skip
+    _model.add_structure_options(mdl)
+    _model.add_rho_option(mdl)
+    mdl.add_argument("--epsilon", type=float, default=defaults.EPSILON, metavar="E",
+                     help=f"MRGIA noise threshold on |y(k) - y(k-1)|, unit of y (default {defaults.EPSILON:g})")  # fmt: skip
     sel = p.add_argument_group("effects")
     sel.add_argument("--effects", metavar="A,B", help=f"effects to try (default all: {','.join(CANDIDATE_NAMES)})")
-    sel.add_argument("--penalty", type=float, default=DEFAULT_PENALTY, metavar="P",
+    sel.add_argument("--penalty", type=float, default=defaults.DEFAULT_PENALTY, metavar="P",
                      help=f"relative cut of the validation gap each extra parameter must buy "
-                          f"(default {DEFAULT_PENALTY}: 10 %%)")  # fmt: skip
-    sel.add_argument(
-        "--max-effects", type=int, default=2, metavar="N", help="effects added one after the other (default 2)"
-    )
-    sel.add_argument("--reversal-window", type=int, default=5, metavar="K",
-                     help="samples after a reversal that count as 'just after' (default 5)")  # fmt: skip
+                          f"(default {defaults.DEFAULT_PENALTY}: {100 * defaults.DEFAULT_PENALTY:g} %%)")  # fmt: skip
+    sel.add_argument("--max-effects", type=int, default=defaults.MAX_EFFECTS, metavar="N",
+                     help=f"effects added one after the other (default {defaults.MAX_EFFECTS})")  # fmt: skip
+    sel.add_argument("--reversal-window", type=int, default=defaults.REVERSAL_WINDOW, metavar="K",
+                     help=f"samples after a reversal that count as 'just after' (default {defaults.REVERSAL_WINDOW})")  # fmt: skip
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("servoid-diagnose"), metavar="DIR",
                      help="output folder (default ./servoid-diagnose/)")  # fmt: skip
@@ -95,17 +96,10 @@ def _candidates(text: str | None) -> tuple[str, ...]:
     if text is None:
         return CANDIDATE_NAMES
     names = tuple(n.strip() for n in text.split(",") if n.strip())
-    unknown = [n for n in names if n not in EFFECTS]
+    unknown = [n for n in names if n not in CANDIDATE_NAMES]
     if unknown or not names:
         raise ConfigError(f"--effects (={text!r}) must list effects from: {', '.join(CANDIDATE_NAMES)}")
     return names
-
-
-def _read(path: Path, what: str) -> Recording:
-    rec = read_recording(path)
-    for note in rec.notes:
-        _term.warn(f"{path}: {note}")
-    return rec
 
 
 def check_pair(train: Recording, validate: Recording) -> None:
@@ -129,8 +123,14 @@ def check_pair(train: Recording, validate: Recording) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    train = _read(args.train, "training")
-    validate = _read(args.validate, "validation")
+    from servoid.diagnose_outputs import DIAGNOSE_FILES, candidate_rows, diagnosis_json, write_diagnosis_outputs
+    from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+    from servoid.ident.online.mrgia import MRGIAConfig
+
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    output_dir(args.out, option="--out", files=DIAGNOSE_FILES.values())
+    train = _data.read(args.train, args)
+    validate = _data.read(args.validate, args)
     check_pair(train, validate)
     config = DiagnoseConfig(
         identification=MRGIAConfig(na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent,
@@ -179,5 +179,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _unit(effect: str, parameter: str, input_unit: str) -> str:
+    from servoid.ident.models.effects import EFFECTS
+
     unit = dict(zip(EFFECTS[effect].parameters, EFFECTS[effect].units))[parameter]
     return input_unit if unit == "u" else unit

@@ -6,21 +6,20 @@ import argparse
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-from rich.markup import escape
-
+from servoid import limits
 from servoid.cli import _term
 from servoid.errors import ConfigError
-from servoid.excitation import KINDS, SignalSpec, format_spec, parse_spec, sample
-from servoid.excitation.design import Design, Prior, ServoLimits, design
-from servoid.excitation.report import ExcitationReport, Verdict, assess, worst_level
-from servoid.excitation.specs import grammar
-from servoid.ident.models.pseudo_wiener import BacklashModel
-from servoid.ident.paper import PAPER_PLANT
-from servoid.modelfile import load_model
-from servoid.recording import write_recording
+from servoid.excitation.specs import KINDS, SignalSpec, format_spec, grammar, parse_spec
+from servoid.output_paths import output_file
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.excitation.design import Design
+    from servoid.excitation.report import ExcitationReport, Verdict
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+# The numerical libraries are imported inside the functions that run: `servoid excite --help` starts without them.
 
 ORDER = 5
 
@@ -109,6 +108,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out.add_argument("--plot", type=Path, default=Path("excitation.png"), metavar="FILE.png",
                      help="where to save the plot (default ./excitation.png)")  # fmt: skip
     out.add_argument("--no-plot", action="store_true", help="skip the plot")
+    out.add_argument("--force", action="store_true", help="replace --out and --plot if they exist (default: refuse)")
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
     p.set_defaults(handler=run)
 
@@ -123,6 +123,8 @@ def _consecutive(values: dict[str, float], prefix: str, first: int) -> list[floa
 
 def _prior_model(text: str) -> BacklashModel:
     """A model from ``a1=..,a2=..,b0=..,delay=1,m2=..,c1=..,c2=..``."""
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
     usage = "give --prior a1=..,b0=..,delay=1,m2=..,c1=..,c2=.. (a1.. and b0.. as many as the orders)"
     values: dict[str, float] = {}
     for item in filter(None, (part.strip() for part in text.split(","))):
@@ -147,6 +149,9 @@ def _prior_model(text: str) -> BacklashModel:
 
 def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
     """The model to report through and where it came from."""
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.modelfile import load_model
+
     if args.no_model:
         return None, "none"
     if args.model is not None:
@@ -157,6 +162,8 @@ def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
 
 
 def _design(args: argparse.Namespace) -> tuple[Design, str]:
+    from servoid.excitation.design import Prior, ServoLimits, design
+
     if args.spec is not None:
         raise ConfigError("give SPEC or --design, not both")
     if args.no_model:
@@ -164,7 +171,7 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
     if args.range is None:
         raise ConfigError("--design needs --range LO HI: the command range of the servo, unit of u")
     lo, hi = args.range
-    limits = ServoLimits(
+    servo = ServoLimits(
         position_min=lo, position_max=hi, max_step=args.max_step, sample_period_s=args.sample_period,
         settle_s=args.settle,
     )  # fmt: skip
@@ -180,7 +187,7 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
         model, source = _model(args)
         assert model is not None
         prior = Prior(model=model)
-    return design(prior, limits, seed=args.seed, samples=args.samples), source
+    return design(prior, servo, seed=args.seed, samples=args.samples), source
 
 
 def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: float | None) -> list[list[str]]:
@@ -219,14 +226,27 @@ def _report_rows(spec: SignalSpec, report: ExcitationReport, seed: int, period: 
 
 
 def _print_verdicts(verdicts: Sequence[Verdict]) -> None:
+    from rich.text import Text
+
     colour = {"ok": "green", "warning": "yellow", "insufficient": "red"}
     for v in verdicts:
-        _term.stdout.print(f"[{colour[v.level]}]{v.level:12s}[/{colour[v.level]}] {escape(v.message)}")
+        _term.stdout.print(Text.assemble((f"{v.level:12s}", colour[v.level]), " ", v.message))
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.samples is not None and args.samples < 1:
-        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    import numpy as np
+    from rich.text import Text
+
+    from servoid.excitation import sample
+    from servoid.excitation.report import assess, worst_level
+    from servoid.recording import write_recording
+
+    output_file(args.out, option="--out", force=args.force)
+    if not args.no_plot:
+        output_file(args.plot, option="--plot", force=args.force)
+    if args.samples is not None:
+        limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a signal's length")
+    limits.seed("--seed", args.seed)
     if args.sample_period is not None and not args.sample_period > 0:
         raise ConfigError(f"--sample-period (={args.sample_period}) must be > 0 seconds")
     proposal: Design | None = None
@@ -251,12 +271,14 @@ def run(args: argparse.Namespace) -> int:
     meta = {"servoid excitation": "", "spec": format_spec(spec), "seed": args.seed, "input_unit": args.unit}
     paths = {"signal": str(write_recording(args.out, columns, metadata=meta))}
     if not args.no_plot:
+        from servoid.plots import save
         from servoid.plots.excitation import plot_excitation
 
-        paths["plot"] = str(plot_excitation(
-            u, report, args.plot, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
+        fig = plot_excitation(
+            u, report, bounds=(spec.low, spec.high), sample_period_s=args.sample_period,
             input_unit="" if args.unit == "unit" else args.unit, title=spec.kind, level=worst_level(verdicts),
-        ))  # fmt: skip
+        )  # fmt: skip
+        paths["plot"] = str(save(fig, args.plot))
 
     if args.json:
         obj: dict[str, Any] = {
@@ -276,11 +298,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     out = _term.stdout
     if proposal is not None:
-        out.print(f"proposed: [bold]{escape(format_spec(spec))}[/bold]", soft_wrap=True)
+        out.print(Text.assemble("proposed: ", (format_spec(spec), "bold")), soft_wrap=True)
         for reason in proposal.reasons:
-            out.print(f"  - {escape(reason)}")
-    out.print(f"signal: {escape(format_spec(spec))}", soft_wrap=True)
-    out.print(f"through: {escape(model_source) if model is not None else 'no model (the signal alone)'}")
+            out.print(f"  - {reason}")
+    out.print(f"signal: {format_spec(spec)}", soft_wrap=True)
+    out.print(f"through: {model_source if model is not None else 'no model (the signal alone)'}")
     _term.table(
         f"servoid excite: {spec.kind}", ["quantity", "value"], _report_rows(spec, report, args.seed, args.sample_period)
     )

@@ -11,6 +11,7 @@ from servoid.export import FORMATS, export_model
 from servoid.export.c_header import DEFAULT_NAME
 from servoid.export.ros2_yaml import DEFAULT_NODE
 from servoid.modelfile import VERSION, load_model
+from servoid.output_paths import output_file
 
 ORDER = 20
 
@@ -64,6 +65,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL", help="a model.json written by servoid identify")
     p.add_argument("--format", "-f", required=True, choices=sorted(FORMATS), help="output format (see above)")
     p.add_argument("--out", "-o", type=Path, metavar="FILE", help="write here (default: stdout)")
+    p.add_argument("--force", action="store_true", help="replace --out if it exists (default: refuse)")
     p.add_argument("--band", type=float, metavar="B",
                    help="smoothing band of the inverse, output unit (default: the model file's)")  # fmt: skip
     p.add_argument("--name", metavar="NAME",
@@ -76,6 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None:
+        output_file(args.out, option="--out", force=args.force)
     content = load_model(args.model)
     if content.read_version is not None and content.read_version < VERSION and args.band is None:
         _term.warn(

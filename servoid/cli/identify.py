@@ -5,24 +5,20 @@ from __future__ import annotations
 import argparse
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from servoid.cli import _live, _term
+from servoid import limits
+from servoid.cli import _data, _live, _model, _term
 from servoid.errors import ConfigError
-from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
-from servoid.ident.identify import identify
-from servoid.ident.models.simulate import simulate
-from servoid.ident.online.mrgia import MRGIAConfig, noise_epsilon
-from servoid.ident.paper import (
-    PAPER_INPUT_AMPLITUDE,
-    PAPER_INPUT_VARIANCE,
-    PAPER_PLANT,
-    PAPER_RHO_EXPONENT,
-    RECOMMENDED_RHO_EXPONENT,
-)
-from servoid.identify_outputs import Record, result_json, summary_rows, twin_truth, write_outputs
-from servoid.recording import read_recording
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_INPUT_VARIANCE
+from servoid.output_paths import output_dir
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.online.mrgia import MRGIAConfig
+    from servoid.identify_outputs import Record
+
+# The numerical libraries are imported inside the functions that run: `servoid identify --help`
+# must start without them (benchmarks/startup.py).
 
 ORDER = 10
 
@@ -42,10 +38,14 @@ Where the record comes from:
                  b0 .8, d 1, m2 1.5, c1 .5, c2 1) driven by uniform bounded
                  white noise of variance {PAPER_INPUT_VARIANCE} (|u| <= {PAPER_INPUT_AMPLITUDE:.3f}),
                  or by --excitation SPEC (see `servoid excite --help`)
-  --data FILE    a CSV recording with a header row and columns u, y (and t in
-                 seconds, optional); lines starting with '#' are metadata
+{_data.formats_help("  --data FILE    a recording: ", 17)}
   --driver URL   a live servo (sim://: a twin, sim://model the model; serial://, can://, dxl://), excited at
                  --rate Hz; the recording is written as it is measured
+
+--excitation file:PATH[:COLUMN] replays a recorded input (a CSV column, u
+unless named, or a .mat variable) on the simulated or the live servo: the
+values are sent as they are, after a check that they are finite and, on a
+live servo, inside its limits; --samples takes the first N of them.
 
 Outputs in --out: recording.csv, model.json, convergence.png (each parameter
 against samples, true values dashed when known), fit.png (measured against
@@ -56,12 +56,14 @@ deviation of y (E|v| for Gaussian noise); for the simulated servo it is set
 from --snr automatically. Units: c1 and c2 come out in the unit of y.
 """
 
-EPILOG = """\
+EPILOG = f"""\
 examples:
   servoid identify
   servoid identify --snr 43 --samples 20000 --seed 3
   servoid identify --snr 43 --excitation prbs:amplitude=1.5,hold=3
   servoid identify --data bench.csv --na 2 --nb 1 --delay 2 --epsilon 0.004 --unit rad
+{_data.EXAMPLES.format(cmd="identify")}
+  servoid identify --excitation file:excitation.csv --snr 40    (replay a signal on the simulated servo)
   servoid identify --json --no-plots > result.json
   servoid identify --driver "sim://xm430?snr=40" --rate 500 --samples 5000
   servoid identify --driver "sim://model?clock=virtual" --rate 500   (the estimator's own plant)
@@ -75,10 +77,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
     src = p.add_argument_group("record")
-    src.add_argument("--data", metavar="FILE.csv", help="identify from this recording instead of the simulated servo")
-    src.add_argument(
-        "--samples", type=int, default=5000, metavar="N", help="samples of the simulated or live run (default 5000)"
-    )
+    src.add_argument("--data", metavar="FILE", type=Path,
+                     help="identify from this recording (CSV, .mat, ROS bag, BAM .json) instead of the simulated servo")  # fmt: skip
+    src.add_argument("--samples", type=int, metavar="N",
+                     help=f"samples of the simulated or live run (default {_live.DEFAULT_SAMPLES}, or a replayed file's length)")  # fmt: skip
     src.add_argument(
         "--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)"
     )
@@ -87,18 +89,16 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                           "(default: noise-free)")  # fmt: skip
     src.add_argument("--excitation", metavar="SPEC",
                      help="input of the simulated or live servo, e.g. prbs:amplitude=1.5,hold=3 or "
-                          "multisine:amplitude=2,bands=0.01-0.2 (default: the paper's uniform noise)")  # fmt: skip
+                          "multisine:amplitude=2,bands=0.01-0.2, or file:PATH[:COLUMN] to replay one "
+                          "(default: the paper's uniform noise)")  # fmt: skip
     src.add_argument("--unit", metavar="UNIT",
                      help="unit of y (rad, counts, mm, ...); default from the recording's '# unit:' line")  # fmt: skip
+    _data.add_options(p)
     _live.add_options(p)
     mdl = p.add_argument_group("model")
-    mdl.add_argument("--na", type=int, default=2, help="denominator order n_a >= 1 (default 2)")
-    mdl.add_argument("--nb", type=int, default=0, help="numerator order n_b >= 0 (default 0)")
-    mdl.add_argument("--delay", type=int, default=1, help="input delay d >= 1 in samples (default 1)")
+    _model.add_structure_options(mdl)
     est = p.add_argument_group("estimator")
-    est.add_argument("--rho-exponent", type=float, default=RECOMMENDED_RHO_EXPONENT, metavar="R",
-                     help=f"r in rho(k) = (k+1)^-r, in (0, 1]; the paper uses {PAPER_RHO_EXPONENT}, larger "
-                          f"values average noise better (default {RECOMMENDED_RHO_EXPONENT})")  # fmt: skip
+    _model.add_rho_option(est)
     est.add_argument("--epsilon", type=float, metavar="E",
                      help="noise threshold on |y(k) - y(k-1)| of eqs (37)-(38), unit of y "
                           "(default: from --snr for the simulated servo, else 0)")  # fmt: skip
@@ -117,6 +117,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
 
 
 def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
+    from servoid.ident.online.mrgia import MRGIAConfig
+
     return MRGIAConfig(
         na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent, epsilon=epsilon,
         project=not args.paper_algorithm, recover=not args.paper_algorithm,
@@ -124,22 +126,35 @@ def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
 
 
 def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
-    if args.samples < 1:
-        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    import numpy as np
+
+    from servoid.excitation import UniformSpec, format_spec, parse_spec, sample
+    from servoid.ident.models.simulate import simulate
+    from servoid.ident.online.mrgia import noise_epsilon
+    from servoid.ident.paper import PAPER_PLANT
+    from servoid.identify_outputs import Record
+    from servoid.readers.excitation_file import is_file_spec, read_excitation
+
     if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
         raise ConfigError(
             "the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
             "--na/--nb/--delay apply to --data recordings"
         )
-    spec = UniformSpec(amplitude=PAPER_INPUT_AMPLITUDE) if args.excitation is None else parse_spec(args.excitation)
-    u = sample(spec, args.samples, seed=args.seed)
+    if is_file_spec(args.excitation):
+        replay = read_excitation(args.excitation)
+        u = replay.first(args.samples)
+        described = replay.describe
+    else:
+        spec = UniformSpec(amplitude=PAPER_INPUT_AMPLITUDE) if args.excitation is None else parse_spec(args.excitation)
+        u = sample(spec, args.samples or _live.DEFAULT_SAMPLES, seed=args.seed)
+        described = format_spec(spec)
     # The noise continues default_rng(seed)'s stream after the input's draws, as
     # when the input was drawn here: the default run is unchanged.
     noise_bits = np.random.PCG64(args.seed)
-    noise_bits.advance(args.samples)
+    noise_bits.advance(u.size)
     sim = simulate(PAPER_PLANT, u, snr=args.snr, rng=np.random.Generator(noise_bits))
-    source = f"sim://paper?samples={args.samples}&seed={args.seed}" + (f"&snr={args.snr:g}" if args.snr else "")
-    source += f"&excitation={format_spec(spec)}"
+    source = f"sim://paper?samples={u.size}&seed={args.seed}" + (f"&snr={args.snr:g}" if args.snr else "")
+    source += f"&excitation={described}"
     record = Record(
         u=sim.u, y=sim.y, source=source, truth=PAPER_PLANT, output_unit=args.unit or "unit",
         input_unit="unit", extra={"y_clean": sim.y_clean},
@@ -149,9 +164,9 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 
 def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
-    rec = read_recording(args.data)
-    for note in rec.notes:
-        _term.warn(f"{args.data}: {note}")
+    from servoid.identify_outputs import Record
+
+    rec = _data.read(args.data, args)
     unit = args.unit or rec.metadata.get("unit", "unit")
     record = Record(
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
@@ -162,16 +177,40 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
 
 def get_record(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     """The record to identify and the estimator's settings (built once), from the command line."""
+    _check_sizes(args)
+    if args.data is None:
+        _refuse_reading_options(args)
     if args.driver is not None:
         return _live.live_record(args, lambda epsilon: _config(args, epsilon))
     if args.data is not None:
         if args.excitation is not None:
             raise ConfigError("--excitation drives the simulated servo; a --data recording already holds its input")
+        if args.samples is not None:
+            raise ConfigError("--samples sets the length of a simulated or live run; a --data recording has its own")
         return _from_file(args)
     return _simulated(args)
 
 
+def _refuse_reading_options(args: argparse.Namespace) -> None:
+    given = [f"--{name.replace('_', '-')}" for name in ("columns", "time_column", "time_unit", "topics")
+             if getattr(args, name) is not None]  # fmt: skip
+    if given:
+        raise ConfigError(f"{', '.join(given)} say(s) how to read a --data recording; there is none")
+
+
+def _check_sizes(args: argparse.Namespace) -> None:
+    """The record's length, the orders, the delay and the seed within servoid's limits, before any work."""
+    if args.samples is not None:
+        limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a record's length")
+    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    limits.seed("--seed", args.seed)
+
+
 def run(args: argparse.Namespace) -> int:
+    from servoid.ident.identify import identify
+    from servoid.identify_outputs import OUTPUT_FILES, result_json, summary_rows, twin_truth, write_outputs
+
+    output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(

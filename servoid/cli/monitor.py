@@ -8,21 +8,25 @@ import math
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from servoid import limits
 from servoid.cli import _live, _term
-from servoid.drivers import driver_from_url
-from servoid.drivers.base import Driver
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
-from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError
-from servoid.excitation import SignalSpec, UniformSpec, format_spec, parse_spec, stream
-from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.excitation.specs import SignalSpec, UniformSpec, format_spec, parse_spec
+from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
-from servoid.ident.monitoring.wear_estimator import DEFAULT_PROCESS_NOISE, WearEstimatorConfig
-from servoid.modelfile import ModelFile, load_model
-from servoid.monitor_run import EXIT_ALARM, MonitorConfig, MonitorProgress, MonitorResult, run_monitor
-from servoid.session import SessionConfig
+from servoid.monitor_config import EXIT_ALARM, MonitorConfig
+from servoid.output_paths import output_dir, output_file
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.drivers.base import Driver
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.modelfile import ModelFile
+    from servoid.monitor_run import MonitorProgress, MonitorResult
+
+# The drivers, the estimator and the loop are imported inside run(): `servoid monitor --help` starts without them.
 
 ORDER = 15
 
@@ -101,10 +105,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                             "the model's linear block holds at the rate it was identified at")  # fmt: skip
     servo.add_argument("--duration", type=float, metavar="S", help="run this many seconds (default: until Ctrl-C)")
     servo.add_argument("--guard", type=int, metavar="N",
-                       help="samples left out after each one that could not be used (late, missed, timed out): "
-                          "a device on its own clock applies a late command in a later sample and the next "
-                          "samples carry that error; default 0 for drivers whose protocol carries the slot "
-                          "(sim, serial, CiA 402), else 10")  # fmt: skip
+                       help="samples left out after one whose command the servo may have applied otherwise than "
+                            "recorded: a timed-out exchange (the command or its reply lost), and for a device on its "
+                            "own clock (Dynamixel, ODrive) a late or missed slot too (default 10)")  # fmt: skip
     servo.add_argument("--use-late", action="store_true", help="let the estimator use samples exchanged late")
     inp = p.add_argument_group("input")
     inp.add_argument("--operating", metavar="SPEC",
@@ -178,6 +181,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="relative change of c1 + c2 or m2 that writes new compensation parameters "
                           f"(default {MonitorConfig.compensation_step:g})")  # fmt: skip
     out.add_argument("--plot", type=Path, metavar="FILE.png", help="a live plot, redrawn every --plot-every s")
+    out.add_argument("--force", action="store_true", help="replace --plot if it exists (default: refuse)")
     out.add_argument(
         "--plot-every",
         type=float,
@@ -247,12 +251,16 @@ def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
 
 def _truth_at(driver: Driver) -> Callable[[int], BacklashModel] | None:
     """The true model by sample, for a simulated pseudo-Wiener plant (a twin has none: it is not such a model)."""
+    from servoid.drivers.simulated import SimulatedServo
+
     if isinstance(driver, SimulatedServo) and driver.truth is not None:
         return driver.truth_at  # type: ignore[return-value]  # not None for a model plant
     return None
 
 
 def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec | None, SignalSpec | None]:
+    from servoid.drivers.simulated import SimulatedServo
+
     operating = None if args.operating is None else parse_spec(args.operating)
     if args.excitation is not None:
         excitation: SignalSpec | None = parse_spec(args.excitation)
@@ -269,6 +277,8 @@ def commands(
     centre: float, operating: SignalSpec | None, excitation: SignalSpec | None, *, seed: int
 ) -> Iterator[float]:
     """The endless command: ``centre + operating(k) + excitation(k)`` (each seeded, the second with ``seed + 1``)."""
+    from servoid.excitation import stream
+
     parts: list[Iterator[float]] = [itertools.repeat(centre)]
     if operating is not None:
         parts.append(stream(operating, seed=seed))
@@ -290,6 +300,18 @@ def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, 
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.drivers import driver_from_url
+    from servoid.ident.monitoring.wear_estimator import WearEstimatorConfig
+    from servoid.modelfile import load_model
+    from servoid.monitor_run import run_monitor
+    from servoid.session import SessionConfig
+
+    if args.duration is not None:
+        limits.bounded_real("--duration", args.duration, limit=limits.MAX_DURATION_S)
+    limits.seed("--seed", args.seed)
+    output_dir(args.out, option="--out")
+    if args.plot is not None:
+        output_file(args.plot, option="--plot", force=args.force)
     model_file = load_model(args.model)
     if model_file.effects:
         _term.warn(f"{args.model} has model extensions ({', '.join(model_file.effect_names())}); "

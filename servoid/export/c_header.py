@@ -5,9 +5,14 @@ Rendered from the package template ``templates/backlash_compensator.h``: a
 block as ``NAME_a`` / ``NAME_b`` / ``NAME_DELAY``, units and standard errors
 in comments, and ``static inline`` functions that mirror
 :class:`servoid.ident.control.compensate.BacklashInverse` operation for operation.
-It compiles cleanly with ``gcc -std=c99 -Wall -Wextra -Werror``. Several
-headers (one per axis, different ``--name``) can be included together: the
-types and functions are guarded once, the parameters per name.
+It compiles cleanly with ``gcc -std=c99 -Wall -Wextra -Werror``, whatever
+the model file's strings hold: they go into comments on one line, with no
+``*/``, no trigraph (``??/`` would splice lines) and every bidirectional or
+control character shown as ``<U+202E>`` (:mod:`servoid.export._text`).
+The name (``--name``) must be a C identifier that is no C keyword (C99 to
+C23) and none of the header's own names, at most :data:`MAX_NAME` long.
+Several headers (one per axis, different ``--name``) can be included
+together: the types and functions are guarded once, the parameters per name.
 """
 
 from __future__ import annotations
@@ -16,13 +21,16 @@ import re
 from collections.abc import Iterable
 from importlib import resources
 from string import Template
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from servoid import __version__
 from servoid.errors import ConfigError
-from servoid.modelfile import ModelFile
+from servoid.export._text import one_line
 
-__all__ = ["SUMMARY", "OPTIONS", "DEFAULT_NAME", "render"]
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.modelfile import ModelFile
+
+__all__ = ["SUMMARY", "OPTIONS", "DEFAULT_NAME", "MAX_NAME", "C_KEYWORDS", "render", "check_name", "header_names"]
 
 SUMMARY = "a C99 header for firmware: static const parameters and an inline backlash inverse"
 OPTIONS = ("name", "source_name")
@@ -30,10 +38,54 @@ DEFAULT_NAME = "servoid_axis"
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
+#: Longest name: the longest name derived from it (``NAME_BACKLASH_PARAMS_H``) stays within the
+#: 63 significant characters C99 promises for identifiers and macros.
+MAX_NAME = 40
+
+#: Keywords of C99, C11 and C23 (a header compiled as any of them).
+C_KEYWORDS = frozenset(
+    "auto break case char const continue default do double else enum extern float for goto if inline int long "
+    "register restrict return short signed sizeof static struct switch typedef union unsigned void volatile while "
+    "_Bool _Complex _Imaginary _Alignas _Alignof _Atomic _Generic _Noreturn _Static_assert _Thread_local "
+    "alignas alignof bool constexpr false nullptr static_assert thread_local true typeof typeof_unqual _BitInt "
+    "_Decimal32 _Decimal64 _Decimal128".split()
+)
+
+
+def _template_text() -> str:
+    return resources.files("servoid.export.templates").joinpath("backlash_compensator.h").read_text(encoding="utf-8")
+
 
 def _template() -> Template:
-    text = resources.files("servoid.export.templates").joinpath("backlash_compensator.h").read_text(encoding="utf-8")
-    return Template(text)
+    return Template(_template_text())
+
+
+def header_names() -> frozenset[str]:
+    """The identifiers the header's code uses itself (types, functions, parameters, macros), comments left out."""
+    code = re.sub(r"/\*.*?\*/", " ", _template_text(), flags=re.DOTALL)
+    code = re.sub(r"\$\{\w+\}\w*", " ", code)  # NAME_a, MACRO_NA: made from the name
+    return frozenset(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", code)) - {"ifndef", "define", "endif"}
+
+
+def check_name(name: str) -> str:
+    """``name`` if it can name the parameters in the header, else a :class:`ConfigError` saying why.
+
+    Parameters
+    ----------
+    name : str
+        The C identifier asked for (``--name``).
+    """
+    if not isinstance(name, str) or not _IDENTIFIER.match(name):
+        raise ConfigError(f"name (={name!r}) must be a C identifier: a letter or _, then letters, digits or _")
+    if len(name) > MAX_NAME:
+        raise ConfigError(f"name (={name!r}) must be at most {MAX_NAME} characters long")
+    if name in C_KEYWORDS:
+        raise ConfigError(f"name (={name!r}) is a C keyword; choose another, e.g. {name}_axis")
+    if name in header_names():
+        raise ConfigError(f"name (={name!r}) is a name the header itself uses; choose another, e.g. {name}_axis")
+    if name.startswith("__") or (name[0] == "_" and len(name) > 1 and name[1].isupper()):
+        raise ConfigError(f"name (={name!r}) is reserved to the C implementation (_X..., __...); choose another")
+    return name
 
 
 def _number(value: float) -> str:
@@ -43,8 +95,8 @@ def _number(value: float) -> str:
 
 
 def _comment(text: Any) -> str:
-    """``text`` made safe inside a C block comment: one line, no ``*/``, no trigraph."""
-    flat = " ".join(str(text).split())
+    """``text`` made safe inside a C block comment: one line, controls shown, no ``*/``, no trigraph."""
+    flat = one_line(text)
     return flat.replace("*/", "* /").replace("/*", "/ *").replace("??", "? ?")
 
 
@@ -70,10 +122,9 @@ def render(content: ModelFile, *, name: str = DEFAULT_NAME, source_name: str = "
     Raises
     ------
     ConfigError
-        If ``name`` is not a C identifier.
+        If ``name`` cannot name the parameters (:func:`check_name`).
     """
-    if not _IDENTIFIER.match(name):
-        raise ConfigError(f"name (={name!r}) must be a C identifier: a letter or _, then letters, digits or _")
+    check_name(name)
     model = content.model
     macro = name.upper()
     period = content.sample_period_s

@@ -7,7 +7,11 @@ else, ``effects`` and unknown keys included, is carried over unchanged.
 
 from __future__ import annotations
 
-from servoid.modelfile import ModelFile
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.modelfile import ModelFile
+
 
 __all__ = ["SUMMARY", "OPTIONS", "render"]
 

@@ -1,4 +1,11 @@
-"""What every plotting module shares: matplotlib on the Agg backend, and saving."""
+"""What every plotting module shares: a new figure that touches no backend, and saving it.
+
+Figures are :class:`matplotlib.figure.Figure` objects made without pyplot, so
+drawing one neither picks nor switches matplotlib's backend: a notebook keeps
+its inline (or widget) backend, a server or the command line needs no screen,
+and nothing is left open in pyplot's list of figures. In a notebook a returned
+figure shows as the cell's value; :func:`save` (or ``fig.savefig``) writes it.
+"""
 
 from __future__ import annotations
 
@@ -9,23 +16,33 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
-__all__ = ["pyplot", "save"]
+__all__ = ["figure", "save"]
 
 
-def pyplot() -> Any:
-    """``matplotlib.pyplot`` on the Agg backend (works without a screen), imported on first use."""
-    import matplotlib
+def figure(**kwargs: Any) -> Figure:
+    """A new figure, not managed by pyplot (matplotlib imported on first use).
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`matplotlib.figure.Figure` (``figsize=(8, 6)``).
+    """
+    from matplotlib.figure import Figure
 
-    return plt
+    return Figure(**kwargs)
 
 
 def save(fig: Figure, path: str | os.PathLike[str]) -> Path:
-    """Write ``fig`` as PNG (parent folders created), close it, return the path."""
+    """Write ``fig`` as PNG (parent folders created) and return the path.
+
+    Parameters
+    ----------
+    fig : Figure
+        The figure.
+    path : path-like
+        Where to write it.
+    """
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(p, dpi=110, bbox_inches="tight")
-    pyplot().close(fig)
     return p

@@ -2,30 +2,31 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.ident.control.compensation_study import ARMS, CompensationStudy
-from servoid.plots._base import pyplot as _pyplot
-from servoid.plots._base import save as _save
+from servoid.plots._base import figure as _figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_tracking", "plot_robustness"]
 
 _COLOURS = {"uncompensated": "tab:red", "naive": "tab:orange", "compensated": "tab:blue"}
 
 
-def plot_tracking(study: CompensationStudy, path: str | os.PathLike[str], *, output_unit: str = "") -> Path:
+def plot_tracking(study: CompensationStudy, *, output_unit: str = "") -> Figure:
     """One column per reference path: the output with and without the inverse, and the errors.
 
     Top row: the reference (dashed) and the servo's output, uncompensated and
     with the smoothed inverse. Bottom row: the tracking errors ``r - y`` of
     all three arms (the naive inverse too), with the encoder step shaded.
     """
-    plt = _pyplot()
     cols = len(study.comparisons)
-    fig, axes = plt.subplots(2, cols, figsize=(3.6 * cols, 5.6), sharex="col", squeeze=False)
+    fig = _figure(figsize=(3.6 * cols, 5.6))
+    axes = fig.subplots(2, cols, sharex="col", squeeze=False)
     unit = f" [{output_unit}]" if output_unit else ""
     for j, comp in enumerate(study.comparisons):
         top, bottom = axes[0, j], axes[1, j]
@@ -54,22 +55,22 @@ def plot_tracking(study: CompensationStudy, path: str | os.PathLike[str], *, out
         fontsize=10,
     )
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def plot_robustness(study: CompensationStudy, path: str | os.PathLike[str], *, output_unit: str = "") -> Path:
+def plot_robustness(study: CompensationStudy, *, output_unit: str = "") -> Figure:
     """RMS error and motor travel of each arm, nominal and with the controller's model perturbed.
 
     Bars on a log scale, one group per model; the dotted line is the RMS of
     the encoder's quantisation (what the servo cannot resolve).
     """
-    plt = _pyplot()
     rows = [("nominal", {arm: study.summary(arm) for arm in ARMS})]
     rows += [(p.label, p.summaries) for p in study.perturbations if p.summaries]
     labels = [label for label, _ in rows]
     x = np.arange(len(rows))
     width = 0.27
-    fig, (ax_rms, ax_travel) = plt.subplots(2, 1, figsize=(max(8.0, 1.1 * len(rows)), 6.4), sharex=True)
+    fig = _figure(figsize=(max(8.0, 1.1 * len(rows)), 6.4))
+    ax_rms, ax_travel = fig.subplots(2, 1, sharex=True)
     for i, arm in enumerate(ARMS):
         rms = [s[arm].rms_error for _, s in rows]
         travel = [s[arm].motor_travel for _, s in rows]
@@ -89,4 +90,4 @@ def plot_robustness(study: CompensationStudy, path: str | os.PathLike[str], *, o
         ax.grid(alpha=0.3, axis="y", which="both")
     fig.suptitle("Robustness: the controller's model perturbed, the simulated servo unchanged")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import os
 import textwrap
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.ident.diagnosis.diagnose import Diagnosis
 from servoid.ident.diagnosis.residuals import GROUPS
-from servoid.plots._base import pyplot as _pyplot
-from servoid.plots._base import save as _save
+from servoid.plots._base import figure as _figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_diagnosis_fit", "plot_regimes", "plot_residual_tests", "plot_candidates"]
 
@@ -25,18 +26,16 @@ def _labels(diagnosis: Diagnosis) -> tuple[str, str]:
 def plot_diagnosis_fit(
     diagnosis: Diagnosis,
     y: np.ndarray,
-    path: str | os.PathLike[str],
     *,
     t: np.ndarray | None = None,
     window: int = 400,
     output_unit: str = "",
-) -> Path:
+) -> Figure:
     """Validation record: measured against both models (a window), and the residual of each over the record.
 
     The window is placed where the base model's error is largest, so the
     plot shows what the added effect fixes.
     """
-    plt = _pyplot()
     y_arr = np.asarray(y, dtype=float)
     n = y_arr.size
     axis = np.arange(n) if t is None else np.asarray(t, dtype=float)
@@ -50,7 +49,8 @@ def plot_diagnosis_fit(
     lo = int(np.argmax(energy)) if energy.size else 0
     sl = slice(lo, lo + w)
     lab_b, lab_a = _labels(diagnosis)
-    fig, axes = plt.subplots(3, 1, figsize=(10, 8))
+    fig = _figure(figsize=(10, 8))
+    axes = fig.subplots(3, 1)
     ax = axes[0]
     ax.plot(axis[sl], y_arr[sl], color="k", lw=1.4, label="measured")
     ax.plot(axis[sl], before[sl], color="tab:orange", lw=1.0, label=lab_b)
@@ -76,13 +76,13 @@ def plot_diagnosis_fit(
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def plot_regimes(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
+def plot_regimes(diagnosis: Diagnosis) -> Figure:
     """Where the error lies: for each regime, its share of the samples and of the error energy, before and after."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 3, figsize=(13, 8.5))
+    fig = _figure(figsize=(13, 8.5))
+    axes = fig.subplots(2, 3)
     flat = axes.ravel()
     for ax, group in zip(flat, GROUPS):
         before = diagnosis.breakdown_before.group(group)
@@ -116,13 +116,13 @@ def plot_regimes(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
     text.text(0.0, 1.0, "\n".join(notes), va="top", fontsize=8.5, family="monospace")
     fig.suptitle("share of the samples and of the error energy, by regime", fontsize=11)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def plot_residual_tests(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
+def plot_residual_tests(diagnosis: Diagnosis) -> Figure:
     """``resid``-style checks: residual autocorrelation and cross-correlation with past inputs, with the band."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    fig = _figure(figsize=(9, 6))
+    axes = fig.subplots(2, 1, sharex=True)
     for ax, attr, title in ((axes[0], "autocorrelation", "residual autocorrelation"),
                             (axes[1], "cross_correlation", "cross-correlation of the residual with u(k - lag)")):  # fmt: skip
         for tests, colour, label, shift in ((diagnosis.resid_before, "tab:orange", "before", -0.15),
@@ -140,14 +140,14 @@ def plot_residual_tests(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> P
         ax.legend(fontsize=8)
     axes[1].set_xlabel("lag [samples]")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def plot_candidates(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
+def plot_candidates(diagnosis: Diagnosis) -> Figure:
     """Validation gap of each candidate of each round, and the score threshold that ``none`` sets."""
-    plt = _pyplot()
     rounds = diagnosis.rounds
-    fig, axes = plt.subplots(1, len(rounds), figsize=(5.5 * len(rounds), 3.8), squeeze=False)
+    fig = _figure(figsize=(5.5 * len(rounds), 3.8))
+    axes = fig.subplots(1, len(rounds), squeeze=False)
     for i, (ax, rnd) in enumerate(zip(axes[0], rounds)):
         names = [c.effect for c in rnd.candidates]
         gaps = [c.gap for c in rnd.candidates]
@@ -164,4 +164,4 @@ def plot_candidates(diagnosis: Diagnosis, path: str | os.PathLike[str]) -> Path:
         ax.grid(alpha=0.3, axis="x", which="both")
         ax.legend(fontsize=7)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

@@ -2,16 +2,17 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Sequence
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.excitation.report import ExcitationReport
 from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP
-from servoid.plots._base import pyplot as _pyplot
-from servoid.plots._base import save as _save
+from servoid.plots._base import figure as _figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_excitation"]
 
@@ -25,7 +26,6 @@ _ZONES = (
 def plot_excitation(
     u: Sequence[float] | np.ndarray,
     report: ExcitationReport,
-    path: str | os.PathLike[str],
     *,
     bounds: tuple[float, float] | None = None,
     sample_period_s: float | None = None,
@@ -33,7 +33,7 @@ def plot_excitation(
     input_unit: str = "",
     title: str = "Excitation",
     level: str | None = None,
-) -> Path:
+) -> Figure:
     """Time series, amplitude histogram and zone occupancy of an input.
 
     Parameters
@@ -43,8 +43,6 @@ def plot_excitation(
     report : ExcitationReport
         Its report; when it ran the input through a model, the model's ``x``
         and ``y`` are drawn too, coloured by zone, with the zone shares.
-    path : path-like
-        Where to write the PNG.
     bounds : (low, high), optional
         The amplitude bound, drawn as dashed lines.
     sample_period_s : float, optional
@@ -59,7 +57,6 @@ def plot_excitation(
         That verdict, when it is not the report's own (a design judges only
         the verdicts that apply to its prior).
     """
-    plt = _pyplot()
     u_arr = np.asarray(u, dtype=float)
     n = min(window, u_arr.size)
     axis = np.arange(n) * (sample_period_s or 1.0)
@@ -67,7 +64,7 @@ def plot_excitation(
     unit = f" [{input_unit}]" if input_unit else ""
     tm = report.through_model
     rows = 3 if tm is not None else 2
-    fig = plt.figure(figsize=(10, 2.7 * rows))
+    fig = _figure(figsize=(10, 2.7 * rows))
     grid = fig.add_gridspec(rows, 2)
     ax = fig.add_subplot(grid[0, :])
     ax.step(axis, u_arr[:n], where="post", color="tab:green", lw=1.0)
@@ -117,4 +114,4 @@ def plot_excitation(
         ax.grid(alpha=0.3, which="both")
     fig.suptitle(f"{title}: {level or report.level}")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

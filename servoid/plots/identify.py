@@ -2,42 +2,42 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Mapping, Sequence
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIAResult
-from servoid.plots._base import pyplot as _pyplot
-from servoid.plots._base import save as _save
+from servoid.plots._base import figure as _figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_convergence", "plot_fit", "plot_backlash"]
 
 
 def plot_convergence(
     online: MRGIAResult,
-    path: str | os.PathLike[str],
     *,
     truth: BacklashModel | None = None,
     refined: BacklashModel | None = None,
     title: str = "MRGIA parameter estimates",
-) -> Path:
+) -> Figure:
     """Each parameter estimate against samples, like the paper's Figs 3 and 4.
 
     True values are dashed where known, the refined values dotted, and
     recoveries from a stuck zone classification marked by grey lines. With a
     known truth, a last panel shows the maximum relative error on a log scale.
     """
-    plt = _pyplot()
     names = online.names
     values = online.values_history()
     k = online.history_samples
     panels = len(names) + (1 if truth is not None else 0)
     cols = 3
     rows = int(np.ceil(panels / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.0 * cols, 2.6 * rows), sharex=True, squeeze=False)
+    fig = _figure(figsize=(4.0 * cols, 2.6 * rows))
+    axes = fig.subplots(rows, cols, sharex=True, squeeze=False)
     flat = axes.ravel()
     true_vals = truth.values() if truth is not None else None
     ref_vals = refined.values() if refined is not None else None
@@ -74,27 +74,25 @@ def plot_convergence(
         title += f"  ({len(online.recoveries)} recovery(ies), grey lines)"
     fig.suptitle(title)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 def plot_fit(
     y: Sequence[float] | np.ndarray,
     simulated: Mapping[str, np.ndarray],
-    path: str | os.PathLike[str],
     *,
     u: Sequence[float] | np.ndarray | None = None,
     t: Sequence[float] | np.ndarray | None = None,
     window: int = 400,
     output_unit: str = "",
     title: str = "Measured and simulated output (free run)",
-) -> Path:
+) -> Figure:
     """Measured output against free-run simulations, with residuals.
 
     Top: the last ``window`` samples, measured and each simulated output.
     Middle: the residual ``y - y_hat`` of each model over the whole record.
     Bottom (if ``u`` is given): the input over the same window as the top.
     """
-    plt = _pyplot()
     y_arr = np.asarray(y, dtype=float)
     n = y_arr.size
     axis = np.arange(n) if t is None else np.asarray(t, dtype=float)
@@ -102,7 +100,8 @@ def plot_fit(
     unit = f" [{output_unit}]" if output_unit else ""
     lo = max(0, n - window)
     panels = 3 if u is not None else 2
-    fig, axes = plt.subplots(panels, 1, figsize=(10, 2.6 * panels), squeeze=False)
+    fig = _figure(figsize=(10, 2.6 * panels))
+    axes = fig.subplots(panels, 1, squeeze=False)
     ax = axes[0, 0]
     ax.plot(axis[lo:], y_arr[lo:], color="k", lw=1.4, label="measured")
     for label, y_hat in simulated.items():
@@ -126,26 +125,25 @@ def plot_fit(
         ax.set_xlabel(xlabel)
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 def plot_backlash(
     model: BacklashModel,
     x: np.ndarray,
     y: np.ndarray,
-    path: str | os.PathLike[str],
     *,
     output_unit: str = "",
     truth: BacklashModel | None = None,
     title: str = "Identified backlash",
-) -> Path:
+) -> Figure:
     """The backlash characteristic: up and down lines of ``model`` and the path ``(x, y)``.
 
     ``x`` is the output of the model's linear block (it cannot be measured, so
     it comes from the model's free run) and ``y`` the measured output.
     """
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 5.5))
+    fig = _figure(figsize=(6.5, 5.5))
+    ax = fig.subplots()
     ax.plot(x, y, ".", ms=2, color="0.55", alpha=0.5, label="(x-hat, measured y)")
     xs = np.linspace(float(np.min(x)), float(np.max(x)), 200)
     ax.plot(xs, xs - model.c1, color="tab:red", lw=1.6, label=f"up line  y = x - {model.c1:.4g}")
@@ -165,4 +163,4 @@ def plot_backlash(
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8, loc="upper left")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

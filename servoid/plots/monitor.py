@@ -16,13 +16,16 @@ import select
 import struct
 import subprocess
 import sys
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid.monitor_history import HISTORY_COLUMNS, HistorySnapshot
-from servoid.plots._base import pyplot as _pyplot
-from servoid.plots._base import save as _save
+from servoid.plots._base import figure as _figure
+from servoid.plots._base import save
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
 
 __all__ = ["plot_monitor", "LivePlot"]
 
@@ -30,14 +33,14 @@ _PANELS = (("dead_zone", "dead zone c1 + c2", "true_dead_zone"), ("m2", "down-li
            ("fit", "fit (free-run NRMSE)", None))  # fmt: skip
 
 
-def plot_monitor(history: HistorySnapshot, path: str | os.PathLike[str]) -> Path:
+def plot_monitor(history: HistorySnapshot) -> Figure:
     """Three panels against time: ``c1 + c2`` and ``m2`` with a band of two standard deviations, and the fit.
 
     Bounds are dashed red lines, alarms shaded from the first check that
     decided them to their clearing; true values (a simulated servo) dashed black.
     """
-    plt = _pyplot()
-    fig, axes = plt.subplots(3, 1, figsize=(8.0, 7.0), sharex=True)
+    fig = _figure(figsize=(8.0, 7.0))
+    axes = fig.subplots(3, 1, sharex=True)
     t = history.column("t")
     rows = history.rows
     unit = f" [{history.unit}]" if history.unit and history.unit != "unit" else ""
@@ -69,7 +72,7 @@ def plot_monitor(history: HistorySnapshot, path: str | os.PathLike[str]) -> Path
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"servoid monitor: {history.source}", fontsize=10)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
 def _quantity_of(history: HistorySnapshot, label: str) -> str:
@@ -157,7 +160,7 @@ def _draw_forever(path: str) -> None:
         size = struct.unpack("<Q", head)[0]
         if size == 0:
             return
-        plot_monitor(pickle.loads(inbox.read(size)), path)
+        save(plot_monitor(pickle.loads(inbox.read(size))), path)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@
 
 from servoid.session.listeners import CallbackListener, EstimatorFeed, RecordingListener, SampleListener
 from servoid.session.sampler import SessionConfig, SessionProgress, SessionResult, run_session
-from servoid.session.samples import COLUMNS, DEFAULT_GUARD_SAMPLES, Sample, Status, UsableRule, usable
+from servoid.session.samples import COLUMNS, DEFAULT_GUARD_SAMPLES, Sample, Status, UsableRule, guard_after, usable
 
 __all__ = [
     "Status",
@@ -18,6 +18,7 @@ __all__ = [
     "run_session",
     "usable",
     "UsableRule",
+    "guard_after",
     "DEFAULT_GUARD_SAMPLES",
     "COLUMNS",
     "SampleListener",

@@ -74,6 +74,7 @@ from servoid.session.listeners import CallbackListener, EstimatorFeed, Recording
 from servoid.session.samples import (
     COLUMNS,
     DEFAULT_GUARD_SAMPLES,
+    GUARD_AFTER_ANY,
     LATE,
     MISSED,
     OK,
@@ -81,7 +82,7 @@ from servoid.session.samples import (
     TIMEOUT,
     Sample,
     UsableRule,
-    usable,
+    guard_after,
 )
 
 __all__ = ["SessionConfig", "SessionProgress", "SessionResult", "run_session"]
@@ -104,9 +105,12 @@ class SessionConfig:
         Let the estimator use late samples (default: treat them as lost).
     guard_samples : int, optional
         Samples to leave out after each one that could not be used
-        (:class:`UsableRule`); default, by the driver: 0 for one whose protocol
-        carries the slot (``Driver.carries_slots``), else
-        :data:`DEFAULT_GUARD_SAMPLES`. :meth:`resolved` fills it in.
+        (:class:`UsableRule`); default :data:`DEFAULT_GUARD_SAMPLES`.
+    guard_after : sequence of str, optional
+        The statuses that open the guard window; default by the driver
+        (:func:`~servoid.session.samples.guard_after`): timeouts only for one
+        whose protocol carries the slot (``Driver.carries_slots``), every
+        unusable status else. :meth:`resolved` fills both in.
     give_up_after_s : float
         Stop with :class:`~servoid.errors.DriverTimeout` when no reply came
         for this long (a servo that stopped answering).
@@ -118,6 +122,7 @@ class SessionConfig:
     late_tolerance_s: float | None = None
     use_late: bool = False
     guard_samples: int | None = None
+    guard_after: tuple[str, ...] | None = None
     give_up_after_s: float = 1.0
     progress_every_s: float = 0.25
 
@@ -138,15 +143,15 @@ class SessionConfig:
         validation.positive("progress_every_s", self.progress_every_s)
 
     def resolved(self, driver: Driver) -> SessionConfig:
-        """This configuration with ``guard_samples`` decided for ``driver``."""
-        if self.guard_samples is not None:
-            return self
-        guard = 0 if driver.carries_slots else DEFAULT_GUARD_SAMPLES
-        return dataclasses.replace(self, guard_samples=guard)
+        """This configuration with ``guard_samples`` and ``guard_after`` decided for ``driver``."""
+        guard = DEFAULT_GUARD_SAMPLES if self.guard_samples is None else self.guard_samples
+        after = guard_after(driver.carries_slots) if self.guard_after is None else tuple(self.guard_after)
+        return dataclasses.replace(self, guard_samples=guard, guard_after=after)
 
     def usable_rule(self) -> UsableRule:
         """A fresh :class:`UsableRule` for this configuration (resolve it first)."""
-        return UsableRule(use_late=self.use_late, guard=self.guard_samples or 0)
+        after = GUARD_AFTER_ANY if self.guard_after is None else self.guard_after
+        return UsableRule(use_late=self.use_late, guard=self.guard_samples or 0, after=after)
 
     @property
     def rate_hz(self) -> float:
@@ -268,7 +273,7 @@ class SessionResult:
         """The samples an estimator may use: the verdicts the listeners got (:class:`UsableRule`)."""
         if self.usable_flags is not None:
             return self.usable_flags
-        return usable(self.status, use_late=self.config.use_late, guard=self.config.guard_samples or 0)
+        return self.config.usable_rule().mask(self.status)
 
     @property
     def counts(self) -> dict[str, int]:
@@ -303,6 +308,7 @@ class SessionResult:
             "exchange_p99_s": float(np.percentile(exchange, 99)) if exchange.size else None,
             "frames_rejected": stats.rejected,
             "replies_stale": stats.stale,
+            "commands_unconfirmed": stats.unconfirmed,
             "commands_clamped": stats.clamped,
             "stopped": self.stopped,
             "estimator_error": self.estimator_error,
@@ -403,6 +409,7 @@ def run_session(
             "late_tolerance_s": repr(config.late_tolerance_s),
             "use_late": str(config.use_late),
             "guard_samples": str(config.guard_samples),
+            "guard_after": ",".join(config.guard_after or GUARD_AFTER_ANY),
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             **(metadata or {}),
         }

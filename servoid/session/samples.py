@@ -16,9 +16,10 @@ from typing import Any
 import numpy as np
 
 from servoid import validation
+from servoid.errors import ConfigError
 
 __all__ = ["Status", "OK", "LATE", "MISSED", "TIMEOUT", "Sample", "COLUMNS", "UsableRule", "usable",
-           "DEFAULT_GUARD_SAMPLES"]  # fmt: skip
+           "DEFAULT_GUARD_SAMPLES", "GUARD_AFTER_ANY", "GUARD_AFTER_TIMEOUT", "guard_after"]  # fmt: skip
 
 
 class Status(str, enum.Enum):
@@ -94,23 +95,47 @@ class Sample:
                 self.device_time, self.exchange_s, int(self.clamped))  # fmt: skip
 
 
-#: Guard window, in samples, after a sample that could not be used, for drivers
-#: whose device runs on its own clock (``Driver.carries_slots`` False). Measured
-#: on the emulated ODrive at 500 Hz, 2000 samples, six runs: a run with 5 late
-#: and 6 missed slots identified to 1.3e-2 with no guard, 1.4e-4 with 5,
-#: 1.3e-5 with 10 and 1.9e-8 with 20 samples; runs without late slots were
-#: unaffected (1e-8 throughout).
+#: Guard window, in samples, after a sample whose command the servo may not
+#: have applied as the recording says (:func:`guard_after`). Measured on the
+#: emulated ODrive at 500 Hz, 2000 samples, six runs: a run with 5 late and 6
+#: missed slots identified to 1.3e-2 with no guard, 1.4e-4 with 5, 1.3e-5 with
+#: 10 and 1.9e-8 with 20 samples; runs without late slots were unaffected (1e-8
+#: throughout). On the serial firmware with 0.5 % of the set points corrupted
+#: on the way (lost, unanswered): 3.6e-2 without a guard after timeouts,
+#: benchmarks/corrupted_commands.py gives the number with it.
 DEFAULT_GUARD_SAMPLES = 10
+
+#: The guard follows every unusable sample: for a device on its own clock, a
+#: late or skipped command lands in another sample than the recording says.
+GUARD_AFTER_ANY: tuple[str, ...] = (LATE, MISSED, TIMEOUT)
+#: The guard follows timed-out samples only: for a device told each command's
+#: slot, late and skipped slots land where the recording says; but whether a
+#: command without an (intact) acknowledgement was applied is unknown on
+#: every transport -- the reply or the request may have been lost.
+GUARD_AFTER_TIMEOUT: tuple[str, ...] = (TIMEOUT,)
+
+
+def guard_after(carries_slots: bool) -> tuple[str, ...]:
+    """The statuses that open a guard window, for a driver that does (or does not) carry the slot.
+
+    Parameters
+    ----------
+    carries_slots : bool
+        ``Driver.carries_slots`` of the driver.
+    """
+    return GUARD_AFTER_TIMEOUT if carries_slots else GUARD_AFTER_ANY
 
 
 class UsableRule:
     """Which samples an estimator may use; one place for the rule, applied in order.
 
     A sample is usable when its status is ``ok`` (or ``late`` with
-    ``use_late``) and it is not within ``guard`` samples after one that was
-    not. The guard is for devices on their own clock: a command that reached
-    such a device late was applied in another sample than the recording says,
-    and the following samples carry that error until the plant forgets it.
+    ``use_late``) and it is not within ``guard`` samples after an unusable one
+    whose status is in ``after``. The guard covers a command the servo may
+    have applied otherwise than the recording says: one that reached a device
+    on its own clock late (applied in another sample), or one whose
+    acknowledgement never came or came corrupted (lost on the way, or not);
+    the samples that follow carry that error until the plant forgets it.
 
     Parameters
     ----------
@@ -118,25 +143,43 @@ class UsableRule:
         Count late samples as usable.
     guard : int
         Samples to leave out after every unusable one (0: none).
+    after : sequence of str
+        The statuses that open a guard window (:func:`guard_after`; default all).
     """
 
-    def __init__(self, *, use_late: bool = False, guard: int = 0) -> None:
+    def __init__(self, *, use_late: bool = False, guard: int = 0, after: Iterable[str] = GUARD_AFTER_ANY) -> None:
         self.use_late = use_late
         self.guard = validation.integer("guard", guard, minimum=0)
+        self.after = frozenset(after)
+        unknown = self.after - set(STATUSES)
+        if unknown:
+            raise ConfigError(f"after (={sorted(unknown)}) must hold statuses among {', '.join(STATUSES)}")
         self._left = 0
 
     def __call__(self, status: str) -> bool:
         """Whether the next sample, of this status, is usable."""
         if not (status == OK or (self.use_late and status == LATE)):
-            self._left = self.guard
+            if status in self.after:
+                self._left = self.guard
             return False
         if self._left > 0:
             self._left -= 1
             return False
         return True
 
+    def mask(self, statuses: Iterable[str]) -> np.ndarray:
+        """The verdicts on ``statuses`` in order, as a boolean array (the rule's state moves on).
 
-def usable(status: Iterable[str], *, use_late: bool = False, guard: int = 0) -> np.ndarray:
-    """Mask of the samples an estimator may use, by :class:`UsableRule`."""
-    rule = UsableRule(use_late=use_late, guard=guard)
-    return np.array([rule(str(s)) for s in status], dtype=np.bool_)
+        Parameters
+        ----------
+        statuses : iterable of str
+            One status per sample.
+        """
+        return np.array([self(str(s)) for s in statuses], dtype=np.bool_)
+
+
+def usable(
+    status: Iterable[str], *, use_late: bool = False, guard: int = 0, after: Iterable[str] = GUARD_AFTER_ANY
+) -> np.ndarray:
+    """Mask of the samples an estimator may use, by :class:`UsableRule` (same parameters)."""
+    return UsableRule(use_late=use_late, guard=guard, after=after).mask(status)

@@ -131,7 +131,7 @@ def test_a_missing_vendor_library_names_the_package(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     monkeypatch.setitem(__import__("sys").modules, "serial", None)  # as if pyserial were not installed
     register("needsserial", "needs_pyserial_driver:X")
-    with pytest.raises(MissingDependency, match="needs the package 'pyserial': pip install pyserial"):
+    with pytest.raises(MissingDependency, match=r"needs the package 'pyserial': pip install 'servoid\[serial\]'"):
         driver_from_url("needsserial://")
 
 

@@ -154,3 +154,34 @@ def test_the_sync_counter_tells_the_drive_how_many_cycles_passed(drive):
     expected = simulate(MODEL_PLANT, held).y[np.array(slots) - slots[0]]
     assert np.max(np.abs(np.array(y) - expected)) < 2 * COUNT
     assert drive.axis.steps == 1 + slots[-1] + 1  # the enable cycle, then one per slot 0..305
+
+
+def test_the_drive_switches_off_when_the_host_heartbeat_stops(drive):
+    events: list[str] = []
+    drive.on_event = events.append
+    with driver_from_url(drive.url(timeout=PATIENT_S, watchdog=0.1)) as servo:
+        servo.enable()
+        servo.exchange(0.01)
+        time.sleep(0.3)  # the heartbeat keeps it on while the host is alive, whatever the sample rate
+        assert drive.power_on and not events and drive.abort_option == 2
+        servo._heartbeat.stop()  # the host dies (its heartbeat thread with it)
+        stopped = time.monotonic()
+        while drive.power_on and time.monotonic() - stopped < 2.0:
+            time.sleep(0.002)
+        assert not drive.power_on and time.monotonic() - stopped < 0.1 + 0.1
+        assert events[0] == "node 1: power stage off (SWITCH ON DISABLED)"
+        assert events[1].startswith("node 1: heartbeat of node 127 lost (none for 1")
+        servo._heartbeat = None
+    with driver_from_url(drive.url(timeout=PATIENT_S, watchdog=0.1)) as servo:
+        servo.enable()  # no fault to reset: 0x6007 was "disable voltage"
+        servo.exchange(0.01)
+    time.sleep(0.3)  # an orderly close switched the consumer off first: no loss reported
+    assert not any("lost" in e for e in events[2:])
+
+
+def test_the_watchdog_options_are_checked():
+    with pytest.raises(ConfigError, match=r"host_node \(=1\) must differ from the drive's node"):
+        driver_from_url("can://virtual/x?protocol=cia402&node=1&host_node=1")
+    with pytest.raises(ConfigError, match=r"option watchdog='70' is invalid"):
+        driver_from_url("can://virtual/x?protocol=cia402&watchdog=70")
+    assert driver_from_url("can://virtual/x?protocol=cia402&watchdog=0").watchdog_s is None

@@ -6,6 +6,7 @@ equal the bench plant simulated directly (to float32 precision of turns).
 
 from __future__ import annotations
 
+import json
 import math
 import time
 
@@ -18,7 +19,7 @@ from servoid.drivers.can._sim_axis import TORQUE_GAIN
 from servoid.drivers.can.odrive import OdriveDriver
 from servoid.drivers.can.sim_odrive import SimOdriveAxis
 from servoid.drivers.model_plant import MODEL_PLANT
-from servoid.errors import DeviceFault, DriverTimeout
+from servoid.errors import ConfigError, DeviceFault, DriverTimeout
 from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
@@ -105,3 +106,39 @@ def test_on_its_own_clock_the_axis_holds_the_input_between_samples():
     held = np.repeat(u, [1, 3, 1, 1])  # 2 samples on u[1] held before u[2]
     expected = simulate(MODEL_PLANT, held).y
     assert np.max(np.abs(np.array(y) - expected[[0, 1, 4, 5]])) < FLOAT32_TURN
+
+
+def test_the_axis_watchdog_disarms_an_axis_whose_host_went_silent(tmp_path):
+    endpoints = tmp_path / "flat_endpoints.json"
+    endpoints.write_text(json.dumps(SimOdriveAxis.flat_endpoints()))
+    with SimOdriveAxis(node=3, bus=private_bus()) as axis:
+        events: list[str] = []
+        axis.on_event = events.append
+        url = axis.url(timeout=PATIENT_S, watchdog=0.1, endpoints=str(endpoints))
+        with driver_from_url(url) as servo:
+            assert axis.enable_watchdog and axis.watchdog_timeout == pytest.approx(0.1) and servo.watchdog_s == 0.1
+            servo.enable()
+            for _ in range(5):  # every frame feeds it: an exchange every 50 ms keeps the axis armed
+                servo.exchange(0.01)
+                time.sleep(0.05)
+            assert axis.power_on and not events
+            silent = time.monotonic()  # then the host dies
+            while axis.power_on and time.monotonic() - silent < 2.0:
+                time.sleep(0.002)
+            assert not axis.power_on and time.monotonic() - silent < 0.1 + 0.1
+            assert events[0].startswith("node 3: axis watchdog expired") and "power stage off" in events[1]
+            with pytest.raises(DeviceFault, match="WATCHDOG_TIMER_EXPIRED"):
+                servo.exchange(0.01)
+        with driver_from_url(axis.url(timeout=PATIENT_S)) as servo:
+            servo.enable()  # what the dead host left, the watchdog's own error, is cleared
+            servo.exchange(0.01)
+            assert axis.power_on and not axis.axis_error
+
+
+def test_the_watchdog_needs_the_board_s_endpoints(tmp_path):
+    with pytest.raises(ConfigError, match=r"watchdog \(=0.5\) needs endpoints="):
+        driver_from_url("can://virtual/x?protocol=odrive&node=3&watchdog=0.5")
+    wrong = tmp_path / "e.json"
+    wrong.write_text(json.dumps({"fw_version": "0.5.6", "endpoints": {}}))
+    with pytest.raises(ConfigError, match=r"must be an ODrive flat_endpoints.json"):
+        driver_from_url(f"can://virtual/x?protocol=odrive&node=3&watchdog=0.5&endpoints={wrong}")

@@ -13,7 +13,7 @@ from servoid.drivers.dynamixel import DynamixelDriver
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.driver import PTY_LATENCY_MS, default_latency_ms
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
-from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError
+from servoid.errors import CommandUnconfirmed, ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
 
 from .dxl_helpers import TEST_LATENCY_MS, clock, emulator, url  # noqa: F401 - fixtures
 
@@ -169,9 +169,65 @@ def test_a_stray_reply_is_caught_by_its_length(emulator):  # noqa: F811
     with driver_from_url(url(emulator)) as d:
         d.enable()
         emulator.faults(1).stale_replies = 1
-        with pytest.raises(ProtocolError, match="has 0 data bytes, expected 16"):
+        with pytest.raises(ProtocolError, match="present values has 0 data bytes, expected 20"):
             d.exchange(0.1)
         assert d.exchange(0.1).position is not None  # and the next sample is fine
+
+
+def test_a_goal_lost_on_its_way_is_seen_in_the_read_back_and_never_taken_as_applied(emulator):  # noqa: F811
+    with driver_from_url(url(emulator)) as d:
+        d.enable()
+        held = emulator.servo(1).value(ct.GOAL_POSITION)
+        emulator.faults(1).corrupt_goals = 1
+        with pytest.raises(CommandUnconfirmed, match=r"holds Goal Position \d+, not the \d+ just written"):
+            d.exchange(0.2)
+        assert emulator.servo(1).value(ct.GOAL_POSITION) == held and d.stats.unconfirmed == 1
+        # the SYNC_WRITE that arrives intact is confirmed
+        d.exchange(0.2)
+        assert emulator.servo(1).value(ct.GOAL_POSITION) == round(0.2 / RAD) + ct.POSITION_CENTRE
+        assert d.stats.unconfirmed == 1
+
+
+def test_a_corrupted_length_field_is_a_rejected_frame_not_a_driver_error(emulator):  # noqa: F811
+    with driver_from_url(url(emulator)) as d:
+        d.enable()
+        emulator.faults(1).corrupt_lengths = 1
+        with pytest.raises(ProtocolError, match="was corrupted") as caught:
+            d.exchange(0.1)  # the SDK asked the port for a negative count (Errno 22) before the fix
+        assert type(caught.value) is ProtocolError and d.stats.rejected == 1
+        assert d.exchange(0.1).position is not None  # the next sample is fine
+
+
+def test_the_bus_watchdog_stops_a_servo_whose_host_went_silent(emulator, clock):  # noqa: F811
+    events: list[str] = []
+    emulator.servo(1).on_event = events.append
+    with driver_from_url(url(emulator, watchdog=0.1)) as d:
+        d.enable()
+        d.exchange(0.1)
+        assert emulator.servo(1).value(ct.BUS_WATCHDOG) == 5  # 5 x 20 ms, armed with the torque
+        clock.advance(0.05)
+        d.exchange(0.1)  # a packet feeds it
+        clock.advance(0.15)  # then the host is silent (killed): the emulator stops the servo on its own
+        deadline = time.monotonic() + 2.0
+        while not events and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert events == ["servo 1: bus watchdog expired after 150 ms without an instruction: stopped, goals locked"]
+        assert emulator.servo(1).value(ct.BUS_WATCHDOG) == -1
+        with pytest.raises(DeviceFault, match="Bus Watchdog expired .* locks its goals"):
+            d.exchange(0.3)  # the goal is refused (read-only), and the read-back says why
+    assert events[-1] == "servo 1: torque off"
+    with driver_from_url(url(emulator, watchdog=0)) as d:  # opening clears the expired watchdog
+        assert emulator.servo(1).value(ct.BUS_WATCHDOG) == 0
+        d.enable()
+        d.exchange(0.2)
+        assert emulator.servo(1).value(ct.GOAL_POSITION) == round(0.2 / RAD) + ct.POSITION_CENTRE
+
+
+def test_a_sample_period_the_watchdog_would_outlast_is_refused(emulator):  # noqa: F811
+    with driver_from_url(url(emulator, watchdog=0.1)) as d:
+        with pytest.raises(ConfigError, match=r"below half the device's watchdog \(0.1 s\)"):
+            d.set_sample_period(0.06)
+        d.set_sample_period(0.04)
 
 
 def test_the_busy_flag_is_reset_after_the_sdk_raises(emulator, monkeypatch):  # noqa: F811

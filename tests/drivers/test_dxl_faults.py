@@ -27,7 +27,8 @@ FAULT_AT = 60
 def run(emu, path, inject, samples=120):
     """Excite servo 1, recording each sample, with ``inject(emu)`` called before sample FAULT_AT."""
     u = np.random.default_rng(5).uniform(-MODEL_AMPLITUDE, MODEL_AMPLITUDE, samples)
-    with RecordingWriter(path, ["t", "u", "y"], metadata={"unit": "rad"}) as rec:
+    # the device clock, not the time of the samples (the emulator's tick does not move here): not a t column
+    with RecordingWriter(path, ["device_time", "u", "y"], metadata={"unit": "rad"}) as rec:
         with driver_from_url(url(emu)) as servo:
             servo.enable()
             for k, u_k in enumerate(u):

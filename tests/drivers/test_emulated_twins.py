@@ -83,10 +83,14 @@ def test_the_odrive_twin_counts_motor_turns_from_its_pll_and_an_overspeed_disarm
         assert y[-1] == pytest.approx(reading.position_estimate_rad * twin.gear_ratio, abs=1e-6)
         assert reading.load_rad == pytest.approx(0.05, abs=twin.play_rad)
     with SimOdriveAxis(node=3, bus=private_bus(), period_s=PERIOD_S) as axis:
+        events: list[str] = []
+        axis.on_event = events.append
         # the ODrive's default gains: quick reversals of 1.6 rad at the output spin the motor past 1.2 x vel_limit
         with pytest.raises(DeviceFault, match=r"VELOCITY_LIMIT_VIOLATION"):
             run(axis.url(timeout=PATIENT_S), np.random.default_rng(1).uniform(-1.6, 1.6, 200))
         assert not axis.power_on
+        # the board says so as it says a watchdog's disarming: the cause, then the power stage going off
+        assert "overspeed" in events[0] and events[1] == "node 3: power stage off (IDLE)"
 
 
 def test_the_dynamixel_twin_shows_its_registers_in_control_table_units():
@@ -123,7 +127,11 @@ def test_every_emulator_refuses_a_bad_servo_in_one_line(kind, servo, message, ca
 
 
 def test_a_twin_that_faults_behind_the_dynamixel_protocol_raises_its_hardware_error():
-    with DynamixelEmulator(ids=[1], return_delay_us=0, period_s=PERIOD_S, servo="odrive") as emu:
+    events: list[str] = []
+    with DynamixelEmulator(
+        ids=[1], return_delay_us=0, period_s=PERIOD_S, servo="odrive", on_event=events.append
+    ) as emu:
         with pytest.raises(DeviceFault, match="overload"):
             run(emu.url(1), np.random.default_rng(1).uniform(-1.6, 1.6, 200))
         assert not emu.servo(1).torque and emu.servo(1).value(ct.HARDWARE_ERROR_STATUS) == ct.HardwareError.OVERLOAD
+    assert "Overload Error" in events[0] and events[1] == "servo 1: torque off"  # reported as the watchdog's are

@@ -26,6 +26,7 @@ from servoid.drivers.servos import Servo
 from servoid.errors import ConfigError, DeviceFault, DriverError, MissingDependency, ProtocolError
 from servoid.ident import PAPER_PLANT, BacklashModel, simulate
 from servoid.recording import read_recording
+from servoid.session import SessionConfig, run_session
 
 
 @pytest.fixture(scope="module")
@@ -162,6 +163,21 @@ def test_a_missing_compiler_is_named(monkeypatch):
     monkeypatch.setattr(build.shutil, "which", lambda name: None)
     with pytest.raises(MissingDependency, match="C compiler"):
         build.firmware_binary()
+
+
+def test_a_set_point_lost_on_its_way_is_never_taken_as_applied():
+    # bits flipped on the way to the firmware: a set point whose CRC fails is dropped, unanswered; whether
+    # the request or the reply was lost is unknown, so the sample and the guard window after it are not used
+    u = np.random.default_rng(3).uniform(-0.2, 0.2, 800)
+    with FirmwareEmulator(FirmwareOptions(servo="model", flip_rx=0.002, seed=3)) as emu:
+        with driver_from_url(f"{emu.url}?timeout=0.01") as servo:
+            result = run_session(servo, u, SessionConfig(period_s=0.002, give_up_after_s=2.0))
+            dropped = servo.status()["rx_bad"]
+    timeouts = np.flatnonzero(result.status == "timeout")
+    assert dropped > 0 and timeouts.size > 0 and result.config.guard_samples == 10
+    for k in timeouts:
+        assert not result.valid[k : k + 11].any(), f"a sample within 10 after the lost set point {k} was used"
+    assert result.valid.sum() > 100  # and the run still identifies from what is left
 
 
 def test_a_killed_host_leaves_its_recording_readable_and_the_watchdog_drops_the_torque(tmp_path):

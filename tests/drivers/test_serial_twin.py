@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import re
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -114,3 +115,7 @@ def test_a_twin_that_faults_behind_the_firmware_is_a_device_fault_never_a_coasti
         assert servo.status()["torque"] == 0
         servo.enable()  # re-armed
         servo.exchange(0.0)
+        time.sleep(0.1)
+        events = emu.events()  # the firmware reports the torque-off, as it does the watchdog's (hal_event)
+    assert any("motor fault: the output stage turned itself off" in line for line in events), events
+    assert any("servoid-bench-fw: torque off" in line for line in events), events

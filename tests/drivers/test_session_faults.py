@@ -165,4 +165,5 @@ def test_one_crc_error_costs_one_sample_and_the_session_goes_on(tmp_path):
         assert servo.stats.rejected == 1
     assert result.counts["timeout"] == 1 and len(result) == 200
     assert len(read_recording(tmp_path / "r.csv")) == 200
-    assert np.sum(result.status[FAULT_AT:] == "ok") > 100  # the samples after it are measured again
+    # the samples after it are measured again (on time or late: the 2 cores may be busy with other work)
+    assert np.sum(np.isin(result.status[FAULT_AT:], ["ok", "late"])) > 100

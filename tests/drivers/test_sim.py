@@ -152,6 +152,16 @@ def test_sim_url_opens_a_twin_preset_with_overrides_and_declares_its_ground_trut
     assert driver_from_url("sim://cia402").twin_truth.loop_encoder == "motor"
 
 
+def test_the_plain_servo_facts_name_the_presets_and_plants_they_stand_for():
+    from servoid.drivers import servo_facts, servos
+    from servoid.drivers.twin import preset_names
+
+    assert servo_facts.TWIN_NAMES == preset_names()
+    assert servo_facts.MODEL_PLANT_NAMES == tuple(servos.MODEL_PLANTS)
+    assert servo_facts.SERVO_NAMES == servos.servo_names()
+    assert servo_facts.DEFAULT_SERVO in servo_facts.TWIN_NAMES
+
+
 def test_the_twin_behind_sim_is_the_twin_itself_sample_by_sample():
     u = np.random.default_rng(5).uniform(-0.1, 0.1, 300)
     got = twin_run("sim://sts3215?clock=virtual&seed=3", u, period_s=0.004)

@@ -124,6 +124,7 @@ static void set_point(fw_state_t *fw, uint32_t seq, int32_t counts, int with_slo
         hal_sample_t s = hal_motor_set(counts, periods);
         if (hal_motor_fault()) {
             set_torque(fw, 0); /* the stage is off already: say so rather than report a servo that coasts */
+            hal_event("motor fault: the output stage turned itself off, torque off");
             reply_error(fw, seq, FW_ERR_FAULT);
             return;
         }
@@ -248,6 +249,7 @@ void fw_poll(fw_state_t *fw)
     if (fw->torque && fw->watchdog_ms && elapsed(now, fw->last_request_us, fw->watchdog_ms * 1000u)) {
         set_torque(fw, 0); /* the host went silent (crashed, unplugged): never leave the motor powered */
         fw->streaming = 0;
+        hal_event("watchdog: no request within the watchdog time, torque off");
     }
 }
 

@@ -63,4 +63,9 @@ uint32_t hal_counts_per_rev(void);
 /* A number that differs from one power-up to the next (nonzero). */
 uint16_t hal_boot_id(void);
 
+/* Report an event the firmware decided on its own (the watchdog dropped the
+ * torque, the output stage faulted), for whoever watches the device: the host
+ * build prints it with the time; a board may blink a LED or do nothing. */
+void hal_event(const char *what);
+
 #endif

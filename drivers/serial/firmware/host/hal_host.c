@@ -4,6 +4,7 @@
 
 #include <errno.h>
 #include <poll.h>
+#include <stdio.h>
 #include <string.h>
 #include <time.h>
 #include <unistd.h>
@@ -106,7 +107,21 @@ void hal_uart_write(const uint8_t *buf, int n)
 }
 
 uint32_t hal_counts_per_rev(void) { return cfg.counts_per_rev; }
-void hal_motor_enable(int on) { sim_motor_enable(motor, on); }
+
+void hal_event(const char *what)
+{
+    uint64_t now = mono_us(); /* CLOCK_MONOTONIC: the same clock a watching process reads */
+    fprintf(stderr, "servoid-bench-fw: %s (monotonic %llu.%06llu s)\n", what, (unsigned long long)(now / 1000000u),
+            (unsigned long long)(now % 1000000u));
+    fflush(stderr);
+}
+void hal_motor_enable(int on)
+{
+    static int powered;
+    if (powered && !on) hal_event("torque off"); /* however it came: a request, the watchdog, a restart */
+    powered = on;
+    sim_motor_enable(motor, on);
+}
 void hal_motor_period(uint32_t period_us) { sim_motor_period(motor, period_us); }
 hal_sample_t hal_motor_set(int32_t counts, uint32_t periods)
 {

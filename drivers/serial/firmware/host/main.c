@@ -119,6 +119,16 @@ static int twin_only(const double *phys, const double *fw, int output_load, uint
     return 0;
 }
 
+/* Remove the link made at start only if it still points to our port: never a path someone else put there. */
+static void remove_own_link(const char *link, const char *port)
+{
+    char target[256];
+    ssize_t n = readlink(link, target, sizeof target - 1);
+    if (n < 0) return;
+    target[n] = '\0';
+    if (strcmp(target, port) == 0) unlink(link);
+}
+
 static int plant_only(const bl_model_t *model)
 {
     bl_plant_t p;
@@ -231,9 +241,9 @@ int main(int argc, char **argv)
         perror("servoid-bench-fw: cannot open a pseudo-terminal");
         return 1;
     }
-    if (link) {
-        unlink(link);
-        if (symlink(port, link) != 0) { perror(link); return 1; }
+    if (link && symlink(port, link) != 0) { /* never over an existing path: nothing is replaced */
+        perror(link);
+        return 1;
     }
     hc.fd = master;
     hc.counts_per_rev = (uint32_t)cpr;
@@ -260,7 +270,7 @@ int main(int argc, char **argv)
             fw_init(&fw);
         }
     }
-    if (link) unlink(link);
+    if (link) remove_own_link(link, port);
     fprintf(stderr, "servoid-bench-fw: stopped (frames in %lu, rejected %lu, out %lu)\n",
             (unsigned long)fw.rx_ok, (unsigned long)fw.rx_bad, (unsigned long)fw.tx);
     close(slave);

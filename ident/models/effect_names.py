@@ -1,0 +1,43 @@
+"""The candidate effects by name, with a line each: the one place their names are defined.
+
+Plain Python, so that ``servoid diagnose --help`` lists them without loading
+NumPy; what each effect does to the model is in
+:mod:`servoid.ident.models.effects`, which builds one ``Effect`` per name here.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "NONE",
+    "COULOMB_FRICTION",
+    "INPUT_SATURATION",
+    "DEAD_ZONE",
+    "EXTRA_DELAY",
+    "EXTRA_POLE",
+    "SUMMARIES",
+    "CANDIDATE_NAMES",
+    "EFFECT_NAMES",
+]
+
+#: The name the diagnosis gives when nothing significant is missing.
+NONE = "none"
+COULOMB_FRICTION = "coulomb_friction"
+INPUT_SATURATION = "input_saturation"
+DEAD_ZONE = "dead_zone"
+EXTRA_DELAY = "extra_delay"
+EXTRA_POLE = "extra_pole"
+
+#: One line per effect for reports and ``--help``, in the order candidates are tried and reported.
+SUMMARIES: dict[str, str] = {
+    COULOMB_FRICTION: "a force opposing the direction of motion, F_c sign(x(k-1) - x(k-2)), subtracted from the input",
+    INPUT_SATURATION: "the drive's limit: the linear block sees clip(u, -L, L)",
+    DEAD_ZONE: "an input dead band: |u| <= delta does nothing, beyond it u - delta sign(u)",
+    EXTRA_DELAY: "the true delay is d + m samples",
+    EXTRA_POLE: "one more real pole p with unit static gain: A(q)(1 - p/q), (1 - p) B(q)",
+}
+
+#: Every candidate, in the order they are tried.
+CANDIDATE_NAMES: tuple[str, ...] = tuple(SUMMARIES)
+
+#: Every name the diagnosis can give: the candidates and ``"none"``.
+EFFECT_NAMES: tuple[str, ...] = (*CANDIDATE_NAMES, NONE)
