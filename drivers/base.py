@@ -236,11 +236,16 @@ class Limits:
         """
         low, high = self.low, self.high
         if held is not None and math.isfinite(self.max_step):
-            # every held command lies inside the range and within max_step of the others (each was
-            # sent from such a window), so this window holds them all and is never empty
+            # commands sent from such a window lie inside the band and within max_step of each other, so
+            # the window holds them all and is never empty
             low = max(low, held[1] - self.max_step)
             high = min(high, held[0] + self.max_step)
-            if low > high:  # only for held commands that broke the rule (rounding): stay between them
+            if low > high and (held[0] + self.max_step < self.low or held[1] - self.max_step > self.high):
+                # the servo holds a place away from the band (the position read at enable): move toward the
+                # band by max_step per sample, never past the range (the range wins over max_step)
+                low = min(max(held[1] - self.max_step, self.minimum), self.maximum)
+                high = max(min(held[0] + self.max_step, self.maximum), self.minimum)
+            elif low > high:  # held commands that broke the rule (rounding): stay between them
                 low = high = min(max(0.5 * (held[0] + held[1]), self.low), self.high)
         return low, high
 
@@ -586,10 +591,37 @@ class Driver(abc.ABC):
         return self
 
     def enable(self) -> None:
-        """Switch the torque on."""
+        """Switch the torque on.
+
+        With a finite ``max_step`` and a driver that can read without
+        commanding, the position read here counts as the command the servo
+        holds: the first command then lies within ``max_step`` of where the
+        servo is, not only of the band (a servo resting away from the band is
+        brought to it in steps of ``max_step``).
+        """
         self._require_open()
         self._call(self._set_torque, True)
         self._torque = True
+        if self._held is None and math.isfinite(self.limits.max_step) and type(self)._read is not Driver._read:
+            self._hold_where_it_rests()
+
+    def _hold_where_it_rests(self) -> None:
+        """Take the position read now as the command the servo holds (see :meth:`enable`).
+
+        A read that fails leaves the band as the only bound of the first
+        command (as for a driver that cannot read), with a warning; a servo
+        outside the range is switched off by the guard.
+        """
+        try:
+            reading = self._call(self._read)
+        except DriverError as exc:
+            log.warning("%s: could not read the position at enable (%s): the first command is bounded by the "
+                        "band only", self.describe(), exc)  # fmt: skip
+            return
+        position = self.position_unit.to_user(reading.position)  # not a sample: the clock is left alone
+        self._guard(position)
+        if math.isfinite(position):
+            self._held = (position, position)
 
     def set_sample_period(self, period_s: float) -> None:
         """Tell the driver (and through it the device) the period of the exchanges to come, in seconds."""

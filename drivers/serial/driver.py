@@ -175,7 +175,13 @@ class SerialDriver(Driver):
         return self._position(self._transact("S", f"{counts} {slot % 2**32}", "P"))
 
     def _read(self) -> Reading:
-        return self._position(self._transact("G", None, "P"))
+        # a read outside the sample sequence (at enable the loop's sample index may not have started):
+        # its tick is not compared with the exchanges' ticks
+        tick = self._tick
+        try:
+            return self._position(self._transact("G", None, "P"), check_tick=False)
+        finally:
+            self._tick = tick
 
     def _identity(self) -> dict[str, Any]:
         return {"driver": "serial", "port": self.port_name, **self._info}
@@ -301,9 +307,9 @@ class SerialDriver(Driver):
         self._check_boot(reply)
         return reply
 
-    def _position(self, reply: Reply) -> Reading:
+    def _position(self, reply: Reply, *, check_tick: bool = True) -> Reading:
         tick, t_us, counts = reply.ints()
-        if self._tick is not None and tick < self._tick:
+        if check_tick and self._tick is not None and tick < self._tick:
             raise DeviceRestarted(f"{self.describe()}: the servo's sample counter went back ({self._tick} -> {tick})")
         self._tick = tick
         return Reading(position=float(counts), device_time=t_us * 1e-6)

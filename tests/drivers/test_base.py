@@ -226,3 +226,36 @@ def test_after_lost_requests_and_replies_no_step_the_servo_receives_exceeds_max_
         np.testing.assert_allclose(
             np.asarray(d.applied) / command_step, np.round(np.asarray(d.applied) / command_step), atol=1e-9
         )
+
+
+class Resting(Recorder):
+    """A servo that rests at ``rest`` when the torque comes on and can be read without commanding."""
+
+    def __init__(self, rest: float, **kw):
+        super().__init__(**kw)
+        self.rest = rest
+
+    def _read(self):
+        return Reading(position=self.rest)
+
+
+@pytest.mark.parametrize("rest", [0.0, 0.93, 2.0])
+def test_the_first_commands_after_enable_lie_within_max_step_of_where_the_servo_rests(rest):
+    limits = Limits(minimum=-3.0, maximum=3.0, centre=1.0, amplitude=0.1, max_step=0.05)
+    d = Resting(rest, limits=limits)
+    with d:
+        d.enable()
+        for u in np.random.default_rng(3).uniform(0.9, 1.1, 60):
+            d.exchange(u)
+    steps = np.abs(np.diff([rest, *d.sent]))
+    assert steps.max() <= 0.05 + 1e-12  # from the rest position on, never a larger step
+    assert 0.9 <= d.sent[-1] <= 1.1  # and the servo reaches the band
+    assert all(-3.0 <= v <= 3.0 for v in d.sent)
+
+
+def test_a_driver_that_cannot_read_keeps_the_band_as_its_only_bound_for_the_first_command():
+    d = Recorder(limits=Limits(minimum=-3.0, maximum=3.0, centre=1.0, amplitude=0.1, max_step=0.05))
+    with d:
+        d.enable()
+        d.exchange(1.05)
+    assert d.sent == [1.05]

@@ -54,7 +54,9 @@ def test_malformed_datagrams_are_skipped_and_counted_and_the_session_and_the_dri
 
         result = run_session(servo, u, SessionConfig(period_s=0.004), on_sample=spoil)
         time.sleep(0.05)
-        assert result.counts["ok"] + result.counts["late"] > 250 and result.stopped is None
+        # no sample lost to the garbage (a busy machine may skip slots: missed, never a timeout)
+        assert result.counts["timeout"] == 0 and result.stopped is None and len(result) == 300
+        assert result.counts["ok"] + result.counts["late"] > 100
         assert servo._bus.malformed >= len(garbage) and axis._bus.malformed >= len(garbage)
         assert axis.power_on is False and axis._thread.is_alive()  # the session switched it off; it still serves
         servo.enable()

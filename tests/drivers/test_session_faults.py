@@ -166,4 +166,4 @@ def test_one_crc_error_costs_one_sample_and_the_session_goes_on(tmp_path):
     assert result.counts["timeout"] == 1 and len(result) == 200
     assert len(read_recording(tmp_path / "r.csv")) == 200
     # the samples after it are measured again (on time or late: the 2 cores may be busy with other work)
-    assert np.sum(np.isin(result.status[FAULT_AT:], ["ok", "late"])) > 100
+    assert np.sum(np.isin(result.status[FAULT_AT + 1 :], ["ok", "late"])) >= 20
