@@ -32,7 +32,7 @@ __all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FIL
 
 #: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
 OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
-                "fit_plot": "fit.png", "backlash_plot": "backlash.png"}  # fmt: skip
+                "fit_plot": "fit.png", "backlash_plot": "backlash.png", "probe_recording": "probe.csv"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -68,6 +68,9 @@ class Record:
         The MRGIA's result of a live run over this record (the session ran it
         as the samples came); identification refines it rather than running
         the MRGIA again.
+    live : dict
+        What a live run adds to ``model.json`` and ``--json``: the probe, the
+        design, the decimation and the online verdict (``servoid.cli._live``).
     """
 
     u: np.ndarray
@@ -83,6 +86,7 @@ class Record:
     valid: np.ndarray | None = None
     acquisition: dict[str, Any] | None = None
     online: MRGIAResult | None = None
+    live: dict[str, Any] = field(default_factory=dict)
 
     @property
     def y_used(self) -> np.ndarray:
@@ -124,6 +128,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         samples=result.samples,
         servo=record.servo,
         noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
+        extra=dict(record.live),
     )
     paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], content))
     if plots:
@@ -188,6 +193,7 @@ def result_json(record: Record, result: Identification, paths: dict[str, str]) -
     }
     if record.acquisition is not None:
         out["acquisition"] = record.acquisition
+    out.update(record.live)
     twin = twin_truth(record)
     if twin is not None:
         out["twin_truth"] = twin

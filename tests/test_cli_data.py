@@ -79,12 +79,12 @@ def test_identify_replays_an_excitation_file_on_the_simulated_and_a_live_servo(t
     # a live servo whose limits the file leaves: refused before anything is sent, no recording started
     live = tmp_path / "live"
     code, out, err = _run(capsys, "identify", "--driver", "sim://?clock=virtual&min=-1&max=1", "--rate", "1000",
-                          "--excitation", f"file:{exc}", "--out", str(live), "--no-plots")  # fmt: skip
+                          "--excitation", f"file:{exc}", "--out", str(live), "--no-plots", "--no-probe")  # fmt: skip
     assert code == 2 and "lies outside the servo's limits [-1, 1]" in err and "nothing was sent" in err
     assert not (live / "recording.csv").exists()
     small = write_recording(tmp_path / "small.csv", {"u": 0.1 * u[:400]})
     code, out, err = _run(capsys, "identify", "--driver", "sim://?clock=virtual", "--rate", "1000", "--excitation",
-                          f"file:{small}", "--out", str(live), "--no-plots", "--json")  # fmt: skip
+                          f"file:{small}", "--out", str(live), "--no-plots", "--json", "--no-probe")  # fmt: skip
     assert code == 0, err
     assert np.array_equal(read_recording(live / "recording.csv").u, 0.1 * u[:400])
 

@@ -27,7 +27,7 @@ def run_json(capsys, *argv):
 
 def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp_path, capsys):
     code, obj, _ = run_json(capsys, "--driver", "sim://model?clock=virtual&seed=1&jitter=0.0002", "--rate", "1000",
-                            "--samples", "3000", "--out", str(tmp_path))  # fmt: skip
+                            "--samples", "3000", "--no-probe", "--out", str(tmp_path))  # fmt: skip
     assert code == 0
     acq = obj["acquisition"]
     assert acq["samples"] == 3000 and acq["counts"]["late"] > 0 and acq["counts"]["timeout"] == 0
@@ -47,12 +47,24 @@ def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp
 
 def test_a_live_run_on_the_default_twin_says_what_is_true_of_it(tmp_path, capsys):
     code, obj, _ = run_json(capsys, "--driver", "sim://?clock=virtual", "--samples", "300", "--out", str(tmp_path),
-                            "--no-plots")  # fmt: skip
+                            "--no-plots", "--no-probe")  # fmt: skip
     assert code == 0 and "truth" not in obj and "max_relative_error" not in obj  # no pseudo-Wiener model is true of it
     twin = obj["twin_truth"]
     assert twin["name"] == "xm430" and twin["play_rad"] == pytest.approx(np.radians(0.25))
     assert (twin["loop_encoder"], twin["output_encoder"]) == ("load", "load")
-    main(["identify", "--driver", "sim://?clock=virtual", "--samples", "300", "--out", str(tmp_path), "--no-plots"])
+    main(
+        [
+            "identify",
+            "--driver",
+            "sim://?clock=virtual",
+            "--samples",
+            "300",
+            "--out",
+            str(tmp_path),
+            "--no-plots",
+            "--no-probe",
+        ]
+    )
     assert "the twin xm430: true play 0.00436332 rad at the output" in capsys.readouterr().out
 
 
@@ -102,7 +114,7 @@ def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
             pytest.fail(f"the emulator printed no url: stdout {printed.decode()!r}, stderr {err.decode()!r}")
         assert url.startswith("serial:///dev/")
         done = subprocess.run([sys.executable, "-m", "servoid", "identify", "--driver", url, "--rate", "500",
-                               "--samples", "2500", "--json", "--no-plots", "--out", str(tmp_path)],
+                               "--samples", "2500", "--json", "--no-plots", "--no-probe", "--allow-lost", "--out", str(tmp_path)],
                               capture_output=True, text=True, timeout=120)  # fmt: skip
         assert done.returncode == 0, done.stderr
         obj = json.loads(done.stdout)

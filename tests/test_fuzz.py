@@ -269,7 +269,7 @@ def test_driver_urls_build_or_say_why_in_one_line(url):
                         max_size=3))  # fmt: skip
 def test_simulated_servo_urls_through_identify(capsys, workdir, servo, options):
     url = f"sim://{servo}?clock=virtual" + "".join(f"&{k}={v}" for k, v in options)
-    run_cli(capsys, ["identify", "--driver", url, "--samples", "300", "--rate", "500", "--no-plots", "--json",
+    run_cli(capsys, ["identify", "--driver", url, "--samples", "300", "--rate", "500", "--no-plots", "--json", "--no-probe",
                      "--out", str(workdir / "live")], workdir)  # fmt: skip
 
 

@@ -13,7 +13,9 @@ timed-out samples left out (:func:`servoid.session.usable`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -27,6 +29,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
 
     from servoid.drivers.base import Limits
+    from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
     from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
     from servoid.identify_outputs import Record
@@ -40,6 +43,12 @@ __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "exc
 
 #: Samples of a simulated or live run when --samples is not given.
 DEFAULT_SAMPLES = 5000
+
+#: Largest share of a live run's samples that may be unusable (lost, late, guarded) before
+#: identify refuses to report a model (--max-lost; --allow-lost overrides): beyond it the
+#: usable samples come in short runs between gaps, and the Dynamixel under load that lost
+#: 50-80 % still got a model reported (issue 15).
+DEFAULT_MAX_LOST = 0.2
 
 
 def add_options(parser: argparse.ArgumentParser) -> None:
@@ -61,17 +70,34 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     live.add_argument(
         "--use-late", action="store_true", help="let the estimator use samples exchanged late (default: leave them out)"
     )
+    live.add_argument("--no-probe", action="store_true",
+                      help="skip the probe (a short safe experiment that measures the loop's bandwidth, delay, noise, "
+                           "saturation and rough play, and designs the run from them); then --decimate (default 1), "
+                           "--amplitude or --excitation set the run")  # fmt: skip
+    live.add_argument("--decimate", type=int, metavar="K",
+                      help="run the online estimator on every K-th sample (default: the smallest K at which its "
+                           "convergence condition holds on the probe's model)")  # fmt: skip
+    live.add_argument("--hold", type=int, metavar="N",
+                      help="samples each level of the designed excitation is held (default: from the probe)")  # fmt: skip
+    live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
+                      help="refuse to report a model when more than this share of the samples was lost, late or "
+                           f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
+    live.add_argument("--allow-lost", action="store_true",
+                      help="report a model however many samples were lost (the share is still printed)")  # fmt: skip
 
 
-def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "") -> np.ndarray:
+def excitation(
+    args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "", hold: int | None = None
+) -> np.ndarray:
     """The input of a live run.
 
     ``--excitation file:...`` replays a file's commands as they are, after
     checking them against the driver's ``limits``; a spec (``--excitation
     SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
-    amplitude``. ``--samples`` long (a file: all of it by default).
+    amplitude``, its levels held ``hold`` samples when given (the design from
+    the probe). ``--samples`` long (a file: all of it by default).
     """
-    from servoid.excitation import UniformSpec, parse_spec, sample
+    from servoid.excitation import StepsSpec, UniformSpec, parse_spec, sample
     from servoid.readers.excitation_file import is_file_spec, read_excitation
 
     if args.excitation is not None and args.amplitude is not None:
@@ -81,7 +107,10 @@ def excitation(args: argparse.Namespace, amplitude: float, limits: Limits, unit:
         replay.check_within(limits.low, limits.high, limits.max_step, unit=unit)
         u: np.ndarray = replay.first(args.samples)
         return u
-    spec = parse_spec(args.excitation) if args.excitation is not None else UniformSpec(amplitude=amplitude)
+    if args.excitation is not None:
+        spec = parse_spec(args.excitation)
+    else:
+        spec = UniformSpec(amplitude=amplitude) if hold is None else StepsSpec(amplitude=amplitude, hold=hold)
     return limits.centre + sample(spec, args.samples or DEFAULT_SAMPLES, seed=args.seed)
 
 
@@ -122,13 +151,16 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     from servoid.drivers import driver_from_url
     from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
     from servoid.session.listeners import EstimatorFeed
 
+    _check_live_options(args)
     driver = driver_from_url(args.driver)
     quiet = args.json
+    live: dict[str, Any] = {}
     with driver:
         identity = driver.identity
         noise = identity.get("noise_std")
@@ -141,17 +173,25 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             simulated.reference_amplitude if simulated is not None else MODEL_AMPLITUDE)  # fmt: skip
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
-        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit)
-        estimator_config = make_config(epsilon)
-        online = EstimatorFeed(MRGIA(estimator_config), record_every=history_every(u.size))
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
+        factor, hold = (args.decimate or 1), None
+        if not args.no_probe:
+            design = probe_and_design(args, driver, amplitude, config, quiet=quiet)
+            live.update(probe=design[0].to_dict(), design=design[1].to_dict())
+            factor, hold, amplitude = design[1].factor, design[1].hold, design[1].amplitude
+        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit, hold=hold)
+        estimator_config = make_config(epsilon)
+        online = EstimatorFeed(
+            DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
+        )
         path = args.out / OUTPUT_FILES["recording"]
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
-                "servo": _flat(identity)}  # fmt: skip
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or
+                ("uniform" if hold is None else f"steps:amplitude={amplitude!r},hold={hold}"),
+                "servo": _flat(identity), "decimate": str(factor)}  # fmt: skip
         if not quiet:
             _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
                                f"({u.size / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
-                               f"recording to {path}")  # fmt: skip
+                               f"the online estimator at 1 in {factor}; recording to {path}")  # fmt: skip
         with _term.live_progress("live", u.size) as bar:
 
             def update(p: SessionProgress) -> None:
@@ -170,9 +210,16 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         raise KeyboardInterrupt
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
+    live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
+    est = online.estimator
+    if isinstance(est, DecimatingEstimator):
+        live["decimation"] = est.stats.to_dict()
+        if est.stats.unheld:
+            _term.warn(f"the set point changed inside {est.stats.unheld} of {est.stats.groups} groups of {factor} "
+                       "samples: the online estimator saw their mean (hold the excitation for whole groups)")  # fmt: skip
     truth = simulated.truth if simulated is not None else None
-    record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result())
-    return record, estimator_config
+    record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
+    return dataclasses.replace(record, live=live), estimator_config
 
 
 def history_every(samples: int) -> int:
@@ -187,12 +234,25 @@ def _record(
     truth: BacklashModel | None,
     path: Path,
     online: MRGIAResult | None,
+    factor: int = 1,
 ) -> Record:
+    """The record identification works on: the session's, or with ``factor > 1`` the slow record the online estimator saw.
+
+    The offline fit then runs on the estimator's time base and starts from its
+    estimate (no second MRGIA run); the recording keeps every sample. A
+    pseudo-Wiener plant's truth is at the session's rate, so it is not
+    compared with a decimated model.
+    """
     import numpy as np
 
+    from servoid.ident.online.decimate import decimate_record
     from servoid.identify_outputs import Record
 
-    valid = result.valid
+    u, y, t, valid = result.u, result.y, result.t, result.valid
+    if factor > 1:
+        u, y, valid, _ = decimate_record(u, y, factor, valid)
+        t = t[: u.size * factor : factor]
+        truth = None
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
     # the free-run simulation starts at the first measured sample; the online run, which began
@@ -200,10 +260,95 @@ def _record(
     first = int(np.argmax(valid))
     unit = result.unit
     return Record(
-        u=result.u[first:], y=result.y[first:], t=result.t[first:], source=source, input_unit=unit,
+        u=u[first:], y=y[first:], t=t[first:], source=source, input_unit=unit,
         output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
         acquisition=acquisition(result), online=online if first == 0 else None,
     )  # fmt: skip
+
+
+def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Record:
+    """A live record with the online estimate's verdict (:func:`servoid.ident.online.verdict.judge_online`), printed.
+
+    The online estimate is the product of a live run: it is judged on its
+    trajectory and against the refined fit of the same record, and both
+    numbers are shown. Records that are not live pass unchanged.
+    """
+    if not record.live:
+        return record
+    from servoid.ident.online.verdict import judge_online
+
+    refined = result.model if result.refinement is not None else None
+    verdict = judge_online(result.mrgia, result.mrgia_nrmse, refined, result.fit_nrmse if refined else None)
+    if not quiet:
+        (_term.stderr.print if verdict.settled else _term.warn)(verdict.line(record.output_unit))
+    return dataclasses.replace(record, live={**record.live, "online": verdict.to_dict()})
+
+
+def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Path) -> dict[str, Any]:
+    """How many samples a live run could not use; refuse (one line) beyond ``max_lost`` unless ``allow``.
+
+    Parameters
+    ----------
+    result : SessionResult
+        The session.
+    max_lost : float
+        Largest share of unusable samples (lost, late, timed out, or in a guard window after one).
+    allow : bool
+        Report anyway (``--allow-lost``).
+    path : Path
+        The recording, named in the refusal.
+    """
+    n = len(result)
+    usable = int(result.valid.sum())
+    counts = result.counts
+    not_measured = sum(counts[s] for s in ("missed", "timeout"))
+    late = counts["late"]
+    guarded = max(n - usable - not_measured - (0 if result.config.use_late else late), 0)
+    share = (n - usable) / max(n, 1)
+    summary = {"samples": n, "usable": usable, "not_measured": not_measured, "late": late, "guarded": guarded,
+               "share_unusable": share, "max_share": max_lost}  # fmt: skip
+    if share > max_lost:
+        what = (f"{n - usable} of {n} samples ({100 * share:.0f} %) could not be used: {not_measured} lost, "
+                f"{late} late, {guarded} in guard windows after them")  # fmt: skip
+        if not allow:
+            raise ConfigError(f"{what}; above --max-lost {max_lost:g}, no model is reported (the recording is in {path}; "
+                              "--allow-lost reports one anyway)")  # fmt: skip
+        _term.warn(f"{what}: above --max-lost {max_lost:g}, reported because of --allow-lost")
+    return summary
+
+
+def probe_and_design(
+    args: argparse.Namespace, driver: Any, amplitude: float, config: Any, *, quiet: bool
+) -> tuple[Any, Any]:
+    """Run the probe inside ``centre +/- amplitude`` and design the run from it (``--decimate``, ``--hold``,
+    ``--amplitude`` override); print both tables unless ``quiet``.
+    """
+    from servoid.ident.online.probe_design import design_live
+    from servoid.identify_outputs import OUTPUT_FILES
+    from servoid.session.probe import run_probe
+
+    started = time.perf_counter()
+    probe, _ = run_probe(driver, amplitude, config, recording=args.out / OUTPUT_FILES["probe_recording"])
+    design = design_live(probe, args.rate, factor=args.decimate, hold=args.hold, amplitude=args.amplitude)
+    if not quiet:
+        unit = driver.position_unit.unit
+        _term.table(f"probe: {driver.describe()} ({probe.samples} samples, {time.perf_counter() - started:.1f} s)",
+                    ["", "value"], probe.rows(unit), console=_term.stderr)  # fmt: skip
+        _term.table("design", ["", "value"], design.rows(unit), console=_term.stderr)
+    return probe, design
+
+
+def _check_live_options(args: argparse.Namespace) -> None:
+    for name in ("decimate", "hold"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            raise ConfigError(f"--{name} (={value}) must be >= 1")
+    if not (math.isfinite(args.max_lost) and 0.0 <= args.max_lost <= 1.0):
+        raise ConfigError(f"--max-lost (={args.max_lost:g}) must lie in [0, 1]")
+    if args.no_probe and args.hold is not None:
+        raise ConfigError(
+            "--hold shapes the excitation designed from the probe; with --no-probe use --excitation steps:hold=N"
+        )
 
 
 def acquisition(result: SessionResult) -> dict[str, Any]:

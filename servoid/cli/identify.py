@@ -222,6 +222,7 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
+    record = _live.with_verdict(record, result, quiet=args.json)
     paths = write_outputs(args.out, record, result, plots=not args.no_plots)
     if args.json:
         _term.print_json(result_json(record, result, paths))

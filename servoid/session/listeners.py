@@ -16,6 +16,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from servoid.errors import EstimatorDiverged
+from servoid.ident.online.decimate import DecimatingEstimator
 from servoid.ident.online.estimator import Estimator
 from servoid.ident.online.mrgia import MRGIA, MRGIAResult
 from servoid.recording import RecordingWriter
@@ -104,8 +105,14 @@ class EstimatorFeed:
         return None if self.estimator is None else self.estimator.current()
 
     def mrgia_result(self) -> MRGIAResult | None:
-        """The live MRGIA's result with the kept history (None for another estimator, or after a divergence)."""
+        """The live MRGIA's result with the kept history (None for another estimator, or after a divergence).
+
+        A :class:`~servoid.ident.online.decimate.DecimatingEstimator` keeps its
+        inner MRGIA's history itself, over the slow stream.
+        """
         est = self.estimator
+        if isinstance(est, DecimatingEstimator):
+            return est.mrgia_result()
         if not isinstance(est, MRGIA) or self.record_every is None:
             return None
         n = est.config.n_params

@@ -72,7 +72,7 @@ SAMPLES = 2000
 
 def identify(capsys: pytest.CaptureFixture[str], url: str, out) -> dict:  # type: ignore[no-untyped-def]
     argv = ["identify", "--json", "--driver", url, "--rate", str(RATE_HZ), "--samples", str(SAMPLES), "--seed", "4",
-            "--out", str(out), "--no-plots"]  # fmt: skip
+            "--out", str(out), "--no-plots", "--no-probe", "--allow-lost"]  # fmt: skip
     code = main(argv)
     captured = capsys.readouterr()
     assert code == 0, captured.err
@@ -140,7 +140,7 @@ def test_identify_driver_runs_end_to_end_on_each_emulators_default_twin(servo, c
     twin = {dxl: "xm430", cia402: "cia402", odrive: "odrive"}[servo]
     # --guard 0 --use-late: every sample counts, so that a loaded machine's late share cannot leave too few
     argv = ["identify", "--json", "--driver", "", "--rate", "200", "--samples", "400", "--out", str(tmp_path),
-            "--no-plots", "--guard", "0", "--use-late"]  # fmt: skip
+            "--no-plots", "--guard", "0", "--use-late", "--no-probe", "--allow-lost"]  # fmt: skip
     with servo(twin) as url:
         argv[3] = url
         code = main(argv)

@@ -122,7 +122,7 @@ def emulator(kind: str) -> Iterator[tuple[Process, str]]:
 
 
 def _host(url: str, out: Path) -> Process:
-    host = _spawn("identify", "--driver", url, "--rate", f"{RATE_HZ:g}", "--samples", "100000", "--no-plots",
+    host = _spawn("identify", "--driver", url, "--rate", f"{RATE_HZ:g}", "--samples", "100000", "--no-plots", "--no-probe", "--allow-lost",
                   "--out", str(out))  # fmt: skip
     recording = out / "recording.csv"
     deadline = time.monotonic() + 60

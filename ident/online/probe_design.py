@@ -1,0 +1,152 @@
+"""Design a live identification from the probe: the estimator's rate, the hold of the set point, the amplitude.
+
+Each choice is stated with its reason (:attr:`LiveDesign.reasons`) and each
+can be overridden:
+
+decimation ``k``
+    the smallest at which the MRGIA's convergence condition holds on the
+    probe's model (:func:`~servoid.ident.online.decimate.decimation_factor`).
+hold
+    uniform random levels held for whole groups of ``k`` samples (the slow
+    record is then a ZOH record of the plant) and for at least half a period
+    of the loop's bandwidth and :data:`MIN_GROUPS` groups: a reversal then
+    happens at a group's boundary with the loop nearly at rest, so the slow
+    picks see the backlash turn where it turns (held for one group, the
+    exact loop at 50x lost 30-40 % of its play; three gave 0.2 %).
+amplitude
+    several (:data:`PLAY_MULTIPLE`) times the probe's rough play and well
+    above the noise and the quantisation, never above what the probe
+    showed the drive follows linearly: uniform levels in ``+/-A`` step by up
+    to ``2 A``; the probe stepped by ``2 A_probe`` and by ``A_probe``, so
+    ``A <= A_probe`` when neither saturated, ``A_probe / 2`` when only the
+    largest did, ``A_probe / 4`` when both did (and it says so).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from servoid import validation
+from servoid.ident.online.decimate import decimation_factor, slow_denominator
+from servoid.ident.online.mrgia import convergence_margin
+from servoid.ident.online.probe import ProbeResult
+
+__all__ = ["LiveDesign", "design_live", "PLAY_MULTIPLE", "MIN_GROUPS"]
+
+#: The amplitude aims at this many times the probe's rough play.
+PLAY_MULTIPLE = 5.0
+#: ... and at this many times the noise or the quantisation, whichever is larger.
+NOISE_MULTIPLE = 30.0
+#: Fewest slow samples a level is held for.
+MIN_GROUPS = 3
+
+
+@dataclass(frozen=True)
+class LiveDesign:
+    """The designed live run.
+
+    Attributes
+    ----------
+    factor : int
+        Decimation of the online estimator.
+    hold : int
+        Fast samples each level is held (a multiple of :attr:`factor`).
+    amplitude : float
+        Half-width of the uniform levels around the centre.
+    margin : float
+        The convergence margin on the probe's model at the decimated rate.
+    estimator_rate_hz : float
+        The estimator's rate.
+    reasons : dict of str
+        Why each of ``factor``, ``hold``, ``amplitude`` is what it is.
+    """
+
+    factor: int
+    hold: int
+    amplitude: float
+    margin: float
+    estimator_rate_hz: float
+    reasons: dict[str, str]
+
+    def to_dict(self) -> dict[str, Any]:
+        """For ``model.json`` and ``--json``."""
+        return {"factor": self.factor, "hold": self.hold, "amplitude": self.amplitude, "margin": self.margin,
+                "estimator_rate_hz": self.estimator_rate_hz, "reasons": dict(self.reasons)}  # fmt: skip
+
+    def rows(self, unit: str = "") -> list[list[str]]:
+        """The design's short table: choice, value and why."""
+        u = f" {unit}" if unit else ""
+        return [
+            ["estimator rate", f"1 in {self.factor} ({self.estimator_rate_hz:.4g} Hz): {self.reasons['factor']}"],
+            ["hold", f"{self.hold} samples: {self.reasons['hold']}"],
+            ["amplitude", f"+/-{self.amplitude:.4g}{u}: {self.reasons['amplitude']}"],
+        ]
+
+
+def design_live(
+    probe: ProbeResult,
+    rate_hz: float,
+    *,
+    factor: int | None = None,
+    hold: int | None = None,
+    amplitude: float | None = None,
+) -> LiveDesign:
+    """Design the live run from the probe (the module's rules); a given value overrides the rule.
+
+    Parameters
+    ----------
+    probe : ProbeResult
+        What the probe found (at ``rate_hz``).
+    rate_hz : float
+        The session's rate.
+    factor : int, optional
+        Decimation to use instead of the designed one.
+    hold : int, optional
+        Samples per level instead of the designed hold (rounded up to a multiple of the factor).
+    amplitude : float, optional
+        Amplitude instead of the designed one (the caller has checked it against the limits).
+    """
+    rate = validation.positive("rate_hz", rate_hz)
+    reasons: dict[str, str] = {}
+    a = np.asarray(probe.a, dtype=np.float64)
+    if factor is None:
+        k = decimation_factor(a)
+        reasons["factor"] = (f"the smallest at which |A(e^jw) - 1| < 1 holds on the probe's model "
+                             f"(margin {convergence_margin(a):.2f} at the full rate)")  # fmt: skip
+    else:
+        k = validation.integer("factor", factor, minimum=1)
+        reasons["factor"] = "given"
+    margin = convergence_margin(slow_denominator(a, k))
+    if margin < 0:
+        reasons["factor"] += (
+            f"; the condition still fails at this rate (margin {margin:.2f}): the online estimate may not converge"
+        )
+    if hold is None:
+        groups = max(MIN_GROUPS, math.ceil(0.5 / probe.bandwidth_hz * rate / k))
+        h = groups * k
+        reasons["hold"] = f"{groups} groups of {k}, at least half a period of the {probe.bandwidth_hz:.3g} Hz loop"
+    else:
+        h = math.ceil(validation.integer("hold", hold, minimum=1) / k) * k
+        reasons["hold"] = "given" + ("" if h == hold else f", rounded up to whole groups of {k}")
+    if amplitude is None:
+        floor = max(probe.noise_std, probe.quantum)
+        wanted = max(PLAY_MULTIPLE * probe.play, NOISE_MULTIPLE * floor if math.isfinite(floor) else 0.0)
+        if probe.saturated_half:
+            top, why = probe.amplitude / 4, "the drive saturated on the probe's steps of one amplitude"
+        elif probe.saturated:
+            top, why = probe.amplitude / 2, "the drive saturated on the probe's largest steps"
+        else:
+            top, why = probe.amplitude, "the probe's amplitude, which the drive followed linearly"
+        amp = min(max(wanted, 0.5 * top), top) if math.isfinite(wanted) else top
+        reasons["amplitude"] = (f"{PLAY_MULTIPLE:g}x the rough play and {NOISE_MULTIPLE:g}x the noise, at least half of and "
+                                f"at most {top:.3g} ({why})")  # fmt: skip
+        if wanted > top:
+            reasons["amplitude"] += f"; {wanted:.3g} was wanted: the play may be poorly excited"
+    else:
+        amp = validation.positive("amplitude", amplitude)
+        reasons["amplitude"] = "given"
+    return LiveDesign(k, h, float(amp), float(margin), rate / k, reasons)

@@ -1,0 +1,154 @@
+"""Whether an online estimate has converged: judged on its trajectory and against the refined fit, not on line coverage alone.
+
+The MRGIA's own ``settled`` flag only says that both backlash lines kept
+receiving updates; on physically modelled servos it said "settled" for runs
+whose online fit was 7-100x worse than the refined one (issue 15). An online
+estimate is called settled here only when all of these hold:
+
+coverage
+    both lines are still being updated at the end (:attr:`MRGIAResult.settled`);
+trajectory
+    the dead zone ``c1 + c2`` moved by at most ``drift_tol`` (relative) over
+    the last ``tail`` of the run, and no recovery happened in it;
+fit
+    when a refined fit of the same record is given: the online model's
+    free-run NRMSE is at most ``fit_ratio`` times the refined one (plus
+    ``fit_slack``), and its dead zone lies within ``gap_tol`` of the refined one.
+
+Every rule that fails is named in :attr:`OnlineVerdict.reasons`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from servoid.errors import ModelError
+from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.online.mrgia import MRGIAResult
+
+__all__ = ["OnlineVerdict", "judge_online", "DRIFT_TOL", "GAP_TOL", "FIT_RATIO", "TAIL"]
+
+#: Share of the run (its end) over which the trajectory must be still.
+TAIL = 0.25
+#: Largest relative movement of ``c1 + c2`` over the tail.
+DRIFT_TOL = 0.05
+#: Largest relative difference between the online and the refined dead zone.
+GAP_TOL = 0.10
+#: Largest ratio of the online fit's NRMSE to the refined one's.
+FIT_RATIO = 1.25
+#: Added to the allowed NRMSE, so that near-perfect fits are not judged on rounding.
+FIT_SLACK = 0.01
+
+
+@dataclass(frozen=True)
+class OnlineVerdict:
+    """The verdict on an online estimate, with the numbers it rests on.
+
+    Attributes
+    ----------
+    settled : bool
+        True only when every rule held (see the module's text).
+    reasons : tuple of str
+        One line per rule that failed; empty when settled.
+    online_gap, refined_gap : float
+        Dead zone ``c1 + c2`` of the online estimate and of the refined model (NaN when there is none).
+    online_nrmse, refined_nrmse : float
+        Free-run NRMSE of each on the record (NaN when unknown).
+    drift : float
+        Relative movement of the online dead zone over the last part of the run.
+    """
+
+    settled: bool
+    reasons: tuple[str, ...]
+    online_gap: float
+    refined_gap: float
+    online_nrmse: float
+    refined_nrmse: float
+    drift: float
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON (NaN as null through :func:`servoid.ident.serialise.dumps`)."""
+        return {"settled": self.settled, "reasons": list(self.reasons), "online_gap": self.online_gap,
+                "refined_gap": self.refined_gap, "online_nrmse": self.online_nrmse,
+                "refined_nrmse": self.refined_nrmse, "drift": self.drift}  # fmt: skip
+
+    def line(self, unit: str = "") -> str:
+        """One line for the terminal: both numbers and the verdict."""
+        u = f" {unit}" if unit else ""
+        text = (f"online estimate: play {self.online_gap:.4g}{u} (fit {self.online_nrmse:.3g}); refined: "
+                f"{self.refined_gap:.4g}{u} (fit {self.refined_nrmse:.3g}); ")  # fmt: skip
+        return text + ("settled" if self.settled else "NOT settled: " + "; ".join(self.reasons))
+
+
+def judge_online(
+    online: MRGIAResult,
+    online_nrmse: float | None = None,
+    refined: BacklashModel | None = None,
+    refined_nrmse: float | None = None,
+    *,
+    tail: float = TAIL,
+    drift_tol: float = DRIFT_TOL,
+    gap_tol: float = GAP_TOL,
+    fit_ratio: float = FIT_RATIO,
+    fit_slack: float = FIT_SLACK,
+) -> OnlineVerdict:
+    """Judge an online estimate (the module's rules).
+
+    Parameters
+    ----------
+    online : MRGIAResult
+        The online run, with its parameter history.
+    online_nrmse : float, optional
+        Free-run NRMSE of the online model on the record (None: not a valid model).
+    refined : BacklashModel, optional
+        The refined model of the same record; without it only coverage and trajectory are judged.
+    refined_nrmse : float, optional
+        Its free-run NRMSE.
+    tail : float
+        Share of the run, at its end, over which the trajectory must be still.
+    drift_tol : float
+        Largest relative movement of ``c1 + c2`` over the tail.
+    gap_tol : float
+        Largest relative difference of the dead zones.
+    fit_ratio : float
+        Largest ratio of the online NRMSE to the refined one.
+    fit_slack : float
+        Added to the allowed NRMSE.
+    """
+    reasons: list[str] = []
+    lay = online.config.theta_layout
+    try:
+        gap = online.model.dead_zone
+    except ModelError as exc:
+        gap = float(online.theta[lay.c1] + online.theta[lay.c2])
+        reasons.append(f"not a valid model ({exc})")
+    if not online.settled:
+        up, down = online.coverage
+        reasons.append(f"a backlash line stopped receiving updates (coverage up {up:.2f} / down {down:.2f})")
+    hist = online.theta_history
+    drift = math.nan
+    if hist.shape[0] >= 4:
+        gaps = hist[:, lay.c1] + hist[:, lay.c2]
+        last = gaps[int(math.floor((1.0 - tail) * gaps.size)) :]
+        scale = max(abs(gap), 1e-300)
+        drift = float(np.ptp(last) / scale)
+        if not drift <= drift_tol:
+            reasons.append(f"the play still moved {100 * drift:.0f} % over the last {100 * tail:.0f} % of the run")
+    else:
+        reasons.append("too short a history to judge the trajectory")
+    start = online.samples * (1.0 - tail)
+    if any(r.sample >= start for r in online.recoveries):
+        reasons.append(f"it recovered from a stuck zone classification in the last {100 * tail:.0f} % of the run")
+    o_fit = math.nan if online_nrmse is None else float(online_nrmse)
+    r_gap = math.nan if refined is None else refined.dead_zone
+    r_fit = math.nan if refined_nrmse is None else float(refined_nrmse)
+    if refined is not None:
+        if not o_fit <= fit_ratio * r_fit + fit_slack:
+            reasons.append(f"its fit ({o_fit:.3g}) is worse than {fit_ratio:g}x the refined one ({r_fit:.3g})")
+        if not abs(gap - r_gap) <= gap_tol * abs(r_gap):
+            reasons.append(f"its play differs from the refined one by {100 * (gap / r_gap - 1):+.0f} %")
+    return OnlineVerdict(not reasons, tuple(reasons), float(gap), float(r_gap), o_fit, r_fit, drift)

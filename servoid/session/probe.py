@@ -1,0 +1,47 @@
+"""Run the probe (:mod:`servoid.ident.online.probe`) through a driver: a short session, then what it found.
+
+The probe's set points stay within ``limits.centre +/- amplitude``, and the
+driver's own limits still clamp every command; the recording of the probe is
+kept beside the main one when a path is given.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from servoid.drivers.base import Driver
+from servoid.ident.online.probe import ProbeResult, analyse_probe, probe_input
+from servoid.session.sampler import SessionConfig, SessionResult, run_session
+
+__all__ = ["run_probe"]
+
+
+def run_probe(
+    driver: Driver, amplitude: float, config: SessionConfig, *, recording: str | Path | None = None
+) -> tuple[ProbeResult, SessionResult]:
+    """Probe an open driver's servo.
+
+    Parameters
+    ----------
+    driver : Driver
+        An open driver.
+    amplitude : float
+        Largest excursion from the driver's centre, inside the user's limits.
+    config : SessionConfig
+        The session's period and policies (the probe runs at the rate of the identification after it).
+    recording : path, optional
+        Where to write the probe's samples as they arrive.
+
+    Returns
+    -------
+    ProbeResult, SessionResult
+        What the probe found, and its session.
+
+    Raises
+    ------
+    DataError
+        When the probe's record cannot tell (too many samples lost, no movement).
+    """
+    u, plan = probe_input(driver.limits.centre, amplitude, config.rate_hz)
+    session = run_session(driver, u, config, recording=recording, metadata={"probe": "True"})
+    return analyse_probe(session.u, session.y, session.valid, plan), session
