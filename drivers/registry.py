@@ -6,6 +6,7 @@ URL forms::
     serial:///dev/ttyUSB0?baud=1000000              the serial bench controller
     can://virtual/ch0?protocol=cia402&node=1        a CAN drive (python-can interface / channel)
     dxl:///dev/ttyUSB0?id=1&baud=1000000            a ROBOTIS Dynamixel
+    feetech:///dev/ttyUSB0?id=1&baud=1000000        a Feetech STS servo
 
 Every driver also accepts the safety limits ``min``, ``max`` and
 ``max_step`` (user unit). Unknown schemes and unknown options are rejected
@@ -31,6 +32,7 @@ _REGISTRY: dict[str, str] = {
     "serial": "servoid.drivers.serial:SerialDriver",
     "can": "servoid.drivers.can:CanDriver",
     "dxl": "servoid.drivers.dynamixel:DynamixelDriver",
+    "feetech": "servoid.drivers.feetech:FeetechDriver",
 }
 
 #: Third-party module -> (the PyPI package that provides it, the servoid extra that installs it), for messages.
