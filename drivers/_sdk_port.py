@@ -20,7 +20,7 @@ import os
 import select
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any, TypeVar
 
 from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError
@@ -218,6 +218,79 @@ class SdkTransactions:
     vendor = ""
 
     describe: Callable[[], str]  # Driver's
+    servo_id: int
+    _ph: Any
+    #: The SDK's GroupSyncWrite and GroupSyncRead classes (the vendor driver sets them).
+    _group_classes: tuple[Any, Any]
+    _shared: Any = None  # the joint whose port this one uses, on a bus of several
+    _group: Any = None  # (ids, writer, reader) of the group transaction, on the joint that owns the port
+
+    # ---- several servos on one bus (servoid.drivers.bus) ------------------------------------
+    def share_port(self, owner: Any) -> None:
+        """Use ``owner``'s port and SDK handles (opened by it) instead of opening one: a joint of the same bus.
+
+        Parameters
+        ----------
+        owner : driver
+            The joint that opens the port (it is opened first and closed last).
+        """
+        self._shared = owner
+
+    def _open_on_shared_port(self, configure: Callable[[], None]) -> bool:
+        """Open on the owner's port (True), when this joint shares one; configure the servo there."""
+        owner = self._shared
+        if owner is None:
+            return False
+        self._port, self._ph, self._owner = owner._open_port(), owner._ph, owner._owner
+        try:
+            with self._setup():
+                configure()
+        except BaseException:
+            self._port = None
+            raise
+        return True
+
+    def group_exchange(self, joints: Sequence[Any], values: Sequence[int]) -> list[Any]:
+        """Every joint's goal in one SYNC_WRITE, every joint's per-sample block in one SYNC_READ; their readings.
+
+        Called on the joint that owns the port. Each reading is confirmed by its
+        joint (the goal read back, the torque, the protections), in order.
+
+        Parameters
+        ----------
+        joints : sequence of driver
+            The joints of the bus (this one first), open, torque on.
+        values : sequence of int
+            Each joint's goal, native units.
+        """
+        self._require_owner()
+        ids = tuple(j.servo_id for j in joints)
+        address, length = joints[0].present_block()
+        if self._group is None or self._group[0] != ids:
+            write_class, read_class = self._group_classes
+            goal_address, goal_size = self.goal_entry()
+            writer = write_class(self._open_port(), self._ph, goal_address, goal_size)
+            reader = read_class(self._open_port(), self._ph, address, length)
+            for j in joints:
+                writer.addParam(j.servo_id, j.encode_goal(0))
+                reader.addParam(j.servo_id)
+            self._group = (ids, writer, reader)
+        _, writer, reader = self._group
+        for j, value in zip(joints, values):
+            writer.changeParam(j.servo_id, j.encode_goal(value))
+        self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goals")
+        for j in joints:
+            reader.data_dict[j.servo_id] = []
+        result = self._sdk(reader.txRxPacket)
+        missing = [j for j in joints if len(reader.data_dict.get(j.servo_id) or ()) != length]
+        if result != 0 or missing:
+            culprit = missing[0] if missing else joints[0]
+            culprit._check(result if result != 0 else -7, 0, f"SYNC_READ of servos {', '.join(map(str, ids))}",
+                           reply_length=length)  # fmt: skip
+            raise ProtocolError(
+                f"{self.describe()}: the SYNC_READ answer of servo {culprit.servo_id} has the wrong length"
+            )
+        return [j.confirm_block(bytes(reader.data_dict[j.servo_id]), value) for j, value in zip(joints, values)]
 
     @contextlib.contextmanager
     def _setup(self) -> Iterator[None]:

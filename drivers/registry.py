@@ -135,6 +135,10 @@ def extra_for(module: str) -> str | None:
 def driver_from_url(url: str) -> Driver:
     """Build the driver a URL names (not yet open: use it as a context manager).
 
+    A URL that names several servos of one bus (``id=1,2,3``, for ``dxl`` and
+    ``feetech``) gives a :class:`~servoid.drivers.bus.BusDriver`, which the
+    sampling session runs as one multi-joint measurement.
+
     Parameters
     ----------
     url : str
@@ -147,4 +151,20 @@ def driver_from_url(url: str) -> Driver:
     ...     m = servo.exchange(0.5)
     """
     parsed = parse_url(url)
-    return driver_class(parsed.scheme).from_url(parsed)
+    cls = driver_class(parsed.scheme)
+    ids = parsed.options.get("id", "")
+    if "," not in ids:
+        return cls.from_url(parsed)
+    if not hasattr(cls, "group_exchange"):
+        raise ConfigError(f"{url}: id={ids} names several servos; only dxl:// and feetech:// run several on one bus")
+    import dataclasses
+
+    from servoid.drivers.bus import BusDriver, bus_ids
+
+    joints = []
+    for servo_id in bus_ids(ids):
+        one = dataclasses.replace(parsed, options={**parsed.options, "id": str(servo_id)})
+        joints.append(cls.from_url(one))
+    for joint in joints:
+        joint.url = url
+    return BusDriver(joints, url=url)  # type: ignore[return-value]

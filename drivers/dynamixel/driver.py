@@ -86,7 +86,15 @@ import threading
 import time
 from typing import Any, TypeVar
 
-from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
+from dynamixel_sdk import (
+    COMM_RX_CORRUPT,
+    COMM_RX_TIMEOUT,
+    COMM_SUCCESS,
+    GroupSyncRead,
+    GroupSyncWrite,
+    PacketHandler,
+    PortHandler,
+)
 
 from servoid.drivers._sdk_port import (
     SdkTransactions,
@@ -216,6 +224,7 @@ class DynamixelDriver(SdkTransactions, Driver):
 
     scheme = "dxl"
     vendor = "Dynamixel"
+    _group_classes = (GroupSyncWrite, GroupSyncRead)
     clock_wrap_s = ct.TICK_WRAP_S
     clock_resolution_s = 1e-3  # the Realtime Tick counts whole milliseconds
     options = {
@@ -287,6 +296,8 @@ class DynamixelDriver(SdkTransactions, Driver):
 
     # ---- primitives ---------------------------------------------------------------------
     def _open(self) -> None:
+        if self._open_on_shared_port(self._configure):  # a joint on a bus another joint opened
+            return
         latency = self.latency_ms if self.latency_ms is not None else default_latency_ms(self.port)
         port = _Port(self.port, latency_ms=latency)
         try:
@@ -307,9 +318,9 @@ class DynamixelDriver(SdkTransactions, Driver):
             raise
 
     def _close(self) -> None:
-        if self._port is not None:
+        if self._port is not None and self._shared is None:
             self._port.closePort()
-            self._port = None
+        self._port = None
 
     def _set_torque(self, enabled: bool) -> None:
         with self._setup():
@@ -343,7 +354,47 @@ class DynamixelDriver(SdkTransactions, Driver):
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
         reading, goal = self._present()
-        if goal != value:
+        return self.confirm(reading, goal, value)
+
+    def goal_entry(self) -> tuple[int, int]:
+        """``(address, size)`` of the goal written per sample."""
+        return self._goal.address, self._goal.size
+
+    def encode_goal(self, value: int) -> list[int]:
+        """A goal's bytes.
+
+        Parameters
+        ----------
+        value : int
+            The goal, native units.
+        """
+        return list(ct.encode_value(self._goal, value))
+
+    def confirm_block(self, data: bytes, written: int) -> Reading:
+        """The reading in the per-sample block ``data``, the goal ``written`` confirmed (:meth:`confirm`).
+
+        Parameters
+        ----------
+        data : bytes
+            The block (:meth:`present_block`).
+        written : int
+            The goal just written.
+        """
+        return self.confirm(*self.decode_present(data), written)
+
+    def confirm(self, reading: Reading, goal: int, written: int) -> Reading:
+        """``reading``, after checking that the servo holds the goal ``written`` (it read back ``goal``).
+
+        Parameters
+        ----------
+        reading : Reading
+            The present values read with the goal.
+        goal : int
+            The goal read back.
+        written : int
+            The goal just written.
+        """
+        if goal != written:
             self.stats.unconfirmed += 1
             if self._read_value(ct.BUS_WATCHDOG) == ct.BUS_WATCHDOG_EXPIRED:
                 raise DeviceFault(
@@ -351,7 +402,7 @@ class DynamixelDriver(SdkTransactions, Driver):
                     f"{self.watchdog_s:g} s: the host stalled): it stopped and locks its goals until reopened"
                 )
             raise CommandUnconfirmed(
-                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {value} just "
+                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {written} just "
                 f"written: the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
             )
         return reading
@@ -492,9 +543,23 @@ class DynamixelDriver(SdkTransactions, Driver):
     # ---- transactions ----------------------------------------------------------------------------
     def _present(self) -> tuple[Reading, int]:
         """The present values and the goal the servo holds, in one READ from the goal to Present Position."""
+        address, length = self.present_block()
+        return self.decode_present(self._read_block(address, length, "READ of the present values"))
+
+    def present_block(self) -> tuple[int, int]:
+        """``(address, length)`` of the per-sample READ: from the goal of the mode to Present Position's end."""
         address = self._goal.address
-        length = ct.PRESENT_POSITION.end - address
-        data = self._read_block(address, length, "READ of the present values")
+        return address, ct.PRESENT_POSITION.end - address
+
+    def decode_present(self, data: bytes | bytearray | list[int]) -> tuple[Reading, int]:
+        """The reading and the goal in the per-sample block (:meth:`present_block`).
+
+        Parameters
+        ----------
+        data : bytes
+            The block's bytes.
+        """
+        address = self._goal.address
         reading = Reading(
             position=float(ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)),
             device_time=ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address) / 1000.0,

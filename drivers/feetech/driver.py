@@ -75,6 +75,7 @@ from scservo_sdk import (
     COMM_RX_CORRUPT,
     COMM_RX_TIMEOUT,
     COMM_SUCCESS,
+    GroupSyncRead,
     GroupSyncWrite,
     PacketHandler,
     PortHandler,
@@ -182,6 +183,7 @@ class FeetechDriver(SdkTransactions, Driver):
 
     scheme = "feetech"
     vendor = "Feetech"
+    _group_classes = (GroupSyncWrite, GroupSyncRead)
     options = {
         "id": Option(_servo_id, f"servo ID 0..{MAX_ID} (default 1)", "servo_id"),
         "baud": Option(_baud, f"baud rate of port and servo, bit/s (default {DEFAULT_BAUD}, the factory setting)"),
@@ -219,7 +221,6 @@ class FeetechDriver(SdkTransactions, Driver):
         self._attempts = 1
         self._info: dict[str, Any] = {}
         self._position_range = (0, ct.COUNTS_PER_REV - 1)
-        self._shared: FeetechDriver | None = None  # the joint that owns the port, on a bus of several
 
     @classmethod
     def from_url(cls, url: DriverURL) -> FeetechDriver:
@@ -235,10 +236,7 @@ class FeetechDriver(SdkTransactions, Driver):
 
     # ---- primitives ---------------------------------------------------------------------
     def _open(self) -> None:
-        if self._shared is not None:  # a joint on a bus another joint opened: its port, its SDK handles
-            owner = self._shared
-            self._port, self._ph, self._owner = owner._open_port(), owner._ph, owner._owner
-            self._configure_safely()
+        if self._open_on_shared_port(self._configure):  # a joint on a bus another joint opened
             return
         latency = self.latency_ms if self.latency_ms is not None else default_latency_ms(self.port)
         port = _Port(self.port, latency_ms=latency)
@@ -252,19 +250,11 @@ class FeetechDriver(SdkTransactions, Driver):
         self._port, self._ph = port, PacketHandler(STS_END)
         self._owner = threading.get_ident()
         try:
-            self._configure_safely()
-        except BaseException:
-            port.closePort()
-            self._port = None
-            raise
-
-    def _configure_safely(self) -> None:
-        try:
             with self._setup():
                 self._configure()
         except BaseException:
-            if self._shared is not None:
-                self._port = None
+            port.closePort()
+            self._port = None
             raise
 
     def _close(self) -> None:
@@ -292,7 +282,7 @@ class FeetechDriver(SdkTransactions, Driver):
         writer.changeParam(self.servo_id, list(ct.encode_value(ct.GOAL_POSITION, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
         data = self._read_block(_BLOCK_START, _BLOCK_LENGTH, "READ of the present values")
-        return self.confirm(data, value)
+        return self.confirm_block(data, value)
 
     def _read(self) -> Reading:
         self._require_owner()
@@ -302,15 +292,35 @@ class FeetechDriver(SdkTransactions, Driver):
         return dict(self._info)
 
     # ---- for a bus of several (servoid.drivers.bus) -------------------------------------------
-    def share_port(self, owner: FeetechDriver) -> None:
-        """Use ``owner``'s port and SDK handles (opened by it) instead of opening one: a joint of the same bus.
+    def present_block(self) -> tuple[int, int]:
+        """``(address, length)`` of the per-sample READ: Torque Enable (40) to Present Current's end."""
+        return _BLOCK_START, _BLOCK_LENGTH
+
+    def goal_entry(self) -> tuple[int, int]:
+        """``(address, size)`` of Goal Position."""
+        return ct.GOAL_POSITION.address, ct.GOAL_POSITION.size
+
+    def encode_goal(self, value: int) -> list[int]:
+        """A goal's bytes (sign-magnitude, bit 15).
 
         Parameters
         ----------
-        owner : FeetechDriver
-            The joint that opens the port (it must be opened first and closed last).
+        value : int
+            The goal, counts.
         """
-        self._shared = owner
+        return list(ct.encode_value(ct.GOAL_POSITION, value))
+
+    def confirm_block(self, data: bytes, written: int) -> Reading:
+        """The reading in the per-sample block ``data``, the goal ``written`` confirmed (:meth:`confirm`).
+
+        Parameters
+        ----------
+        data : bytes
+            The block (:meth:`present_block`).
+        written : int
+            The goal just written.
+        """
+        return self.confirm(data, written)
 
     def confirm(self, data: bytes | bytearray | list[int], written: int) -> Reading:
         """The reading in ``data`` (the per-sample block), after checking the servo holds the goal ``written``.
@@ -332,6 +342,10 @@ class FeetechDriver(SdkTransactions, Driver):
             The goal differs from the one written (the SYNC_WRITE was lost).
         """
         reading, goal, torque, status = present(data)
+        if status and torque:
+            raise DeviceFault(
+                f"{self.describe()}: servo {self.servo_id} reports {describe_error(status)} (Status {status})"
+            )
         if not torque:
             if status:
                 raise DeviceFault(
@@ -349,26 +363,6 @@ class FeetechDriver(SdkTransactions, Driver):
                 f"the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
             )
         return reading
-
-    def sdk(self) -> tuple[Any, Any]:
-        """The open port handler and packet handler (for a group transaction over several joints)."""
-        return self._open_port(), self._ph
-
-    def check(self, result: int, error: int, what: str, *, reply_length: int = 0) -> None:
-        """Turn the SDK's status code and a status packet's error byte into an exception (see :meth:`_check`).
-
-        Parameters
-        ----------
-        result : int
-            The SDK's ``COMM_*`` code.
-        error : int
-            The status packet's error byte.
-        what : str
-            The transaction, for the message.
-        reply_length : int
-            Data bytes of the awaited reply (for the timeout in the message).
-        """
-        self._check(result, error, what, reply_length=reply_length)
 
     # ---- configuration at open -------------------------------------------------------------------
     def _configure(self) -> None:
