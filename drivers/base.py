@@ -113,6 +113,7 @@ __all__ = [
     "Driver",
     "Reading",
     "Measurement",
+    "PendingCommand",
     "Limits",
     "UnitConversion",
     "Option",
@@ -290,6 +291,28 @@ class Reading:
     device_time: float | None = None
     velocity: float | None = None
     current: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class PendingCommand:
+    """A command on its way (:meth:`Driver.begin_exchange`), user unit.
+
+    Attributes
+    ----------
+    requested : float
+        The command asked for.
+    command : float
+        The command to send (limited, rounded).
+    clamped : bool
+        Whether the limits changed it.
+    slot : int or None
+        The session's slot.
+    """
+
+    requested: float
+    command: float
+    clamped: bool
+    slot: int | None
 
 
 @dataclass(frozen=True, slots=True)
@@ -717,6 +740,26 @@ class Driver(abc.ABC):
         DriverError
             For any other failure of the transport or the servo.
         """
+        pending = self.begin_exchange(u, slot=slot)
+        reading = self._call(self._exchange, self.command_unit.to_native(pending.command), pending.slot)
+        return self.end_exchange(pending, reading)
+
+    def begin_exchange(self, u: float, *, slot: int | None = None) -> PendingCommand:
+        """The first half of :meth:`exchange`: check ``u``, apply the limits and the rounding, note the command as sent.
+
+        For a group transaction over several servos of one bus
+        (:mod:`servoid.drivers.bus`), which sends every joint's command in one
+        packet: each joint's driver begins, the group exchanges, each joint's
+        driver ends (:meth:`end_exchange`). :meth:`exchange` is both halves
+        around the driver's own ``_exchange``.
+
+        Parameters
+        ----------
+        u : float
+            The command asked for, user unit.
+        slot : int, optional
+            The session's slot number.
+        """
         self._require_open()
         requested = float(u)
         if not math.isfinite(requested):
@@ -734,12 +777,35 @@ class Driver(abc.ABC):
         self._last_command = command
         held = self._held
         self._held = (command, command) if held is None else (min(held[0], command), max(held[1], command))
-        reading = self._call(self._exchange, self.command_unit.to_native(command), slot)
-        self._held = (command, command)
+        return PendingCommand(requested, command, clamped, slot)
+
+    def end_exchange(self, pending: PendingCommand, reading: Reading) -> Measurement:
+        """The second half of :meth:`exchange`: the servo answered ``reading`` to ``pending``'s command.
+
+        Parameters
+        ----------
+        pending : PendingCommand
+            What :meth:`begin_exchange` returned.
+        reading : Reading
+            The servo's answer, native units.
+        """
+        self._held = (pending.command, pending.command)
         self.stats.exchanges += 1
-        measurement = self._measurement(reading, requested, command, clamped)
+        measurement = self._measurement(reading, pending.requested, pending.command, pending.clamped)
         self._guard(measurement.position)
         return measurement
+
+    def call(self, func: Callable[..., Any], *args: Any) -> Any:
+        """``func(*args)`` with this driver's error wrapping and counters (for a group transaction of a bus).
+
+        Parameters
+        ----------
+        func : callable
+            A primitive.
+        *args
+            Its arguments.
+        """
+        return self._call(func, *args)
 
     def quantise(self, command: float) -> float:
         """``command`` (user unit, within the limits) as the device applies it: the nearest step inside the limits.

@@ -6,6 +6,7 @@ URL forms::
     serial:///dev/ttyUSB0?baud=1000000              the serial bench controller
     can://virtual/ch0?protocol=cia402&node=1        a CAN drive (python-can interface / channel)
     dxl:///dev/ttyUSB0?id=1&baud=1000000            a ROBOTIS Dynamixel
+    feetech:///dev/ttyUSB0?id=1&baud=1000000        a Feetech STS servo
 
 Every driver also accepts the safety limits ``min``, ``max`` and
 ``max_step`` (user unit). Unknown schemes and unknown options are rejected
@@ -31,6 +32,7 @@ _REGISTRY: dict[str, str] = {
     "serial": "servoid.drivers.serial:SerialDriver",
     "can": "servoid.drivers.can:CanDriver",
     "dxl": "servoid.drivers.dynamixel:DynamixelDriver",
+    "feetech": "servoid.drivers.feetech:FeetechDriver",
 }
 
 #: Third-party module -> (the PyPI package that provides it, the servoid extra that installs it), for messages.
@@ -133,6 +135,10 @@ def extra_for(module: str) -> str | None:
 def driver_from_url(url: str) -> Driver:
     """Build the driver a URL names (not yet open: use it as a context manager).
 
+    A URL that names several servos of one bus (``id=1,2,3``, for ``dxl`` and
+    ``feetech``) gives a :class:`~servoid.drivers.bus.BusDriver`, which the
+    sampling session runs as one multi-joint measurement.
+
     Parameters
     ----------
     url : str
@@ -145,4 +151,20 @@ def driver_from_url(url: str) -> Driver:
     ...     m = servo.exchange(0.5)
     """
     parsed = parse_url(url)
-    return driver_class(parsed.scheme).from_url(parsed)
+    cls = driver_class(parsed.scheme)
+    ids = parsed.options.get("id", "")
+    if "," not in ids:
+        return cls.from_url(parsed)
+    if not hasattr(cls, "group_exchange"):
+        raise ConfigError(f"{url}: id={ids} names several servos; only dxl:// and feetech:// run several on one bus")
+    import dataclasses
+
+    from servoid.drivers.bus import BusDriver, bus_ids
+
+    joints = []
+    for servo_id in bus_ids(ids):
+        one = dataclasses.replace(parsed, options={**parsed.options, "id": str(servo_id)})
+        joints.append(cls.from_url(one))
+    for joint in joints:
+        joint.url = url
+    return BusDriver(joints, url=url)  # type: ignore[return-value]

@@ -79,19 +79,31 @@ Pitfalls of the SDK handled here
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import logging
 import math
-import os
-import select
 import threading
 import time
-from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-from dynamixel_sdk import COMM_RX_CORRUPT, COMM_RX_TIMEOUT, COMM_SUCCESS, GroupSyncWrite, PacketHandler, PortHandler
+from dynamixel_sdk import (
+    COMM_RX_CORRUPT,
+    COMM_RX_TIMEOUT,
+    COMM_SUCCESS,
+    GroupSyncRead,
+    GroupSyncWrite,
+    PacketHandler,
+    PortHandler,
+)
 
+from servoid.drivers._sdk_port import (
+    SdkTransactions,
+    SelectPort,
+    checked,
+    default_latency_ms,
+    parse_latency,
+    parse_return_delay,
+)
 from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, UnitConversion
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
@@ -128,17 +140,6 @@ COMMAND_UNITS = {
     OperatingMode.PWM: UnitConversion("%", ct.PERCENT_PER_PWM_UNIT, 0.0),
 }
 
-#: Latency timer (ms) at least assumed outside the per-sample exchange (opening, torque, reboot):
-#: nothing there is timed, and a servo just powered up or a loaded host may be slow to answer.
-SETUP_LATENCY_MS = 25.0
-
-#: Tries of a transaction outside the per-sample exchange (opening, torque, reboot) before giving
-#: up: a noisy line costs a retry there, never the run; a goal is never sent twice.
-SETUP_ATTEMPTS = 3
-
-#: Latency timer (ms) assumed for a pseudo-terminal (an emulator) when the URL does not say.
-PTY_LATENCY_MS = 10.0
-
 #: Bus Watchdog of the servo while its torque is on, s (URL ``watchdog``): it stops within this
 #: time of the host's last packet. Far above any sample period servoid uses (1 kHz .. 50 Hz).
 DEFAULT_WATCHDOG_S = 0.5
@@ -171,24 +172,6 @@ def _mode(value: Any) -> str:
     return text
 
 
-def _return_delay(value: Any) -> int | None:
-    if value is None or str(value).lower() == "keep":
-        return None
-    number = int(value)
-    if not 0 <= number <= 508 or number % 2:
-        raise ValueError("the Return Delay Time is an even number of microseconds in 0..508, or 'keep'")
-    return number
-
-
-def _latency(value: Any) -> float | None:
-    if value is None or str(value).lower() == "auto":
-        return None
-    number = float(value)
-    if not number > 0:
-        raise ValueError("the latency timer is a positive number of milliseconds, or 'auto'")
-    return number
-
-
 def _watchdog(value: Any) -> float:
     seconds = float(value)
     units = math.ceil(seconds / ct.SECONDS_PER_BUS_WATCHDOG_UNIT - 1e-9) if seconds > 0 else 0
@@ -206,82 +189,11 @@ def _flag(value: Any) -> bool:
     raise ValueError("expected 1 or 0")
 
 
-def default_latency_ms(port: str) -> float:
-    """The latency to allow for ``port`` when the URL does not say (``latency_ms=auto``).
-
-    A USB serial adapter (U2D2, USB2Dynamixel: FTDI chips) holds received bytes
-    up to its latency timer, read from sysfs. A pseudo-terminal's other end is
-    a program (the emulator), which a loaded machine may not schedule for
-    several milliseconds: :data:`PTY_LATENCY_MS`. Anything else (a native UART):
-    1 ms.
-    """
-    real = os.path.realpath(port)
-    try:
-        with open(f"/sys/bus/usb-serial/devices/{os.path.basename(real)}/latency_timer", encoding="ascii") as fh:
-            latency = float(fh.read().strip())
-    except (OSError, ValueError):
-        return PTY_LATENCY_MS if real.startswith("/dev/pts/") else 1.0
-    if latency > 2:
-        log.warning(
-            "%s: the USB adapter's latency timer is %g ms, which delays every reply; set it to 1 ms: "
-            "echo 1 | sudo tee /sys/bus/usb-serial/devices/%s/latency_timer", port, latency, os.path.basename(real),
-        )  # fmt: skip
-    return latency
-
-
-class _Port(PortHandler):  # type: ignore[misc]
+class _Port(SelectPort, PortHandler):  # type: ignore[misc]
     """The SDK's PortHandler with monotonic timeouts, the real latency timer, and no busy-polling."""
 
-    def __init__(self, port_name: str, *, latency_ms: float) -> None:
-        super().__init__(port_name)
-        self.latency_ms = latency_ms
-        #: "select" waits for the reply's bytes; "spin" is the SDK's own busy-polling (for comparison).
-        self.poll = "select"
 
-    def getCurrentTime(self) -> float:  # noqa: N802 - the SDK's name; ms, like the SDK's
-        return time.monotonic_ns() / 1e6
-
-    def setPacketTimeout(self, packet_length: int) -> None:  # noqa: N802
-        # the SDK's formula, with the adapter's latency instead of its fixed 16 ms
-        self.packet_start_time = self.getCurrentTime()
-        self.packet_timeout = self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0
-
-    def readPort(self, length: int) -> bytes:  # noqa: N802
-        # The SDK calls this in a tight loop until the reply is complete or the
-        # timeout expires; waiting in select() instead frees the core for the
-        # servo emulator or the estimator, and wakes as soon as bytes arrive.
-        if length <= 0:
-            # the SDK's own arithmetic on a corrupted LENGTH field (it waits for LENGTH + 7 bytes and has
-            # more already): nothing to read, and the CRC over the bytes it has then refuses the packet
-            return b""
-        fd = getattr(self.ser, "fd", None)
-        if fd is None or self.poll == "spin":
-            return super().readPort(length)  # type: ignore[no-any-return]
-        remaining_ms = self.packet_timeout - self.getTimeSinceStart()
-        ready, _, _ = select.select([fd], [], [], max(remaining_ms, 0.0) / 1000.0)
-        if not ready:
-            return b""
-        try:
-            return os.read(fd, length)
-        except BlockingIOError:
-            return b""
-
-    @contextlib.contextmanager
-    def patience(self, latency_ms: float) -> Iterator[None]:
-        """Use at least ``latency_ms`` for the timeouts inside the ``with`` block."""
-        saved = self.latency_ms
-        self.latency_ms = max(saved, latency_ms)
-        try:
-            yield
-        finally:
-            self.latency_ms = saved
-
-    def timeout_ms(self, packet_length: int) -> float:
-        """The reply timeout the SDK will use for a reply of ``packet_length`` bytes."""
-        return float(self.tx_time_per_byte * packet_length + self.latency_ms * 2.0 + 2.0)
-
-
-class DynamixelDriver(Driver):
+class DynamixelDriver(SdkTransactions, Driver):
     """A ROBOTIS X-series Dynamixel over Protocol 2.0 (see the module docstring).
 
     Parameters
@@ -311,6 +223,8 @@ class DynamixelDriver(Driver):
     """
 
     scheme = "dxl"
+    vendor = "Dynamixel"
+    _group_classes = (GroupSyncWrite, GroupSyncRead)
     clock_wrap_s = ct.TICK_WRAP_S
     clock_resolution_s = 1e-3  # the Realtime Tick counts whole milliseconds
     options = {
@@ -318,10 +232,10 @@ class DynamixelDriver(Driver):
         "baud": Option(_baud, f"baud rate of port and servo, bit/s (default {DEFAULT_BAUD}, the factory setting)"),
         "mode": Option(_mode, "operating mode: position (command in rad), current (A) or pwm (%) (default position)"),
         "return_delay_us": Option(
-            _return_delay, "Return Delay Time set at open, us, even, 0..508, or keep (default 0)"
+            parse_return_delay, "Return Delay Time set at open, us, even, 0..508, or keep (default 0)"
         ),
         "latency_ms": Option(
-            _latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"
+            parse_latency, "reply timeout is 2 x this + 2 ms; ms, or auto: the adapter's, 10 on a pty (default)"
         ),
         "reboot": Option(_flag, "1: reboot a servo that reports a hardware error at open (default 0)"),
         "watchdog": Option(
@@ -346,13 +260,13 @@ class DynamixelDriver(Driver):
         if not isinstance(port, str) or not port:
             raise ConfigError(f"port (={port!r}) must name a serial port, e.g. /dev/ttyUSB0")
         self.port = port
-        self.servo_id = _checked("servo_id", servo_id, _servo_id)
-        self.baud = _checked("baud", baud, _baud)
-        self.mode = _checked("mode", mode, _mode)
-        self.return_delay_us = _checked("return_delay_us", return_delay_us, _return_delay)
-        self.latency_ms = _checked("latency_ms", latency_ms, _latency)
+        self.servo_id = checked("servo_id", servo_id, _servo_id)
+        self.baud = checked("baud", baud, _baud)
+        self.mode = checked("mode", mode, _mode)
+        self.return_delay_us = checked("return_delay_us", return_delay_us, parse_return_delay)
+        self.latency_ms = checked("latency_ms", latency_ms, parse_latency)
         self.reboot_on_error = bool(reboot)
-        watchdog_s = _checked("watchdog", watchdog, _watchdog)
+        watchdog_s = checked("watchdog", watchdog, _watchdog)
         self._operating_mode = MODES[self.mode]
         self._goal = _GOAL[self._operating_mode]
         super().__init__(limits=limits, position_unit=POSITION_UNIT, command_unit=COMMAND_UNITS[self._operating_mode])
@@ -382,6 +296,8 @@ class DynamixelDriver(Driver):
 
     # ---- primitives ---------------------------------------------------------------------
     def _open(self) -> None:
+        if self._open_on_shared_port(self._configure):  # a joint on a bus another joint opened
+            return
         latency = self.latency_ms if self.latency_ms is not None else default_latency_ms(self.port)
         port = _Port(self.port, latency_ms=latency)
         try:
@@ -402,9 +318,9 @@ class DynamixelDriver(Driver):
             raise
 
     def _close(self) -> None:
-        if self._port is not None:
+        if self._port is not None and self._shared is None:
             self._port.closePort()
-            self._port = None
+        self._port = None
 
     def _set_torque(self, enabled: bool) -> None:
         with self._setup():
@@ -438,7 +354,47 @@ class DynamixelDriver(Driver):
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")
         reading, goal = self._present()
-        if goal != value:
+        return self.confirm(reading, goal, value)
+
+    def goal_entry(self) -> tuple[int, int]:
+        """``(address, size)`` of the goal written per sample."""
+        return self._goal.address, self._goal.size
+
+    def encode_goal(self, value: int) -> list[int]:
+        """A goal's bytes.
+
+        Parameters
+        ----------
+        value : int
+            The goal, native units.
+        """
+        return list(ct.encode_value(self._goal, value))
+
+    def confirm_block(self, data: bytes, written: int) -> Reading:
+        """The reading in the per-sample block ``data``, the goal ``written`` confirmed (:meth:`confirm`).
+
+        Parameters
+        ----------
+        data : bytes
+            The block (:meth:`present_block`).
+        written : int
+            The goal just written.
+        """
+        return self.confirm(*self.decode_present(data), written)
+
+    def confirm(self, reading: Reading, goal: int, written: int) -> Reading:
+        """``reading``, after checking that the servo holds the goal ``written`` (it read back ``goal``).
+
+        Parameters
+        ----------
+        reading : Reading
+            The present values read with the goal.
+        goal : int
+            The goal read back.
+        written : int
+            The goal just written.
+        """
+        if goal != written:
             self.stats.unconfirmed += 1
             if self._read_value(ct.BUS_WATCHDOG) == ct.BUS_WATCHDOG_EXPIRED:
                 raise DeviceFault(
@@ -446,7 +402,7 @@ class DynamixelDriver(Driver):
                     f"{self.watchdog_s:g} s: the host stalled): it stopped and locks its goals until reopened"
                 )
             raise CommandUnconfirmed(
-                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {value} just "
+                f"{self.describe()}: servo {self.servo_id} holds {self._goal.name} {goal}, not the {written} just "
                 f"written: the goal was lost on its way (a corrupted SYNC_WRITE is dropped unanswered)"
             )
         return reading
@@ -587,9 +543,23 @@ class DynamixelDriver(Driver):
     # ---- transactions ----------------------------------------------------------------------------
     def _present(self) -> tuple[Reading, int]:
         """The present values and the goal the servo holds, in one READ from the goal to Present Position."""
+        address, length = self.present_block()
+        return self.decode_present(self._read_block(address, length, "READ of the present values"))
+
+    def present_block(self) -> tuple[int, int]:
+        """``(address, length)`` of the per-sample READ: from the goal of the mode to Present Position's end."""
         address = self._goal.address
-        length = ct.PRESENT_POSITION.end - address
-        data = self._read_block(address, length, "READ of the present values")
+        return address, ct.PRESENT_POSITION.end - address
+
+    def decode_present(self, data: bytes | bytearray | list[int]) -> tuple[Reading, int]:
+        """The reading and the goal in the per-sample block (:meth:`present_block`).
+
+        Parameters
+        ----------
+        data : bytes
+            The block's bytes.
+        """
+        address = self._goal.address
         reading = Reading(
             position=float(ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)),
             device_time=ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address) / 1000.0,
@@ -636,36 +606,6 @@ class DynamixelDriver(Driver):
 
         self._retried(transaction)
 
-    @contextlib.contextmanager
-    def _setup(self) -> Iterator[None]:
-        """Outside the per-sample exchange: patient timeouts, and a failed transaction tried again."""
-        with self._open_port().patience(SETUP_LATENCY_MS):
-            self._attempts = SETUP_ATTEMPTS
-            try:
-                yield
-            finally:
-                self._attempts = 1
-
-    def _retried(self, transaction: Callable[[], T]) -> T:
-        """``transaction()``, tried again after a timeout or a corrupted answer inside :meth:`_setup`."""
-        for attempt in range(1, self._attempts + 1):
-            try:
-                return transaction()
-            except (DriverTimeout, ProtocolError) as exc:
-                if attempt == self._attempts:
-                    raise
-                log.debug("%s: attempt %d failed (%s), trying again", self.describe(), attempt, exc)
-        raise AssertionError("unreachable")
-
-    def _sdk(self, func: Callable[..., Any], *args: Any) -> Any:
-        try:
-            return func(*args)
-        except BaseException:
-            # the SDK leaves its busy flag set when a call raises: every later call would fail
-            if self._port is not None:
-                self._port.is_using = False
-            raise
-
     def _check(self, result: int, error: int, what: str, *, allow_alert: bool = False, reply_length: int = 0) -> None:
         """Turn the SDK's status code and the status packet's error byte into an exception."""
         sid = self.servo_id
@@ -697,21 +637,3 @@ class DynamixelDriver(Driver):
             f"{HardwareError(bits).describe()} (Hardware Error Status {bits}); the servo switched its torque off. "
             f"Remove the cause, then power-cycle it or reopen with reboot=1"
         )
-
-    def _open_port(self) -> _Port:
-        if self._port is None:
-            raise DriverError(f"{self.describe()} is not open")
-        return self._port
-
-    def _require_owner(self) -> None:
-        if threading.get_ident() != self._owner:
-            raise DriverError(
-                f"{self.describe()}: a Dynamixel driver is not thread-safe; use it from the thread that opened it"
-            )
-
-
-def _checked(name: str, value: Any, parse: Callable[[Any], Any]) -> Any:
-    try:
-        return parse(value)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"{name} (={value!r}) is invalid: {exc}") from None

@@ -80,16 +80,14 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from servoid import validation
+from servoid.drivers._pty_bus import return_delay_units, servo_plant
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel._emulator_facts import CURRENT_GAIN, PWM_GAIN
 from servoid.drivers.dynamixel.control_table import Field, HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ErrorNumber
 from servoid.drivers.sampled import PlantSample, SampledPlant
-from servoid.drivers.servos import DEFAULT_RATE_HZ, Servo, parse_servo
-from servoid.drivers.twin import Twin, TwinPlant
-from servoid.errors import ConfigError
+from servoid.drivers.servos import Servo
 
 __all__ = ["EmulatedServo", "CURRENT_GAIN", "PWM_GAIN"]
 
@@ -159,21 +157,9 @@ class EmulatedServo:
         clock: Clock | None = None,
         period_s: float | None = None,
     ) -> None:
-        validation.integer("servo_id", servo_id, minimum=0)
-        if servo_id > 252:
-            raise ConfigError(f"servo_id (={servo_id}) must be in 0..252")
-        delay = validation.integer("return_delay_us", return_delay_us, minimum=0)
-        if delay > 508 or delay % 2:
-            raise ConfigError(f"return_delay_us (={delay}) must be even and in 0..508 (unit 2 us)")
+        delay = 2 * return_delay_units(servo_id, return_delay_us, max_id=252)
         self._clock: Clock = clock if clock is not None else MonotonicClock()
-        period_ns = None if period_s is None else int(round(validation.positive("period_s", period_s) * NS_PER_S))
-        self.servo = servo if isinstance(servo, Servo) else parse_servo(servo)
-        if self.servo.twin is None:
-            assert self.servo.model is not None
-            self._sampled = SampledPlant(self.servo.model, period_ns=period_ns)
-        else:
-            twin = TwinPlant(Twin(self.servo.twin), 1.0 / DEFAULT_RATE_HZ, torque=False)
-            self._sampled = SampledPlant(twin, period_ns=period_ns)
+        self.servo, self._sampled = servo_plant(servo, period_s)
         self.slot_source: Callable[[], int | None] | None = None
         self._memory = bytearray(ct.TABLE_SIZE)
         self._registered: tuple[int, bytes] | None = None

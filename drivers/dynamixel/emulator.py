@@ -36,24 +36,13 @@ with the code being measured.
 
 from __future__ import annotations
 
-import errno
-import fcntl
-import os
-import pickle
-import select
-import subprocess
-import sys
-import threading
-import tty
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
-import numpy as np
-
-from servoid import validation
-from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
+from servoid.drivers import _pty_bus
+from servoid.drivers._pty_bus import EmulatorStats, LinkFaults, PtyBusEmulator, ServoBus, bus_servos, serve_child
+from servoid.drivers.clock import Clock, MonotonicClock
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.emulated_servo import EmulatedServo
 from servoid.drivers.dynamixel.protocol import (
@@ -68,15 +57,9 @@ from servoid.drivers.dynamixel.protocol import (
     status_packet,
     unstuff,
 )
-from servoid.drivers.servos import Servo, parse_servo
-from servoid.drivers.twin import Twin
-from servoid.errors import ConfigError, DriverError
-from servoid.ident.models.plant import Plant
+from servoid.drivers.servos import Servo
 
 __all__ = ["LinkFaults", "DynamixelBus", "DynamixelEmulator", "EmulatorProcess", "EmulatorStats", "dxl_url"]
-
-#: A partial frame is dropped when the line stays quiet this long (s), as a servo's packet timeout does.
-IDLE_DISCARD_S = 0.05
 
 
 def dxl_url(port: str, servo_id: int, *, baud: int = 1_000_000, **options: Any) -> str:
@@ -85,50 +68,7 @@ def dxl_url(port: str, servo_id: int, *, baud: int = 1_000_000, **options: Any) 
     return f"dxl://{port}?id={servo_id}&baud={baud}{extra}"
 
 
-@dataclass
-class LinkFaults:
-    """Faults injected on one servo's link; change the fields while the emulator runs.
-
-    Attributes
-    ----------
-    mute : bool
-        The servo still executes instructions but never answers (a broken
-        return line): every read times out, yet a torque-off write still
-        reaches it.
-    corrupt_replies : int
-        Corrupt the CRC of this many of the servo's next status packets.
-    corrupt_requests : int
-        Treat this many of the next instruction packets addressed to the servo
-        as received with a bad CRC (it answers with the CRC error number).
-    stale_replies : int
-        Answer this many of the next READs with an empty status packet, as a
-        late answer to an earlier WRITE would look to the SDK (success, but no
-        data).
-    mute_after : int, optional
-        Set ``mute`` after the servo sent this many more status packets (counts down).
-    drop : float
-        Probability that a status packet is lost on the way back.
-    corrupt_goals : int
-        Treat this many of the next SYNC_WRITE packets on the bus as received
-        with a bad CRC: every servo drops them, unanswered (a goal lost on its
-        way, which only a read-back of the goal shows).
-    corrupt_lengths : int
-        Send this many of the servo's next status packets with their LENGTH
-        field cut to 3 (fewer bytes than the packet's own header holds), the
-        rest of the packet unchanged.
-    """
-
-    mute: bool = False
-    corrupt_replies: int = 0
-    corrupt_requests: int = 0
-    corrupt_goals: int = 0
-    corrupt_lengths: int = 0
-    stale_replies: int = 0
-    mute_after: int | None = None
-    drop: float = 0.0
-
-
-class DynamixelBus:
+class DynamixelBus(ServoBus[EmulatedServo]):
     """Several servos on one half-duplex bus: which instruction reaches whom, and who answers.
 
     Parameters
@@ -137,26 +77,6 @@ class DynamixelBus:
         The servos on the bus (looked up by their current ID, which a WRITE
         of ID can change).
     """
-
-    def __init__(self, servos: Iterable[EmulatedServo]) -> None:
-        self.servos = list(servos)
-        self._detached: set[int] = set()  # id() of unplugged servos
-
-    def find(self, servo_id: int) -> EmulatedServo | None:
-        """The connected servo that currently has ``servo_id``."""
-        for servo in self.servos:
-            if id(servo) not in self._detached and servo.id == servo_id:
-                return servo
-        return None
-
-    def connected(self) -> list[EmulatedServo]:
-        return sorted((s for s in self.servos if id(s) not in self._detached), key=lambda s: s.id)
-
-    def detach(self, servo: EmulatedServo) -> None:
-        self._detached.add(id(servo))
-
-    def attach(self, servo: EmulatedServo) -> None:
-        self._detached.discard(id(servo))
 
     def handle(self, frame: Frame) -> list[tuple[EmulatedServo, bytes]]:
         """Execute one received frame; return the status packets to send, in order."""
@@ -318,18 +238,7 @@ _HANDLERS: dict[int, Callable[[DynamixelBus, Packet], list[tuple[EmulatedServo, 
 }
 
 
-@dataclass
-class EmulatorStats:
-    """What the emulator saw: packets received, status packets sent, frames with a bad CRC."""
-
-    received: int = 0
-    replies: int = 0
-    corrupt_received: int = 0
-    dropped_replies: int = 0
-    flipped_bits: int = 0
-
-
-class DynamixelEmulator:
+class DynamixelEmulator(PtyBusEmulator[EmulatedServo]):
     """X-series servos on a pseudo-terminal (see the module docstring).
 
     Parameters
@@ -390,244 +299,73 @@ class DynamixelEmulator:
         trace: str | Path | None = None,
         on_event: Callable[[str], None] | None = None,
     ) -> None:
-        id_list = [int(i) for i in ids]
-        if not id_list or len(set(id_list)) != len(id_list):
-            raise ConfigError(f"ids (={id_list}) must be one or more distinct servo IDs")
-        self.clock: Clock = clock if clock is not None else MonotonicClock()
-        spec = servo if isinstance(servo, Servo) else parse_servo(servo)
-        servos = [
-            EmulatedServo(i, servo=spec, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us,
-                          clock=self.clock, period_s=period_s)
-            for i in id_list
-        ]  # fmt: skip
-        self.flip = validation.in_unit_interval("flip", flip, open_low=False, open_high=False)
-        # None: follow ``flip`` (which tests may change while the emulator runs)
-        self._flip_rx = None if flip_rx is None else validation.in_unit_interval("flip_rx", flip_rx, open_low=False,
-                                                                                  open_high=False)  # fmt: skip
-        self._flip_tx = None if flip_tx is None else validation.in_unit_interval("flip_tx", flip_tx, open_low=False,
-                                                                                  open_high=False)  # fmt: skip
-        self._rng = np.random.default_rng(seed)
-        self._trace: IO[str] | None = open(trace, "w", encoding="ascii") if trace is not None else None  # noqa: SIM115
-        self.bus = DynamixelBus(servos)
+        own_clock: Clock = clock if clock is not None else MonotonicClock()
+        servos = bus_servos(ids, servo, lambda i, spec: EmulatedServo(
+            i, servo=spec, model_number=model_number, firmware=firmware, return_delay_us=return_delay_us,
+            clock=own_clock, period_s=period_s))  # fmt: skip
+        super().__init__(servos, PacketReader(), clock=own_clock, flip=flip, flip_rx=flip_rx, flip_tx=flip_tx,
+                         seed=seed, trace=trace)  # fmt: skip
+        self.bus: DynamixelBus = DynamixelBus(servos)  # type: ignore[assignment]
         for emulated in servos:
             emulated.on_event = on_event
-        # compile (or load) the kernels now, not while a reply is awaited
-        if spec.model is not None:
-            Plant(spec.model).step(0.0)
-        else:
-            Twin(spec.twin).advance(1e-3)  # type: ignore[arg-type]
-        self._faults = {id(s): LinkFaults() for s in servos}
-        self.stats = EmulatorStats()
-        self._reader = PacketReader()
-        self._master, self._slave = os.openpty()
-        tty.setraw(self._slave)
-        # the emulator must never block on a full pty when nobody reads the other side
-        fcntl.fcntl(self._master, fcntl.F_SETFL, fcntl.fcntl(self._master, fcntl.F_GETFL) | os.O_NONBLOCK)
-        self.port = os.ttyname(self._slave)
-        self._wake_r, self._wake_w = os.pipe()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-        self._closed = False
-
-    @property
-    def flip_rx(self) -> float:
-        """Bit-flip probability per byte of the instruction packets received."""
-        return self.flip if self._flip_rx is None else self._flip_rx
-
-    @property
-    def flip_tx(self) -> float:
-        """Bit-flip probability per byte of the status packets sent."""
-        return self.flip if self._flip_tx is None else self._flip_tx
-
-    # ---- access for tests and users -----------------------------------------------------
-    def servo(self, servo_id: int) -> EmulatedServo:
-        """The servo that has ``servo_id`` now (also when unplugged)."""
-        for s in self.bus.servos:
-            if s.id == servo_id:
-                return s
-        raise ConfigError(f"servo_id (={servo_id}) is not on this bus; IDs: {[s.id for s in self.bus.servos]}")
-
-    def faults(self, servo_id: int) -> LinkFaults:
-        """The faults injected on a servo's link (mutable)."""
-        return self._faults[id(self.servo(servo_id))]
-
-    def unplug(self, servo_id: int) -> None:
-        """Take a servo off the bus: it neither executes nor answers anything."""
-        self.bus.detach(self.servo(servo_id))
-
-    def plug(self, servo_id: int) -> None:
-        """Put an unplugged servo back on the bus."""
-        self.bus.attach(self.servo(servo_id))
 
     def url(self, servo_id: int | None = None, *, baud: int = 1_000_000, **options: Any) -> str:
         """The ``dxl://`` URL that reaches a servo of this bus (default: the first)."""
         return dxl_url(self.port, self.bus.servos[0].id if servo_id is None else servo_id, baud=baud, **options)
 
-    # ---- serving ------------------------------------------------------------------------------
-    def start(self) -> DynamixelEmulator:
-        """Serve from a daemon thread (for logic tests; timing needs :class:`EmulatorProcess`)."""
-        if self._thread is None:
-            self._stop.clear()
-            self._thread = threading.Thread(target=self.serve_forever, name=f"dxl-emulator {self.port}", daemon=True)
-            self._thread.start()
-        return self
+    # ---- Protocol 2.0 on the shared pty loop ---------------------------------------------------
+    def _handle(self, frame: Frame) -> list[tuple[EmulatedServo, bytes]]:
+        return self.bus.handle(frame)
 
-    def stop(self) -> None:
-        """Stop serving (the pty stays open until :meth:`close`)."""
-        self._stop.set()
-        try:
-            os.write(self._wake_w, b"x")
-        except OSError:
-            pass
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
-        self._thread = None
-
-    def close(self) -> None:
-        """Stop and close the pseudo-terminal; safe to call twice."""
-        if self._closed:
-            return
-        self.stop()
-        self._closed = True
-        if self._trace is not None:
-            self._trace.close()
-        for fd in (self._master, self._slave, self._wake_r, self._wake_w):
-            try:
-                os.close(fd)
-            except OSError:
-                pass
-
-    def __enter__(self) -> DynamixelEmulator:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def serve_forever(self) -> None:
-        """Answer packets until :meth:`stop` (or Ctrl-C when run in the foreground); run the Bus Watchdogs."""
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self._master, self._wake_r], [], [], self._quiet_for_s())
-            self._check_watchdogs()
-            if self._wake_r in ready:
-                os.read(self._wake_r, 64)
-                continue
-            if not ready:
-                self._reader.discard()
-                continue
-            try:
-                data = os.read(self._master, 4096)
-            except BlockingIOError:
-                continue
-            except OSError as exc:  # the pty went away
-                if exc.errno == errno.EIO:
-                    break
-                raise
-            received = self.clock.now_ns()
-            for frame in self._reader.feed(self._flipped(data, self.flip_rx)):
-                self._serve_frame(frame, received)
-
-    def _quiet_for_s(self) -> float:
-        """How long to wait for bytes: until a partial frame is stale, or the next Bus Watchdog expires."""
-        deadlines = [d for d in (s.watchdog_deadline_ns() for s in self.bus.servos) if d is not None]
-        if not deadlines:
-            return IDLE_DISCARD_S
-        return min(IDLE_DISCARD_S, max(0.0, (min(deadlines) - self.clock.now_ns()) / NS_PER_S))
-
-    def _check_watchdogs(self) -> None:
-        now = self.clock.now_ns()
+    def _timers(self, now_ns: int) -> int | None:
+        """Run the Bus Watchdogs; the next one's deadline."""
         for servo in self.bus.connected():
-            servo.check_watchdog(now)
+            servo.check_watchdog(now_ns)
+        deadlines = [d for d in (s.watchdog_deadline_ns() for s in self.bus.servos) if d is not None]
+        return min(deadlines) if deadlines else None
 
-    def _flipped(self, data: bytes, probability: float) -> bytes:
-        """``data`` with one random bit flipped in each byte hit (``probability`` per byte)."""
-        if not probability:
-            return data
-        hit = np.flatnonzero(self._rng.random(len(data)) < probability)
-        if not hit.size:
-            return data
-        out = bytearray(data)
-        for i in hit:
-            out[i] ^= 1 << int(self._rng.integers(8))
-        self.stats.flipped_bits += int(hit.size)
-        return bytes(out)
+    def _received(self, frame: Frame, received_ns: int) -> None:
+        assert isinstance(frame, Packet)
+        for servo in self.bus.connected():  # an intact instruction packet feeds the Bus Watchdog of its servos
+            if frame.id in (servo.id, BROADCAST_ID):
+                servo.heard(received_ns)
 
-    def _write_trace(self, servo: EmulatedServo, frame: Frame, reply: bytes) -> None:
-        """Note the reading of the present values (tick and position) in ``reply``, about to be sent."""
+    def _as_corrupt(self, frame: Frame) -> Frame:
+        assert isinstance(frame, Packet)
+        return CorruptPacket(frame.id, frame.encode())
+
+    def _is_corrupt(self, frame: Frame) -> bool:
+        return isinstance(frame, CorruptPacket)
+
+    def _is_instruction(self, frame: Frame) -> bool:
+        return isinstance(frame, Packet) and not frame.is_status
+
+    def _is_read(self, frame: Frame) -> bool:
+        return isinstance(frame, Packet) and frame.instruction == Instruction.READ
+
+    def _is_sync_write(self, frame: Frame) -> bool:
+        return isinstance(frame, Packet) and frame.instruction == Instruction.SYNC_WRITE
+
+    def _empty_reply(self, servo: EmulatedServo) -> bytes:
+        return status_packet(servo.id, 0)
+
+    def _cut_length(self, reply: bytes) -> bytes:
+        return reply[:5] + bytes((3, 0)) + reply[7:]  # LEN (5, 6): 3, where the header alone has 4
+
+    def _trace_line(self, servo: EmulatedServo, frame: Frame, reply: bytes) -> str | None:
+        """``<id> <tick ms> <position counts>`` for a READ of the present values."""
         if not isinstance(frame, Packet) or frame.instruction != Instruction.READ or len(frame.params) != 4:
-            return
+            return None
         address, length = _u16(frame.params, 0), _u16(frame.params, 2)
-        if address <= ct.REALTIME_TICK.address and address + length >= ct.PRESENT_POSITION.end:
-            data = unstuff(reply[7:-2])[2:]  # after header (4), ID, LEN (2): instruction, error, then the data
-            tick = ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address)
-            position = ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)
-            assert self._trace is not None
-            self._trace.write(f"{servo.id} {tick} {position}\n")
-            self._trace.flush()
-
-    def _serve_frame(self, frame: Frame, received: int) -> None:
-        self.stats.received += 1
-        if isinstance(frame, Packet):
-            target = self.bus.find(frame.id)
-            if target is not None and self._faults[id(target)].corrupt_requests > 0:
-                self._faults[id(target)].corrupt_requests -= 1
-                frame = CorruptPacket(frame.id, frame.encode())
-            elif frame.instruction == Instruction.SYNC_WRITE:
-                losing = next((f for f in self._faults.values() if f.corrupt_goals > 0), None)
-                if losing is not None:
-                    losing.corrupt_goals -= 1
-                    frame = CorruptPacket(frame.id, frame.encode())
-        if isinstance(frame, CorruptPacket):
-            self.stats.corrupt_received += 1
-        elif isinstance(frame, Packet) and not frame.is_status:
-            for servo in self.bus.connected():  # an intact instruction packet feeds the Bus Watchdog of its servos
-                if frame.id in (servo.id, BROADCAST_ID):
-                    servo.heard(received)
-        last = received
-        for servo, reply in self.bus.handle(frame):
-            faults = self._faults[id(servo)]
-            if faults.mute_after is not None and faults.mute_after <= 0:
-                faults.mute = True
-            if faults.mute:
-                continue
-            if faults.mute_after is not None:
-                faults.mute_after -= 1
-            if faults.drop and self._rng.random() < faults.drop:
-                self.stats.dropped_replies += 1
-                continue
-            if faults.stale_replies > 0 and isinstance(frame, Packet) and frame.instruction == Instruction.READ:
-                faults.stale_replies -= 1
-                reply = status_packet(servo.id, 0)
-            elif self._trace is not None:
-                self._write_trace(servo, frame, reply)
-            if faults.corrupt_replies > 0:
-                faults.corrupt_replies -= 1
-                reply = reply[:-1] + bytes((reply[-1] ^ 0xFF,))
-            if faults.corrupt_lengths > 0:
-                faults.corrupt_lengths -= 1
-                reply = reply[:5] + bytes((3, 0)) + reply[7:]  # LEN (5, 6): 3, where the header alone has 4
-            # each servo waits its Return Delay Time after the bus went quiet
-            self.clock.sleep_until_ns(last + round(servo.return_delay_s * NS_PER_S))
-            try:
-                os.write(self._master, self._flipped(reply, self.flip_tx))
-                self.stats.replies += 1
-            except BlockingIOError:
-                self.stats.dropped_replies += 1
-            last = self.clock.now_ns()
+        if not (address <= ct.REALTIME_TICK.address and address + length >= ct.PRESENT_POSITION.end):
+            return None
+        data = unstuff(reply[7:-2])[2:]  # after header (4), ID, LEN (2): instruction, error, then the data
+        tick = ct.decode_value(ct.REALTIME_TICK, data, ct.REALTIME_TICK.address - address)
+        position = ct.decode_value(ct.PRESENT_POSITION, data, ct.PRESENT_POSITION.address - address)
+        return f"{servo.id} {tick} {position}"
 
 
-def _serve_child() -> None:
-    """Entry of the child process of :class:`EmulatorProcess` (``python -m servoid.drivers.dynamixel.emulator``).
-
-    Reads the pickled ``(ids, options)`` from stdin, prints the port on stdout,
-    and serves until stdin closes (the parent stopped it, or went away).
-    """
-    ids, options = pickle.load(sys.stdin.buffer)
-    with DynamixelEmulator(ids, **options) as emulator:
-        print(emulator.port, flush=True)
-        sys.stdin.buffer.read()
-
-
-class EmulatorProcess:
+class EmulatorProcess(_pty_bus.EmulatorProcess):
     """A :class:`DynamixelEmulator` in a child process, for timing measurements.
 
     The child is a fresh interpreter (``python -m servoid.drivers.dynamixel.emulator``),
@@ -649,58 +387,13 @@ class EmulatorProcess:
     dxl:///dev/pts/7?id=1&baud=1000000
     """
 
-    def __init__(self, ids: Iterable[int] = (1,), **options: Any) -> None:
-        if "clock" in options:
-            raise ConfigError("clock cannot be given to an emulator in another process; use DynamixelEmulator")
-        self.ids = [int(i) for i in ids]
-        self._options = options
-        self._process: subprocess.Popen[bytes] | None = None
-        self.port = ""
-
-    def start(self, timeout: float = 60.0) -> EmulatorProcess:
-        """Start the child and wait for its port; returns self."""
-        self._process = subprocess.Popen(
-            [sys.executable, "-m", __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE
-        )
-        assert self._process.stdin is not None and self._process.stdout is not None
-        pickle.dump((self.ids, self._options), self._process.stdin)
-        self._process.stdin.flush()
-        ready, _, _ = select.select([self._process.stdout], [], [], timeout)
-        line = self._process.stdout.readline().decode().strip() if ready else ""
-        if not line:
-            error = b"" if self._process.poll() is None else self._process.stderr.read()  # type: ignore[union-attr]
-            self.stop()
-            raise DriverError(
-                f"the Dynamixel emulator process did not start within {timeout} s: {error.decode().strip()}"
-            )
-        self.port = line
-        return self
-
-    def stop(self, timeout: float = 5.0) -> None:
-        """Stop the child process; safe to call twice."""
-        process, self._process = self._process, None
-        if process is None:
-            return
-        try:
-            process.stdin.close()  # type: ignore[union-attr]
-            process.wait(timeout)
-        except (OSError, subprocess.TimeoutExpired):
-            process.kill()
-            process.wait(timeout)
-        finally:
-            for stream in (process.stdout, process.stderr):
-                if stream is not None:
-                    stream.close()
+    module = __name__ if __name__ != "__main__" else "servoid.drivers.dynamixel.emulator"
+    kind = "Dynamixel"
 
     def url(self, servo_id: int | None = None, *, baud: int = 1_000_000, **options: Any) -> str:
+        """The ``dxl://`` URL of a servo of the child's bus (default: the first)."""
         return dxl_url(self.port, self.ids[0] if servo_id is None else servo_id, baud=baud, **options)
-
-    def __enter__(self) -> EmulatorProcess:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
 
 
 if __name__ == "__main__":
-    _serve_child()
+    serve_child(DynamixelEmulator)

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
-import time
-from pathlib import Path
 
+from servoid.cli._emulate_bus import (
+    add_link_option,
+    add_rate_and_servo_options,
+    ids_option,
+    period_s,
+    print_event,
+    serve,
+)
 from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel._emulator_facts import CURRENT_GAIN, PWM_GAIN
 from servoid.drivers.servo_facts import SERVO_NAMES
-from servoid.errors import ConfigError
-from servoid.output_paths import new_link, remove_own_link
 
 DESCRIPTION = f"""\
 Emulate ROBOTIS Dynamixel X-series servos (Protocol 2.0, XM430-W350 control
@@ -60,78 +63,40 @@ examples:
 """
 
 
-def _ids(text: str) -> list[int]:
-    try:
-        ids = [int(part) for part in text.replace(" ", "").split(",") if part]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--ids (={text!r}) must be servo IDs separated by commas, e.g. 1,2") from None
-    if not ids or any(not 0 <= i <= 252 for i in ids) or len(set(ids)) != len(ids):
-        raise argparse.ArgumentTypeError(f"--ids (={text!r}) must be distinct servo IDs in 0..252")
-    return ids
-
-
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
-
-
-def _print_event(line: str) -> None:
-    """A servo's own decision (Bus Watchdog, torque off), with the monotonic time a watching process can compare."""
-    print(f"{line} (monotonic {time.monotonic():.6f} s)", flush=True)
-
-
 def register(parser: argparse.ArgumentParser) -> None:
     parser.epilog = EPILOG
-    parser.add_argument("--ids", type=_ids, default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)")
+    parser.add_argument(
+        "--ids", type=ids_option(252), default=[1], metavar="ID[,ID...]", help="servo IDs on the bus (default 1)"
+    )
     parser.add_argument("--return-delay-us", type=int, default=500, metavar="US",
                         help="initial Return Delay Time in us, even, 0..508 (default 500, the factory "
                              "setting; the dxl:// driver sets 0 unless told return_delay_us=keep)")  # fmt: skip
     parser.add_argument("--model-number", type=int, default=ct.MODEL_NUMBER.initial, metavar="N",
                         help=f"Model Number the servos report (default {ct.MODEL_NUMBER.initial}, XM430-W350)")  # fmt: skip
-    parser.add_argument("--rate", type=float, default=DEFAULT_RATE_HZ, metavar="HZ",
-                        help=f"the servos' own sample rate, Hz: sample them at this rate (default {DEFAULT_RATE_HZ:g}, "
-                             "that of servoid identify; 0: one sample per goal)")  # fmt: skip
-    parser.add_argument("--servo", metavar="NAME[?K=V&...]",
-                        help="the servo behind each ID: a twin preset with overrides, or model (default xm430)")  # fmt: skip
-    parser.add_argument("--link", type=Path, metavar="PATH",
-                        help="also make PATH a symbolic link to the pseudo-terminal (a stable name for scripts); "
-                             "PATH must not exist: nothing is replaced")  # fmt: skip
+    add_rate_and_servo_options(parser, "xm430")
+    add_link_option(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers.dynamixel.emulator import DynamixelEmulator, dxl_url
     from servoid.drivers.servos import parse_servo
 
-    if not (args.rate >= 0 and args.rate < float("inf")):
-        raise ConfigError(f"--rate (={args.rate:g}) must be >= 0 Hz (0: one sample per goal)")
-    period_s = 1.0 / args.rate if args.rate else None
+    period = period_s(args.rate)
     servo = parse_servo(args.servo if args.servo is not None else "xm430")
-    link: Path | None = args.link
-    if link is not None:
-        new_link(link, option="--link")
-    emulator = DynamixelEmulator(args.ids, servo=servo, return_delay_us=args.return_delay_us,
-                                 model_number=args.model_number, period_s=period_s, on_event=_print_event)  # fmt: skip
-    try:
-        if link is not None:
-            os.symlink(emulator.port, link)
-        port = str(link) if link is not None else emulator.port
-        model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
-        sampled = f"sampled at {args.rate:g} Hz" if args.rate else "one sample per goal"
-        print(f"Dynamixel emulator on {emulator.port} (Protocol 2.0, {model}, any baud rate, {sampled})", flush=True)
-        print(f"  behind each ID: {servo.describe()}", flush=True)
-        for servo_id in args.ids:
-            print(f"  servo {servo_id}: {dxl_url(port, servo_id)}", flush=True)
-        rate = f" --rate {args.rate:g}" if args.rate else ""
-        print(f"try: servoid identify --driver '{dxl_url(port, args.ids[0])}'{rate}", flush=True)
-        print("serving until Ctrl-C", flush=True)
-        # `kill` stops it as cleanly as Ctrl-C (a shell starts background jobs with Ctrl-C ignored)
-        signal.signal(signal.SIGTERM, _interrupt)
-        try:
-            emulator.serve_forever()
-        except KeyboardInterrupt:
-            pass
-        print(f"stopped: {emulator.stats.received} packets received, {emulator.stats.replies} answered", flush=True)
-        return 0
-    finally:
-        emulator.close()
-        if link is not None:
-            remove_own_link(link, emulator.port)
+    model = ct.MODEL_NAMES.get(args.model_number, f"model {args.model_number}")
+    sampled = f"sampled at {args.rate:g} Hz" if args.rate else "one sample per goal"
+    rate = f" --rate {args.rate:g}" if args.rate else ""
+
+    def make() -> DynamixelEmulator:
+        return DynamixelEmulator(args.ids, servo=servo, return_delay_us=args.return_delay_us,
+                                 model_number=args.model_number, period_s=period, on_event=print_event)  # fmt: skip
+
+    def lines(port: str) -> list[str]:
+        return [
+            f"Dynamixel emulator on {os.path.realpath(port)} (Protocol 2.0, {model}, any baud rate, {sampled})",
+            f"  behind each ID: {servo.describe()}",
+            *(f"  servo {servo_id}: {dxl_url(port, servo_id)}" for servo_id in args.ids),
+            f"try: servoid identify --driver '{dxl_url(port, args.ids[0])}'{rate}",
+        ]
+
+    return serve(make, args.link, lines)

@@ -23,6 +23,7 @@ KINDS = {
                "the serial bench servo: reference C firmware + a simulated servo behind its HAL on a pseudo-terminal"),
     "can": ("servoid.cli._emulate_can", "a simulated CAN servo drive (CANopen CiA 402 or ODrive CAN Simple)"),
     "dxl": ("servoid.cli._emulate_dxl", "ROBOTIS Dynamixel X-series servos (Protocol 2.0) on a pseudo-terminal"),
+    "feetech": ("servoid.cli._emulate_feetech", "Feetech STS servos (STS3215, SCS/STS protocol) on a pseudo-terminal"),
 }  # fmt: skip
 DESCRIPTION = """\
 Start an emulated servo, with a servo behind it (a physical twin by default;
@@ -70,7 +71,7 @@ def _import_kind(name: str, parser: argparse.ArgumentParser) -> Any:
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser(
-        "emulate", help="start a servo emulator (serial firmware, CAN drive, Dynamixel)",
+        "emulate", help="start a servo emulator (serial firmware, CAN drive, Dynamixel, Feetech)",
         description=DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter,
     )  # fmt: skip
     kinds = p.add_subparsers(dest="kind", metavar="KIND", title="emulators", parser_class=_KindParser)

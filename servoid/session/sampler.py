@@ -65,6 +65,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
+from servoid.drivers.bus import BusDriver
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError, ServoidError
@@ -324,7 +325,7 @@ class SessionResult:
 
 
 def run_session(
-    driver: Driver,
+    driver: Driver | BusDriver,
     excitation: Iterable[float],
     config: SessionConfig,
     *,
@@ -342,10 +343,16 @@ def run_session(
 
     Parameters
     ----------
-    driver : Driver
-        An open driver; the session enables the torque and switches it off at the end.
+    driver : Driver or BusDriver
+        An open driver; the session enables the torque and switches it off at
+        the end. A :class:`~servoid.drivers.bus.BusDriver` (several servos of
+        one bus) makes it a multi-joint measurement
+        (:mod:`servoid.session.joints`): one command per joint per slot, one
+        group transaction, one status and one usable verdict per slot for
+        every joint, a recording with a column group per joint.
     excitation : iterable of float
-        One reference value per slot (an array, a list, a generator), user unit.
+        One reference value per slot (an array, a list, a generator), user
+        unit; for a bus, one row of one value per joint per slot.
     config : SessionConfig
         Period and policies.
     recording : path, optional
@@ -393,7 +400,19 @@ def run_session(
     """
     if not driver.is_open:
         raise DriverError(f"{driver.describe()} is not open: use it as a context manager (with driver: ...)")
-    config = config.resolved(driver)
+    sampler_class: type[_Sampler] = _Sampler
+    columns: tuple[str, ...] = COLUMNS
+    if isinstance(driver, BusDriver):
+        from servoid.session.joints import BusSampler, joint_columns
+
+        if estimator is not None or command_filter is not None:
+            raise ConfigError(
+                "estimator= and command_filter= take one servo; for a bus, give each joint's listener in "
+                "listeners= (servoid.session.joints.JointFeed)"
+            )
+        sampler_class, columns = BusSampler, joint_columns(driver.ids)
+        metadata = {"joints": ",".join(map(str, driver.ids)), **(metadata or {})}
+    config = config.resolved(driver)  # type: ignore[arg-type]
     use_clock = clock
     if use_clock is None:
         use_clock = driver.clock if isinstance(driver, SimulatedServo) else MonotonicClock()
@@ -413,14 +432,14 @@ def run_session(
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             **(metadata or {}),
         }
-        writer = RecordingWriter(recording, COLUMNS, metadata=meta)
+        writer = RecordingWriter(recording, columns, metadata=meta)
         chain.append(RecordingListener(writer))
     if estimator is not None:
         chain.append(EstimatorFeed(estimator))
     chain.extend(listeners)
     if on_sample is not None:
         chain.append(CallbackListener(on_sample))
-    sampler = _Sampler(driver, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
+    sampler = sampler_class(driver, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
     sampler.writer = writer
     try:
         sampler.run(excitation)
@@ -490,9 +509,7 @@ class _Sampler:
         last_reply = self.t0
         self._next_progress = self.t0
         for k, value in enumerate(excitation):
-            reference = float(value)
-            if not math.isfinite(reference):
-                raise ConfigError(f"excitation[{k}] (={reference!r}) is not finite")
+            reference = self._reference(k, value)
             scheduled = self.t0 + k * period
             if k > 0 and clock.now_ns() - scheduled >= period // 2:
                 self._missed(k, scheduled, reference)
@@ -522,6 +539,13 @@ class _Sampler:
             self._maybe_progress(end)
         self._progress(clock.now_ns())
 
+    def _reference(self, k: int, value: Any) -> Any:
+        """The excitation's value for slot ``k``, checked."""
+        reference = float(value)
+        if not math.isfinite(reference):
+            raise ConfigError(f"excitation[{k}] (={reference!r}) is not finite")
+        return reference
+
     def _missed(self, k: int, scheduled: int, reference: float) -> None:
         held = self.driver.last_command
         u = held if held is not None else 0.0  # before any command the servo holds where it was enabled
@@ -537,11 +561,17 @@ class _Sampler:
                          exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
+        status, device_time = self._status_of(k, scheduled, start, end, m.device_time)
+        self._add(Sample(k, self._s(scheduled), self._s(start), reference, m.command, m.position, status,
+                         device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+
+    def _status_of(self, k: int, scheduled: int, start: int, end: int, device: float | None) -> tuple[str, float]:
+        """Whether an answered exchange was on time (``ok``) or ``late``; and its device time (NaN: none)."""
         # started late, or answered after the next slot began: a device without a clock of its own to
         # show may have taken the reading in a later sample (a host stalled between request and reply)
         late = start - scheduled > self.tolerance_ns or end - scheduled > self.period_ns
-        device_time = math.nan if m.device_time is None else float(m.device_time)
-        if m.device_time is not None:
+        device_time = math.nan if device is None else float(device)
+        if device is not None:
             if self._last_device is not None:
                 prev_k, prev_t = self._last_device
                 expected = (k - prev_k) * self.config.period_s
@@ -550,9 +580,7 @@ class _Sampler:
                 slack = self.config.period_s / 2 + self.driver.clock_resolution_s
                 late = late or abs((device_time - prev_t) - expected) >= slack
             self._last_device = (k, device_time)
-        status = LATE if late else OK
-        self._add(Sample(k, self._s(scheduled), self._s(start), reference, m.command, m.position, status,
-                         device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+        return (LATE if late else OK), device_time
 
     # ---- bookkeeping ----------------------------------------------------------------
     def _s(self, t_ns: int) -> float:

@@ -208,6 +208,23 @@ def _slots_out_of_band(driver: Driver) -> Callable[[], int | None]:
     return lambda: slots.popleft() if slots else None
 
 
+def _noisy_once_open(driver: Driver, emu, flip: float) -> None:  # type: ignore[no-untyped-def]
+    """Make the emulator's line noisy once the driver is open.
+
+    Opening reads the control table (71 bytes) in one READ, which at the flip
+    rates tested fails three tries in a row about once in thirty opens (retries
+    while opening are tested in test_dxl_faults.py); the run is what is tested.
+    """
+    open_quietly = driver.open
+
+    def open_then_noisy() -> Driver:
+        open_quietly()
+        emu.flip = flip
+        return driver
+
+    driver.open = open_then_noisy  # type: ignore[method-assign]
+
+
 @contextlib.contextmanager
 def _dxl(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
     from servoid.drivers.dynamixel.emulator import DynamixelEmulator
@@ -221,17 +238,7 @@ def _dxl(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
         driver = driver_from_url(emu.url(1, latency_ms=max((faults.timeout * 1e3 - 2) / 2, 0.5)))
         emu.servo(1).slot_source = _slots_out_of_band(driver)  # Protocol 2.0 has no room for it
         if faults.flip:
-            # The line turns noisy once the driver is open: opening reads the 71-byte control table in
-            # one READ, which at this flip rate fails three tries in a row about once in thirty opens
-            # (retries while opening are tested in test_dxl_faults.py); the run is what is tested here.
-            open_quietly = driver.open
-
-            def open_then_noisy() -> Driver:
-                open_quietly()
-                emu.flip = faults.flip
-                return driver
-
-            driver.open = open_then_noisy  # type: ignore[method-assign]
+            _noisy_once_open(driver, emu, faults.flip)
         with _handed_out(driver, limits):
             yield driver
 
@@ -242,6 +249,27 @@ def _dxl_sent(trace: Path) -> set[tuple[int, int]]:
         servo_id, tick_ms, counts = (int(v) for v in line.split())
         sent.add((tick_ms * 1000, counts))
     return sent
+
+
+@contextlib.contextmanager
+def _feetech(faults: Faults, limits: Limits | None) -> Iterator[Driver]:
+    from servoid.drivers.feetech.emulator import FeetechEmulator
+
+    with FeetechEmulator(
+        ids=[1], seed=faults.seed, trace=faults.trace, period_s=1 / RATE_HZ, restart_after=faults.restart_after
+    ) as emu:
+        link = emu.faults(1)
+        link.mute_after, link.drop = faults.mute_after, faults.drop
+        driver = driver_from_url(emu.url(1, latency_ms=max((faults.timeout * 1e3 - 2) / 2, 0.5)))
+        emu.servo(1).slot_source = _slots_out_of_band(driver)  # the STS protocol has no room for it
+        if faults.flip:
+            _noisy_once_open(driver, emu, faults.flip)
+        with _handed_out(driver, limits):
+            yield driver
+
+
+def _feetech_sent(trace: Path) -> set[tuple[int, int]]:
+    return {(0, int(line.split()[1])) for line in trace.read_text().splitlines()}
 
 
 def _private_bus():  # type: ignore[no-untyped-def]
@@ -327,6 +355,16 @@ TRANSPORTS = [
             "brown-out it answers again with its torque off, and its Realtime Tick restarting cannot be told "
             "from the tick's own wrap every 32.768 s (docs/dynamixel.md)",
         },
+    ),
+    Transport(
+        "feetech",
+        _feetech,
+        frozenset({"mute_after", "restart_after", "drop", "flip", "trace"}),
+        "sts3215",
+        2 * math.pi / 4096,
+        False,
+        "feetech:///dev/ttyUSB0?id=1&bogus=1",
+        _feetech_sent,
     ),
     Transport(
         "cia402",

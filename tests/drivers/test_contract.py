@@ -164,7 +164,10 @@ def test_corrupted_bytes_are_rejected_and_counted_never_accepted(transport, tmp_
     time.sleep(0.05)
     sent = transport.sent_readings(trace)
     measured = np.isfinite(result.y)
-    accepted = {(round(t * 1e6), round(to_native(y))) for t, y in zip(result.device_time[measured], result.y[measured])}
+    # a device without a clock (Feetech) traces its readings with time 0
+    accepted = {(round(t * 1e6) if math.isfinite(t) else 0, round(to_native(y)))
+                for t, y in zip(result.device_time[measured], result.y[measured])}  # fmt: skip
     assert rejected > 0 and result.counts["timeout"] > 0
     assert accepted <= sent, f"{len(accepted - sent)} readings were accepted that the firmware never sent"
-    assert len(accepted) > 300
+    # without a device clock only the positions tell readings apart: fewer distinct ones, as many measured
+    assert len(accepted) > 300 or (np.all(np.isnan(result.device_time)) and measured.sum() > 300)

@@ -9,9 +9,9 @@ import time
 import pytest
 
 from servoid.drivers import driver_from_url
+from servoid.drivers._sdk_port import PTY_LATENCY_MS, default_latency_ms
 from servoid.drivers.dynamixel import DynamixelDriver
 from servoid.drivers.dynamixel import control_table as ct
-from servoid.drivers.dynamixel.driver import PTY_LATENCY_MS, default_latency_ms
 from servoid.drivers.dynamixel.emulator import DynamixelEmulator
 from servoid.errors import CommandUnconfirmed, ConfigError, DeviceFault, DriverError, DriverTimeout, ProtocolError
 
