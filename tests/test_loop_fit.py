@@ -71,7 +71,6 @@ def test_motor_side_loop_twin_is_never_named_play_in_loop() -> None:
     u, y, period, play = _twin_record("cia402", 0.02, 6.0, seed=1)
     choice = fit_loop(u, y, period)
     assert choice.structure == OUTPUT_BACKLASH or not choice.determined
-    assert choice.structure == OUTPUT_BACKLASH or any("fit equally" in r for r in choice.reasons)
     assert abs(choice.play / play - 1.0) <= 0.3
 
 

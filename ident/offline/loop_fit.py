@@ -130,7 +130,16 @@ class LoopChoice:
     simulated : ndarray
         The final model's free-run output, in the record's coordinates.
     reasons : tuple of str
-        What the fit noticed that weakens the answer (empty when nothing did).
+        What the fit noticed that weakens the answer beyond the numbers here that the
+        "not identifiable" rules read (:func:`servoid.ident.offline.intervals.verdict`: the
+        margin, the fit, the dead time, the stall band); empty when nothing did.
+    dead_time_samples : float or None
+        For ``play_in_loop``: the play's dead time at a reversal, in samples,
+        ``play / (kp median|u - y|) / T`` (under one, the place of the play cannot be seen);
+        None for ``output_backlash``.
+    stall_band : float
+        The friction stall band ``fs / (kv kp)``, unit of ``y``: the position error a P loop
+        leaves standing against break-away friction (not smaller than the play: the two are confused).
     model : ServoLoopModel
         The final model (simulate it with ``y0 = y[0]`` to get ``simulated``).
     candidates : tuple of LoopCandidate
@@ -150,6 +159,8 @@ class LoopChoice:
     params: dict[str, float]
     simulated: np.ndarray = field(repr=False)
     reasons: tuple[str, ...]
+    dead_time_samples: float | None
+    stall_band: float
     model: ServoLoopModel
     candidates: tuple[LoopCandidate, ...] = field(repr=False)
     seconds: float
@@ -157,7 +168,7 @@ class LoopChoice:
 
     @property
     def determined(self) -> bool:
-        """Whether the two places of the play differ by at least :data:`UNDETERMINED_MARGIN` in validation."""
+        """Whether the two places of the play differ by at least :data:`UNDETERMINED_MARGIN` in validation (the study's rule)."""
         return bool(self.margin >= UNDETERMINED_MARGIN)
 
     def to_dict(self) -> dict[str, Any]:
@@ -171,6 +182,8 @@ class LoopChoice:
             "margin": self.margin,
             "params": dict(self.params),
             "reasons": list(self.reasons),
+            "dead_time_samples": self.dead_time_samples,
+            "stall_band": self.stall_band,
             "seconds": self.seconds,
             "evaluations": self.evaluations,
         }
@@ -536,7 +549,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     simulated = final.simulate(uc, y0=float(yc[0]))
     fit_nrmse = nrmse(yc, simulated)
     interval = _play_interval(sol.jac, sol.fun, prob.free, d["play"])
-    reasons = _noticed(final, margin, fit_nrmse, per_structure, other, uc, yc, q)
+    reasons = _noticed(final, q)
     return LoopChoice(
         structure=best.structure,
         play=final.play,
@@ -547,6 +560,8 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         params=final.params(),
         simulated=simulated + centre,
         reasons=reasons,
+        dead_time_samples=_dead_time_samples(final, uc, yc),
+        stall_band=final.fs / (final.kv * final.kp),
         model=final,
         candidates=tuple(c for c, _ in candidates),
         seconds=time.perf_counter() - t0,
@@ -564,40 +579,21 @@ def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...],
     return (play * math.exp(-1.96 * se), play * math.exp(1.96 * se))
 
 
-def _noticed(
-    model: ServoLoopModel,
-    margin: float,
-    fit_nrmse: float,
-    per_structure: dict[str, float],
-    other: str,
-    u: np.ndarray,
-    y: np.ndarray,
-    q: float,
-) -> tuple[str, ...]:
-    """What weakens the answer, in words (the study's rules that the fit itself can see)."""
+def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float | None:
+    """The play's dead time at a reversal in samples, ``play / (kp median|u - y|) / T`` (play inside the loop only).
+
+    While the horn waits in the play the loop drives the motor at about ``kp`` times the error;
+    the median error of the record stands for the error at a reversal (the study's Q3 rule).
+    """
+    if model.structure != PLAY_IN_LOOP:
+        return None
+    speed = model.kp * float(np.median(np.abs(u - y)))
+    return model.play / speed / model.sample_period_s if speed > 0.0 else math.inf
+
+
+def _noticed(model: ServoLoopModel, q: float) -> tuple[str, ...]:
+    """What the fit noticed beyond the numbers the verdict rules read (margin, stall band, dead time, fit)."""
     reasons = []
-    if margin < UNDETERMINED_MARGIN:
-        reasons.append(
-            f"the two places of the play fit equally (validation NRMSE {per_structure[model.structure]:.4g} "
-            f"against {per_structure[other]:.4g} for {other}: margin {100 * margin:.1f} %, under "
-            f"{100 * UNDETERMINED_MARGIN:.0f} %)"
-        )
-    if fit_nrmse >= 1.0:
-        reasons.append(f"the loop model fits worse than the record's mean (NRMSE {fit_nrmse:.3g})")
-    stall = model.fs / (model.kv * model.kp) if model.fs > 0.0 else 0.0
-    if stall >= model.play:
-        reasons.append(
-            f"the friction stall band fs/(kv kp) = {stall:.4g} is not smaller than the play {model.play:.4g}: "
-            "the two cannot be told apart"
-        )
-    if model.structure == PLAY_IN_LOOP:
-        speed = model.kp * float(np.median(np.abs(u - y)))
-        dead = model.play / speed / model.sample_period_s if speed > 0.0 else math.inf
-        if dead < 1.0:
-            reasons.append(
-                f"the play's dead time at a reversal is {dead:.2g} samples: sampled too slowly to see a play inside "
-                f"the loop (sample at least {1.0 / max(dead, 1e-9):.2g} times faster)"
-            )
     if q > 0.0 and model.play < q:
-        reasons.append(f"the play {model.play:.4g} is smaller than the record's resolution {q:.4g}")
+        reasons.append(f"the fitted play {model.play:.4g} is smaller than the record's resolution {q:.4g}")
     return tuple(reasons)
