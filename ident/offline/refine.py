@@ -255,9 +255,7 @@ def refine(
         u_arr, y_arr, start_y, valid_arr = _masked_record(u, y, valid, initial.n_params, y0)
     if play is not None:
         play = validation.positive("play", play)
-    problem = _OutputError(
-        u_arr, y_arr, initial, start_y, valid_arr, initial_state=initial_state, play=play
-    )
+    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr, initial_state=initial_state, play=play)
     lay = initial.layout
     values0 = initial.values()
     floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
