@@ -33,7 +33,9 @@ from servoid.ident.offline.intervals import (
     Verdict,
     floor_nrmse,
     hac_stderr,
+    noise_std,
     play_interval,
+    quantum,
     residual_white,
     reversals,
     verdict,
@@ -448,7 +450,9 @@ def identify(
         white = residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
     interval = play_interval(play, stderr)
-    turns = reversals(y_valid, 2.0 * play)
+    # a reversal must exceed twice the play and the record's own jitter (resolution and noise)
+    jitter = 2.0 * (quantum(y_valid) + 3.0 * noise_std(y_valid))
+    turns = reversals(y_valid, max(2.0 * play, jitter))
     if lines_cross:
         warnings.append(
             f"the up and down lines of the backlash cross inside the data (at x = {model.lines_cross_at:.4g}): "
@@ -466,7 +470,7 @@ def identify(
         params = dict(loop.params)
         evidence = Evidence(
             play=play, interval=(float(interval[0]), float(interval[1])),
-            reversals=reversals(y_valid, 2.0 * play), fit_nrmse=float(loop.fit_nrmse), floor=floor,
+            reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,
             margin=float(loop.margin), dead_time_samples=params.get("dead_time_samples"),
             stall_band=params.get("stall_band"),
         )  # fmt: skip

@@ -232,7 +232,8 @@ class Evidence:
     interval : tuple of float
         Its 95 % interval ``(low, high)`` (NaN ends when there is none).
     reversals : int
-        Output reversals larger than twice the play.
+        Output reversals larger than twice the play (and than the record's
+        jitter: twice its resolution plus three noise deviations).
     fit_nrmse : float
         Free-run NRMSE of the model (on validation samples where it has them).
     floor : float
