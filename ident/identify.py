@@ -33,7 +33,6 @@ from servoid.ident.offline.intervals import (
     Verdict,
     floor_nrmse,
     hac_stderr,
-    noise_std,
     play_interval,
     quantum,
     residual_white,
@@ -450,8 +449,10 @@ def identify(
         white = residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
     interval = play_interval(play, stderr)
-    # a reversal must exceed twice the play and the record's own jitter (resolution and noise)
-    jitter = 2.0 * (quantum(y_valid) + 3.0 * noise_std(y_valid))
+    # a reversal must exceed twice the play and the record's own jitter: its resolution and three
+    # times the fit's residual RMS (the noise, where the model is right; more where it is not)
+    residual_rms = fit * float(np.std(y_valid))
+    jitter = 2.0 * (quantum(y_valid) + 3.0 * residual_rms)
     turns = reversals(y_valid, max(2.0 * play, jitter))
     if lines_cross:
         warnings.append(
