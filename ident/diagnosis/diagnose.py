@@ -451,11 +451,24 @@ def diagnose(
     ------
     DataError
         A record that cannot be identified (named: training or validation).
+    ModelError
+        When the identified base model fits the validation record worse than
+        predicting its mean: an error, not "none".
     """
     train, val = _check_pair((train_u, train_y), (validate_u, validate_y), config.identification)
-    records = _Records(train, val)
     ident = identify(*train, config.identification)
+    op = ident.operating_point
+    if not op.is_zero:  # the model exists only about the record's operating point: diagnose there
+        train, val = op.centre(*train), op.centre(*val)
+    records = _Records(train, val)
     base = ExtendedModel(ident.model)
+    base_fit = records.gap(base)
+    if not base_fit < 1.0:
+        raise ModelError(
+            f"the identified model fits the validation record worse than predicting its mean (free-run NRMSE "
+            f"{base_fit:.3g} >= 1): there is no base to name a missing effect against; check the records, "
+            "the orders and the delay"
+        )
     rounds: list[Round] = []
     current = base
     for _ in range(config.max_effects):

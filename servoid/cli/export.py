@@ -7,9 +7,11 @@ import sys
 from pathlib import Path
 
 from servoid.cli import _term
+from servoid.errors import ConfigError
 from servoid.export import FORMATS, export_model
 from servoid.export.c_header import DEFAULT_NAME
 from servoid.export.ros2_yaml import DEFAULT_NODE
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH
 from servoid.modelfile import VERSION, load_model
 from servoid.output_paths import output_file
 
@@ -23,7 +25,7 @@ parameters a backlash compensator needs, in the format of the controller's world
 
 Formats (--format):
   json   {FORMATS["json"].summary}.
-         A version-1 file comes out as version {VERSION}.
+         A version-1 or -2 file comes out as version {VERSION}.
   c      {FORMATS["c"].summary}.
          `static const servoid_backlash_params NAME` (m2, c1, c2, band), the
          linear block as NAME_a, NAME_b, NAME_DELAY, and
@@ -65,7 +67,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL", help="a model.json written by servoid identify")
     p.add_argument("--format", "-f", required=True, choices=sorted(FORMATS), help="output format (see above)")
     p.add_argument("--out", "-o", type=Path, metavar="FILE", help="write here (default: stdout)")
-    p.add_argument("--force", action="store_true", help="replace --out if it exists (default: refuse)")
+    p.add_argument("--force", action="store_true",
+                   help="replace --out if it exists, and export a model whose play servoid found not identifiable "
+                        "(default: refuse both)")  # fmt: skip
     p.add_argument("--band", type=float, metavar="B",
                    help="smoothing band of the inverse, output unit (default: the model file's)")  # fmt: skip
     p.add_argument("--name", metavar="NAME",
@@ -81,7 +85,22 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         output_file(args.out, option="--out", force=args.force)
     content = load_model(args.model)
-    if content.read_version is not None and content.read_version < VERSION and args.band is None:
+    if content.identifiable is False and not args.force:
+        raise ConfigError(
+            f"{args.model}: the play is not identifiable ({content.reason or 'no reason stored'}); "
+            "export refuses such a model (--force exports it anyway)"
+        )
+    if content.identifiable is False:
+        _term.warn(f"exporting a model whose play is not identifiable (--force): {content.reason}")
+    if content.structure != OUTPUT_BACKLASH:
+        _term.warn(f"{args.model} holds the structure {content.structure}: the backlash inverse written here is "
+                   "for the output backlash (the play outside the loop)")  # fmt: skip
+    if content.operating_point != (0.0, 0.0):
+        u0, y0 = content.operating_point
+        _term.warn(f"the model applies about the operating point u0 = {u0:.6g}, y0 = {y0:.6g} "
+                   f"({content.input_unit}, {content.output_unit}): subtract them from the set point and the "
+                   "position before the inverse, add u0 back to its output")  # fmt: skip
+    if content.read_version is not None and content.read_version < 2 and args.band is None:
         _term.warn(
             f"{args.model} is schema version {content.read_version}, which stores no smoothing band; "
             f"using servoid's default {content.compensation_band:.4g} {content.output_unit} (set one with --band)"
