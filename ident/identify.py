@@ -468,12 +468,10 @@ def identify(
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))
-        params = dict(loop.params)
         evidence = Evidence(
             play=play, interval=(float(interval[0]), float(interval[1])),
             reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,
-            margin=float(loop.margin), dead_time_samples=params.get("dead_time_samples"),
-            stall_band=params.get("stall_band"),
+            margin=float(loop.margin), dead_time_samples=loop.dead_time_samples, stall_band=float(loop.stall_band),
         )  # fmt: skip
     judged = verdict(evidence)
     if loop is not None and loop.reasons:

@@ -22,11 +22,6 @@ def _run(capsys, *argv):
     return code, captured.out, captured.err
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="issue 12: the XM430 closes its loop around the play; the black box alone books -56 % of it and the "
-    "rules let it through until the servo-loop model (issue 12 part B) fills second_structure(): remove this mark then",
-)
 def test_identify_from_a_ros_bag_finds_the_twins_play(tmp_path, capsys):
     pytest.importorskip("rosbags")
     from servoid.drivers.twin import preset

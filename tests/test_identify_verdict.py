@@ -113,6 +113,8 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
         params: dict = dataclasses.field(default_factory=dict)
         simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
         reasons: tuple = ()
+        dead_time_samples: float | None = 3.0
+        stall_band: float = 0.1
 
     seen = []
     monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or FakeLoop())

@@ -9,9 +9,10 @@ from servoid.drivers.twin import Twin, preset
 from servoid.errors import ConfigError
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
+from servoid.ident import MRGIAConfig, identify
 from servoid.ident.models.servo_loop import ServoLoopModel
-from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
-from servoid.ident.offline.loop_fit import fit_loop
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, SERVO_LOOP
+from servoid.ident.offline.loop_fit import LoopChoice, fit_loop
 
 #: The presets' loop bandwidths, Hz (measured in the issue-12 study): only to set the host rate.
 BANDWIDTH_HZ = {"xm430": 3.5, "cia402": 20.0}
@@ -57,12 +58,16 @@ def test_recovers_its_own_simulation(structure: str) -> None:
     np.testing.assert_allclose(choice.simulated, choice.model.simulate(u - u.mean(), y0=y[0] - u.mean()) + u.mean())
 
 
-def test_horn_encoder_twin_names_the_play_in_the_loop() -> None:
+def test_identify_names_the_play_in_the_loop_of_a_horn_encoder_twin() -> None:
+    # the seam: identify() fits the black box, then the servo-loop model, which names the structure
     u, y, period, play = _twin_record("xm430", 0.1, 40.0, seed=1)
-    choice = fit_loop(u, y, period)
-    assert choice.structure == PLAY_IN_LOOP
-    assert abs(choice.play / play - 1.0) <= 0.15
-    assert set(choice.validation_nrmse) == {PLAY_IN_LOOP, OUTPUT_BACKLASH}
+    result = identify(u + 1.5, y + 1.5, MRGIAConfig(), sample_period_s=period)  # raw coordinates: an offset
+    assert result.structure == PLAY_IN_LOOP and result.form == SERVO_LOOP
+    assert abs(result.play / play - 1.0) <= 0.15
+    loop = result.loop
+    assert isinstance(loop, LoopChoice)
+    assert set(loop.validation_nrmse) == {PLAY_IN_LOOP, OUTPUT_BACKLASH}
+    assert loop.dead_time_samples is not None and loop.dead_time_samples > 0.0
 
 
 def test_motor_side_loop_twin_is_never_named_play_in_loop() -> None:

@@ -45,22 +45,18 @@ from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel, substeps
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline._oefit import single_threaded_blas
+from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, Z95, hac_stderr, quantum
 
 __all__ = [
     "LoopChoice",
     "LoopCandidate",
     "fit_loop",
     "block_mask",
-    "record_quantum",
-    "hac_covariance",
     "MIN_SAMPLES",
-    "UNDETERMINED_MARGIN",
 ]
 
 #: Fewest samples :func:`fit_loop` accepts (8 blocks of at least 25 samples).
 MIN_SAMPLES = 200
-#: Validation margin under which the two places of the play are not told apart (the study's 5 % rule).
-UNDETERMINED_MARGIN = 0.05
 #: Interleaved blocks: even ones estimate, odd ones validate.
 BLOCKS = 8
 #: Relative finite-difference step of the fit (see the module docstring).
@@ -74,8 +70,19 @@ _LOG = frozenset({"kp", "kv", "ki", "fc", "fs", "vs", "veps", "play"})
 #: The first stage of each candidate's fit: the loop's rates, the friction level and the play.
 _STAGE = ("kp", "kv", "fc", "play")
 STAGE_NFEV = 15
-#: Free parameters of every candidate (``ki`` is added for the integrator's).
-_FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "a0", "play", "asym")
+#: Free parameters of every candidate; see :func:`_free` for what each structure adds.
+_FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "play")
+
+
+def _free(structure: str, integrator: bool) -> tuple[str, ...]:
+    """The free parameters of a candidate: only what the record can determine.
+
+    The play's asymmetry ``c1 - c2`` only shifts the motor side when the loop reads the load
+    (play in the loop), so it is fitted for the output backlash only; an integrator holds any
+    constant force, so ``a0`` is fitted without one and ``ki`` with one.
+    """
+    extra = ("asym",) if structure == OUTPUT_BACKLASH else ()
+    return _FREE + extra + (("ki",) if integrator else ("a0",))
 
 
 @dataclass(frozen=True)
@@ -168,8 +175,8 @@ class LoopChoice:
 
     @property
     def determined(self) -> bool:
-        """Whether the two places of the play differ by at least :data:`UNDETERMINED_MARGIN` in validation (the study's rule)."""
-        return bool(self.margin >= UNDETERMINED_MARGIN)
+        """Whether the two places of the play differ by at least :data:`MIN_STRUCTURE_MARGIN` in validation (the study's rule)."""
+        return bool(self.margin >= MIN_STRUCTURE_MARGIN)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary (no arrays; non-finite numbers are left to ``servoid.ident.serialise``)."""
@@ -208,69 +215,6 @@ def block_mask(n: int, blocks: int = BLOCKS) -> np.ndarray:
     for i in range(1, blocks, 2):
         keep[edges[i] : edges[i + 1]] = False
     return keep
-
-
-def record_quantum(y: np.ndarray) -> float:
-    """The record's resolution: the smallest non-zero step of ``y`` that divides the others (0 if none).
-
-    Parameters
-    ----------
-    y : ndarray
-        The readings.
-
-    Returns
-    -------
-    float
-        The quantum, or 0.0 when the steps are not multiples of one (an unquantised record).
-    """
-    d = np.abs(np.diff(y))
-    d = d[d > 1e-12 * max(float(np.ptp(y)), 1e-300)]
-    if d.size == 0:
-        return 0.0
-    q = float(np.min(d))
-    ratio = d / q
-    if float(np.mean(np.abs(ratio - np.round(ratio)) < 0.01)) > 0.95:
-        return q
-    return 0.0
-
-
-def hac_covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
-    """Newey-West sandwich ``(J'J)^+ (sum_l w_l J'_t r_t r_(t-l) J_(t-l)) (J'J)^+`` of a least-squares fit.
-
-    The Bartlett window is twice the first lag at which the residuals' autocorrelation drops
-    below 0.05 (at most ``sqrt(N)``): residuals correlated by quantisation and model error.
-
-    Parameters
-    ----------
-    jac : ndarray
-        ``(N, p)`` Jacobian of the residuals at the optimum.
-    residual : ndarray
-        The ``N`` residuals there.
-
-    Returns
-    -------
-    ndarray
-        ``(p, p)`` covariance of the parameters.
-    """
-    r = np.asarray(residual, dtype=np.float64)
-    jac = np.asarray(jac, dtype=np.float64)
-    n = r.size
-    centred = r - r.mean()
-    max_lag = int(max(1, math.sqrt(n)))
-    spec = np.fft.rfft(centred, 2 * n)
-    ac = np.fft.irfft(spec * np.conj(spec))[: max_lag + 1]
-    ac = ac / ac[0] if ac[0] > 0.0 else np.zeros_like(ac)
-    below = np.flatnonzero(ac[1:] < 0.05)
-    first = int(below[0]) + 1 if below.size else max_lag
-    lags = max(1, min(2 * first, max_lag))
-    g = jac * r[:, None]
-    meat = g.T @ g
-    for lag in range(1, lags + 1):
-        w = 1.0 - lag / (lags + 1)
-        cross = g[lag:].T @ g[:-lag]
-        meat += w * (cross + cross.T)
-    bread = np.linalg.pinv(jac.T @ jac)
-    return np.asarray(bread @ meat @ bread)
 
 
 class _Problem:
@@ -431,10 +375,10 @@ def _fit(
     free: tuple[str, ...] | None = None,
 ) -> tuple[dict[str, float], _Problem, Any]:
     if free is None:
-        free = _FREE + (("ki",) if integrator else ())
+        free = _free(structure, integrator)
     prob = _Problem(u, y, period, structure, free, start, score, a_scale)
     lo, hi = prob.bounds()
-    z0 = np.array([start["asym"] if n == "asym" else 0.0 for n in free])
+    z0 = np.array([start[n] if n == "asym" else 0.0 for n in free])
     with single_threaded_blas():
         sol = least_squares(prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev)
     return prob.values(sol.x), prob, sol
@@ -492,7 +436,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     kp, kv = _linear_start(uc, yc, period)
     v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
     a_scale = 0.1 * kv * v_typ
-    q = record_quantum(yc)
+    q = quantum(yc)
     low = q / 2 if q > 0.0 else 1e-3 * float(np.std(yc))
     high = max(float(np.ptp(yc)) / 4, 2 * low)
     grid = np.geomspace(low, high, 10)
@@ -570,13 +514,23 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
 
 
 def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...], play: float) -> tuple[float, float]:
-    """95 % interval of the play from the HAC covariance of ``ln(play)`` (a positive interval)."""
-    cov = hac_covariance(np.asarray(jac), np.asarray(residual))
+    """95 % interval of the play from the HAC standard error of ``ln(play)`` (so both ends are positive).
+
+    Columns of the Jacobian the record does not move at all (a nuisance parameter at a bound)
+    are left out: the interval is then conditional on them.
+    """
+    jac = np.asarray(jac, dtype=np.float64)
+    norms = np.linalg.norm(jac, axis=0)
+    used = norms > 1e-9 * float(np.max(norms)) if norms.size and float(np.max(norms)) > 0.0 else norms > 0.0
     i = free.index("play")
-    se = math.sqrt(max(float(cov[i, i]), 0.0))
-    if not math.isfinite(se) or se == 0.0:
+    if not used[i]:
         return (math.nan, math.nan)
-    return (play * math.exp(-1.96 * se), play * math.exp(1.96 * se))
+    gradient = np.zeros(int(np.sum(used)))
+    gradient[int(np.sum(used[:i]))] = 1.0
+    se = hac_stderr(jac[:, used], np.asarray(residual, dtype=np.float64), gradient)
+    if not math.isfinite(se):
+        return (math.nan, math.nan)
+    return (play * math.exp(-Z95 * se), play * math.exp(Z95 * se))
 
 
 def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float | None:

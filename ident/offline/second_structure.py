@@ -5,8 +5,7 @@ first. When its fit is at the floor and its residual is white (the paper's
 example), nothing can do better and this is skipped (:func:`needed`).
 Otherwise the pipeline calls :func:`second_structure`, which fits the
 servo-loop model with both places of the play and chooses between them by
-validation (:mod:`servoid.ident.offline.loop_fit`, issue 12 part B). Until
-that lands it returns None, and the black box is the answer with its verdict.
+validation (:func:`servoid.ident.offline.loop_fit.fit_loop`, issue 12 part B).
 
 What the pipeline reads from the result is :class:`LoopResult`, a protocol:
 part B's frozen ``LoopChoice`` satisfies it as it is.
@@ -72,6 +71,16 @@ class LoopResult(Protocol):
         """What the fit itself found doubtful (added to the verdict's reasons)."""
         ...
 
+    @property
+    def dead_time_samples(self) -> float | None:
+        """The play's dead time at a reversal, in samples (None: the play is outside the loop)."""
+        ...
+
+    @property
+    def stall_band(self) -> float:
+        """The friction stall band ``fs / (kv kp)``, y's units."""
+        ...
+
 
 class BlackBox(Protocol):
     """What the seam may read of the black-box result (the pseudo-Wiener fit)."""
@@ -93,7 +102,7 @@ def needed(at_floor: bool, white: bool) -> bool:
 
 
 def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black_box: BlackBox) -> LoopResult | None:
-    """Fit the servo-loop model with both places of the play; None while it is not built (issue 12 part B).
+    """Fit the servo-loop model with both places of the play and choose by validation (:func:`fit_loop`).
 
     Parameters
     ----------
@@ -102,10 +111,24 @@ def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black
     sample_period_s : float
         The sample period in seconds (1.0 when the record has no time).
     black_box : BlackBox
-        The pseudo-Wiener result (a start, and the comparison).
+        The pseudo-Wiener result (the comparison; the loop model starts from its own scan).
 
     Returns
     -------
     LoopResult or None
+        None when the record is too short for the servo-loop model
+        (:data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES`), or when the black box fits the
+        record clearly better (the servo-loop model's free-run NRMSE more than
+        ``1 + MIN_STRUCTURE_MARGIN`` times the black box's): then the black box is the answer.
+        When the two fit about equally the servo-loop result is returned, so that its margin
+        between the two places of the play reaches the verdict (equal fits: undetermined).
     """
-    return None
+    from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+    from servoid.ident.offline.loop_fit import MIN_SAMPLES, fit_loop
+
+    if np.asarray(u).size < MIN_SAMPLES:
+        return None
+    choice = fit_loop(u, y, sample_period_s)
+    if choice.fit_nrmse > (1.0 + MIN_STRUCTURE_MARGIN) * black_box.fit_nrmse:
+        return None
+    return choice
