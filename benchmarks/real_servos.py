@@ -11,7 +11,7 @@ floor), on:
    the real servo closes it, 4096-count output encoders, 0.3 count of
    noise), driven by the research study's gentle sines (peak acceleration
    1-8 rad/s^2, the load kept on the trailing flank) at rates that are
-   multiples of each preset's measured loop bandwidth; with the motor's
+   multiples of each preset's measured loop bandwidth (the ``gentle`` excitation kind); with the motor's
    friction x1 and x4; the horn-encoder presets also with held steps (1.5 s
    holds: the load coasts across the play, which must come out "not
    identifiable"). Default: a reduced grid (rates 5x and 20x, friction x4 at
@@ -21,6 +21,12 @@ floor), on:
    samples, the error at SNR 43 and 5 000 samples, the time on 20 000.
 3. **The real recordings** in ``/work/shared/data`` (EMPS, BAM XL330 and
    STS3250), skipped with a note when the folder is absent.
+
+A second table gives the servo-loop model's own answer on each twin record
+(:func:`servoid.ident.offline.loop_fit.fit_loop`: the place of the play it
+chose, the validation margin between the two places, its gap, fit, interval,
+the play's dead time at a reversal in samples, the simulations and seconds it
+took), whether or not identify kept it.
 
 Columns: the structure and the form that gave the answer, the gap error
 against the twin's true play, the fit against the floor the record's
@@ -42,11 +48,14 @@ import numpy as np
 from _table import table
 
 from servoid.drivers.twin import Twin, preset
+from servoid.excitation.generate import sample
+from servoid.excitation.specs import GentleSpec
 from servoid.ident import MRGIAConfig, identify
 from servoid.ident.identify import SELECTABLE, Identification
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+from servoid.ident.offline.loop_fit import LoopChoice, fit_loop
 from servoid.ident.offline.second_structure import needed
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
 
@@ -67,20 +76,6 @@ RULES = (("worse than predicting the mean", "mean"), ("zero or not finite", "pla
          ("sampled too slowly", "dead-time"), ("stall band", "stall"))  # fmt: skip
 
 
-def gentle_sines(n: int, rate_hz: float, amplitude: float, rng: np.random.Generator) -> np.ndarray:
-    """Segments of 3 periods, amplitude log-uniform in [A/4, A], peak acceleration log-uniform in [1, 8] rad/s^2."""
-    out = np.empty(n)
-    k = 0
-    while k < n:
-        a = amplitude * np.exp(rng.uniform(np.log(0.25), 0.0))
-        f = np.sqrt(np.exp(rng.uniform(0.0, np.log(8.0))) / a) / (2 * np.pi)
-        m = max(4, int(3 * rate_hz / f))
-        seg = a * np.sin(2 * np.pi * f * np.arange(m) / rate_hz)
-        out[k : k + m] = seg[: n - k]
-        k += m
-    return out
-
-
 def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
     """Uniform levels in +-STEP_AMPLITUDE held STEP_HOLD_S: a recording of held steps."""
     hold = max(1, round(STEP_HOLD_S * rate_hz))
@@ -98,8 +93,12 @@ def twin_record(name: str, mult: float, friction: float, kind: str, seed: int) -
     twin.enable()
     rate = mult * BANDWIDTH_HZ[name]
     n = int(min(DURATION_S * rate, MAX_SAMPLES))
-    rng = np.random.default_rng(seed + 1000)
-    u = gentle_sines(n, rate, SINE_AMPLITUDE[name], rng) if kind == "sines" else held_steps(n, rate, rng)
+    if kind == "sines":
+        # peak accelerations 1-8 rad/s^2: the excitation kind servoid designs for a play in the loop
+        spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / rate**2, spread=8.0)
+        u = sample(spec, n, seed=seed + 1000)
+    else:
+        u = held_steps(n, rate, np.random.default_rng(seed + 1000))
     rec = twin.sample(u, 1.0 / rate)
     q = twin.truth.output_rad_per_count
     y = np.asarray(rec.y, dtype=np.float64)
@@ -119,7 +118,7 @@ def reasons(result: Identification) -> str:
 
 
 def _loop_tried(result: Identification) -> bool:
-    """Whether the skip rule let the servo-loop model run (it returns None until issue 12 part B lands)."""
+    """Whether the skip rule let the servo-loop model run."""
     at_floor = bool(np.isfinite(result.floor_nrmse) and result.fit_nrmse <= MAX_FIT_TO_FLOOR * result.floor_nrmse)
     return needed(at_floor, result.residual_white)
 
@@ -144,6 +143,7 @@ def twins(full: bool, seeds: list[int]) -> None:
     cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "gap", "fit/floor",
             "95 % / truth", "covers", "white", "loop fit", "verdict", "s"]  # fmt: skip
     rows = []
+    loop_rows: list[list[str]] = []
     covered = judged = 0
     for name, mult, friction, kind in grid:
         for seed in seeds:
@@ -168,9 +168,30 @@ def twins(full: bool, seeds: list[int]) -> None:
                 reasons(result), f"{seconds:.1f}",
             ])  # fmt: skip
             print(" | ".join(rows[-1]), flush=True)
+            loop_rows.append(loop_row(rec, result, [name, kind, f"{mult:g}x", f"x{friction:g}", str(seed)]))
+            print(" | ".join(loop_rows[-1]), flush=True)
     table("Twins: identify with no structure flags (gap = play / true play - 1; fit against the twin's floor)",
           cols, rows)  # fmt: skip
     print(f"intervals covering the true play: {covered} of {judged}")
+    table("Twins: the servo-loop model alone (fit_loop; from identify when it ran there, else fitted here)",
+          ["preset", "excitation", "rate", "fric", "seed", "true", "loop's choice", "margin", "gap", "fit/floor",
+           "95 % / truth", "dead time (samples)", "simulations", "s"], loop_rows)  # fmt: skip
+
+
+def loop_row(rec: dict[str, object], result: Identification, head: list[str]) -> list[str]:
+    """The servo-loop model's own answer on a twin record: the structure it chose, the margin, the gap, the time."""
+    loop = result.loop
+    if not isinstance(loop, LoopChoice):
+        loop = fit_loop(rec["u"], rec["y"], float(rec["period"]))  # type: ignore[arg-type]
+    play = float(rec["play"])  # type: ignore[arg-type]
+    lo, hi = loop.play_interval
+    dead = "" if loop.dead_time_samples is None else f"{loop.dead_time_samples:.2f}"
+    return [
+        *head, str(rec["structure"]), loop.structure, f"{100 * loop.margin:.1f} %", f"{100 * (loop.play / play - 1):+.1f} %",
+        f"{loop.fit_nrmse / float(rec['floor']):.2f}",  # type: ignore[arg-type]
+        f"[{lo / play:.2f}, {hi / play:.2f}]" if np.isfinite(lo) else "none", dead, str(loop.evaluations),
+        f"{loop.seconds:.1f}",
+    ]  # fmt: skip
 
 
 def paper() -> None:
