@@ -24,7 +24,7 @@ def test_compiled_kernel_equals_python(structure: str) -> None:
     u = 0.1 * np.sin(np.arange(300) * 0.05)
     fast = np.empty(u.size)
     slow = np.empty(u.size)
-    args = (model.vector(), model.feedback_load, u, 0.0, 0.0, 0.01, model.substeps)
+    args = (model.vector(), model.feedback_load, u, 0.0, 0.01, model.substeps)
     simulate_kernel(*args, fast)
     python_version(simulate_kernel)(*args, slow)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
@@ -41,8 +41,8 @@ def test_simulation_does_not_depend_on_the_origin(structure: str) -> None:
 def test_where_the_loop_reads_decides_where_the_load_settles() -> None:
     # no friction, no force: after a step up the loop settles where its encoder reads the set point
     u = np.full(400, 0.2)
-    outside = _model(OUTPUT_BACKLASH, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0, u_before=0.0)
-    inside = _model(PLAY_IN_LOOP, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0, u_before=0.0)
+    outside = _model(OUTPUT_BACKLASH, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0)
+    inside = _model(PLAY_IN_LOOP, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0)
     # motor side on the set point, the load one play side behind it
     assert outside[-1] == pytest.approx(0.2 - 0.01, abs=1e-6)
     # the loop closed on the load drives the load itself to the set point

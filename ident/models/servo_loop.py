@@ -55,6 +55,8 @@ __all__ = [
     "PARAM_NAMES",
     "ServoLoopModel",
     "simulate_kernel",
+    "initial_state",
+    "advance",
     "substeps",
     "H_KV_MAX",
 ]
@@ -99,17 +101,84 @@ def _friction(v: float, fc: float, fs: float, vs: float, veps: float) -> tuple[f
 
 
 @jit
+def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
+    """The loop at rest with the load at ``y0``: fills ``state = [x, y, v, z]`` (motor side, load, speed, integrator).
+
+    Parameters
+    ----------
+    p : ndarray
+        The parameters in the order of :data:`PARAM_NAMES`.
+    y0 : float
+        The load's position.
+    state : ndarray
+        Four floats, overwritten.
+    """
+    c1, c2, s0 = p[9], p[10], p[11]
+    state[0] = y0 - c2 + s0 * (c1 + c2)
+    state[1] = y0
+    state[2] = 0.0
+    # at rest with an integrator, it holds the constant force
+    state[3] = -p[8] if p[2] > 0.0 else 0.0
+
+
+@jit
+def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, period: float, m: int) -> float:
+    """Run the loop for one host period with the set point ``r``; returns the load's position at its end.
+
+    Parameters
+    ----------
+    p : ndarray
+        The parameters in the order of :data:`PARAM_NAMES`.
+    feedback_load : bool
+        True: the position loop reads the load (play in the loop); False: the motor side.
+    state : ndarray
+        ``[x, y, v, z]`` (:func:`initial_state`), advanced in place.
+    r : float
+        The set point, held for the period.
+    period : float
+        The host period, s.
+    m : int
+        Sub-steps per period.
+    """
+    kp, kv, ki, vmax = p[0], p[1], p[2], p[3]
+    fc, fs, vs, veps = p[4], p[5], p[6], p[7]
+    a0, c1, c2 = p[8], p[9], p[10]
+    if veps <= 0.0:
+        veps = 1e-300
+    h = period / m
+    x, yl, v, z = state[0], state[1], state[2], state[3]
+    for _ in range(m):
+        fb = yl if feedback_load else x
+        vcmd = kp * (r - fb)
+        if vmax > 0.0:
+            if vcmd > vmax:
+                vcmd = vmax
+            elif vcmd < -vmax:
+                vcmd = -vmax
+        # implicit step of dv/dt = kv (vcmd - v) + z + a0 - F(v): two Newton steps on the friction
+        base = v + h * (kv * vcmd + z + a0)
+        vn = v
+        for _ in range(2):
+            f, df = _friction(vn, fc, fs, vs, veps)
+            vn -= (vn * (1.0 + h * kv) - base + h * f) / (1.0 + h * kv + h * df)
+        if ki > 0.0:
+            z += h * ki * (vcmd - vn)
+        v = vn
+        x += h * v
+        # the massless load: the play operator of the motor side
+        if x - yl > c1:
+            yl = x - c1
+        elif yl - x > c2:
+            yl = x + c2
+    state[0], state[1], state[2], state[3] = x, yl, v, z
+    return yl
+
+
+@jit
 def simulate_kernel(
-    p: np.ndarray,
-    feedback_load: bool,
-    u: np.ndarray,
-    y0: float,
-    u_before: float,
-    period: float,
-    m: int,
-    y_out: np.ndarray,
+    p: np.ndarray, feedback_load: bool, u: np.ndarray, y0: float, period: float, m: int, y_out: np.ndarray
 ) -> None:
-    """Free-run simulation of the servo loop; fills ``y_out`` (the load at the host instants).
+    """Free-run simulation of the servo loop from rest; fills ``y_out`` (the load at the host instants).
 
     Parameters
     ----------
@@ -118,11 +187,9 @@ def simulate_kernel(
     feedback_load : bool
         True: the position loop reads the load (play in the loop); False: the motor side.
     u : ndarray
-        Set points, applied from their host instant on.
+        Set points, each applied from its host instant (after that instant's reading) to the next.
     y0 : float
-        The load at the first instant.
-    u_before : float
-        The set point held before the record (the loop starts at rest on it).
+        The load at the first instant (the loop at rest there).
     period : float
         The host period, s.
     m : int
@@ -130,44 +197,11 @@ def simulate_kernel(
     y_out : ndarray
         Output; ``y_out.shape[0] <= u.shape[0]`` samples are simulated (a fit stops at its last scored sample).
     """
-    kp, kv, ki, vmax = p[0], p[1], p[2], p[3]
-    fc, fs, vs, veps = p[4], p[5], p[6], p[7]
-    a0, c1, c2, s0 = p[8], p[9], p[10], p[11]
-    if veps <= 0.0:
-        veps = 1e-300
-    h = period / m
-    yl = y0
-    x = y0 - c2 + s0 * (c1 + c2)
-    v = 0.0
-    # at rest with an integrator, it holds the constant force
-    z = -a0 if ki > 0.0 else 0.0
-    r = u_before
+    state = np.empty(4)
+    initial_state(p, y0, state)
     for k in range(y_out.shape[0]):
-        y_out[k] = yl
-        r = u[k]
-        for _ in range(m):
-            fb = yl if feedback_load else x
-            vcmd = kp * (r - fb)
-            if vmax > 0.0:
-                if vcmd > vmax:
-                    vcmd = vmax
-                elif vcmd < -vmax:
-                    vcmd = -vmax
-            # implicit step of dv/dt = kv (vcmd - v) + z + a0 - F(v): two Newton steps on the friction
-            base = v + h * (kv * vcmd + z + a0)
-            vn = v
-            for _ in range(2):
-                f, df = _friction(vn, fc, fs, vs, veps)
-                vn -= (vn * (1.0 + h * kv) - base + h * f) / (1.0 + h * kv + h * df)
-            if ki > 0.0:
-                z += h * ki * (vcmd - vn)
-            v = vn
-            x += h * v
-            # the massless load: the play operator of the motor side
-            if x - yl > c1:
-                yl = x - c1
-            elif yl - x > c2:
-                yl = x + c2
+        y_out[k] = state[1]
+        advance(p, feedback_load, state, u[k], period, m)
 
 
 @dataclass(frozen=True)
@@ -296,7 +330,7 @@ class ServoLoopModel:
         except TypeError as exc:
             raise ConfigError(f"servo-loop model: {exc}") from None
 
-    def simulate(self, u: Any, *, y0: float | None = None, u_before: float | None = None) -> np.ndarray:
+    def simulate(self, u: Any, *, y0: float | None = None) -> np.ndarray:
         """Free-run simulation: the load's position at each host instant.
 
         Parameters
@@ -304,9 +338,7 @@ class ServoLoopModel:
         u : array_like
             Set points, one per host period, in the unit of ``y``.
         y0 : float, optional
-            The load at the first instant (default ``u[0]``).
-        u_before : float, optional
-            The set point held before the record, on which the loop rests (default ``y0``).
+            The load at the first instant, where the loop rests (default ``u[0]``).
 
         Returns
         -------
@@ -314,20 +346,8 @@ class ServoLoopModel:
             ``y_hat``, as long as ``u``.
         """
         u_arr = np.ascontiguousarray(validation.signal("u", u), dtype=np.float64)
-        start = float(u_arr[0]) if y0 is None else float(y0)
-        before = start if u_before is None else float(u_before)
-        validation.real("y0", start)
-        validation.real("u_before", before)
+        start = validation.real("y0", float(u_arr[0]) if y0 is None else y0)
         # the model depends on differences only: simulate around the first reading (keeps rounding small)
         out = np.empty_like(u_arr)
-        simulate_kernel(
-            self.vector(),
-            self.feedback_load,
-            u_arr - start,
-            0.0,
-            before - start,
-            self.sample_period_s,
-            self.substeps,
-            out,
-        )
+        simulate_kernel(self.vector(), self.feedback_load, u_arr - start, 0.0, self.sample_period_s, self.substeps, out)
         return out + start

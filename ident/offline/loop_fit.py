@@ -271,9 +271,7 @@ class _Problem:
 
     def simulate(self, p: np.ndarray) -> np.ndarray:
         self.evaluations += 1
-        simulate_kernel(
-            p, self.feedback_load, self.u, float(self.y[0]), float(self.y[0]), self.period, self.m, self.buffer
-        )
+        simulate_kernel(p, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, self.buffer)
         return self.buffer
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
