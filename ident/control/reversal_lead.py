@@ -147,7 +147,7 @@ def lead_step(q: np.ndarray, state: np.ndarray, r: float, y: float) -> float:
         if state[1] * (y - state[3]) >= q[2] or state[4] > q[3]:
             state[2] = 0.0
     if state[2] > 0.0:
-        return r + q[0] if state[1] > 0.0 else r - q[1]
+        return float(r + q[0] if state[1] > 0.0 else r - q[1])
     return r
 
 

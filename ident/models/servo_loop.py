@@ -171,7 +171,7 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
         elif yl - x > c2:
             yl = x + c2
     state[0], state[1], state[2], state[3] = x, yl, v, z
-    return yl
+    return float(yl)
 
 
 @jit

@@ -36,6 +36,14 @@ Formats (--format):
          NODE: ros__parameters: backlash.{{m2,c1,c2,band}}, linear.{{a,b,delay}},
          stderr, units, identified, servo.
 
+A model whose play sits inside the position loop (structure play_in_loop, a
+servo-loop model) gets the reversal lead instead of the backlash inverse: c
+writes servoid_lead_params NAME (lead_up = c1, lead_down = c2, threshold =
+the band, max_samples = 3/(kp T)) and servoid_reversal_lead(&NAME, &state,
+r, y) -> u, the set point to send; yaml adds structure, servo_loop.{{kp, kv,
+...}} and reversal_lead.{{lead_up, lead_down, threshold, max_samples}}; json
+is the model file, whose structure.loop holds the loop's parameters.
+
 Units: c1, c2 and the band are in the model's output unit (rad, counts or the
 unit of the recording), stated in every format; time is in samples.
 
@@ -93,8 +101,15 @@ def run(args: argparse.Namespace) -> int:
     if content.identifiable is False:
         _term.warn(f"exporting a model whose play is not identifiable (--force): {content.reason}")
     if content.structure != OUTPUT_BACKLASH:
-        _term.warn(f"{args.model} holds the structure {content.structure}: the backlash inverse written here is "
-                   "for the output backlash (the play outside the loop)")  # fmt: skip
+        from servoid.loop_compensation import has_loop
+
+        if has_loop(content):
+            _term.warn(f"{args.model} holds the play inside the position loop: the compensator is the reversal lead "
+                       "(c: servoid_reversal_lead; yaml: reversal_lead; json: structure.loop), not the backlash "
+                       "inverse")  # fmt: skip
+        else:
+            _term.warn(f"{args.model} holds the structure {content.structure}: the backlash inverse written here is "
+                       "for the output backlash (the play outside the loop)")  # fmt: skip
     if content.operating_point != (0.0, 0.0):
         u0, y0 = content.operating_point
         _term.warn(f"the model applies about the operating point u0 = {u0:.6g}, y0 = {y0:.6g} "
