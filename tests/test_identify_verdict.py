@@ -54,6 +54,7 @@ def test_each_rule_gives_its_reason():
         "wider than": dataclasses.replace(good, interval=(0.3, 1.7)),
         "sampled too slowly": dataclasses.replace(good, dead_time_samples=0.4),
         "stall band": dataclasses.replace(good, stall_band=1.5),
+        "not white": dataclasses.replace(good, residual_white=False),
         "worse than predicting the mean": dataclasses.replace(good, fit_nrmse=1.3, floor=float("nan")),
     }
     for words, evidence in cases.items():
