@@ -446,7 +446,8 @@ def identify(
     lines_cross = False
     if refinement is not None:
         stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
-        white = residual_white(refinement.residual)
+        # an exact fit (noise-free record) leaves rounding, whose colour means nothing
+        white = fit < 1e-6 or residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
     interval = play_interval(play, stderr)
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
@@ -459,7 +460,10 @@ def identify(
             f"the up and down lines of the backlash cross inside the data (at x = {model.lines_cross_at:.4g}): "
             "there the play c1 + c2 is not the gap between them (servoid's direction rule decides the output)"
         )
-    evidence = Evidence(play=play, interval=interval, reversals=turns, fit_nrmse=fit, floor=floor)
+    evidence = Evidence(
+        play=play, interval=interval, reversals=turns, fit_nrmse=fit, floor=floor,
+        residual_white=None if refinement is None else white,
+    )  # fmt: skip
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None

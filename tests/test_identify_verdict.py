@@ -54,6 +54,7 @@ def test_each_rule_gives_its_reason():
         "wider than": dataclasses.replace(good, interval=(0.3, 1.7)),
         "sampled too slowly": dataclasses.replace(good, dead_time_samples=0.4),
         "stall band": dataclasses.replace(good, stall_band=1.5),
+        "not white": dataclasses.replace(good, residual_white=False),
         "worse than predicting the mean": dataclasses.replace(good, fit_nrmse=1.3, floor=float("nan")),
     }
     for words, evidence in cases.items():
@@ -137,3 +138,16 @@ def test_old_model_files_read_as_output_backlash_not_judged(tmp_path):
     path.write_text(json.dumps(data))
     old = load_model(path)
     assert old.structure == "output_backlash" and old.identifiable is None and old.read_version == 2
+
+
+def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
+    """The output does not depend on the input: no base model, and no effect, beats the mean."""
+    from servoid.errors import ModelError
+    from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+
+    rng = np.random.default_rng(7)
+    u_t, u_v = rng.uniform(-2, 2, 600), rng.uniform(-2, 2, 600)
+    y_t, y_v = np.cumsum(rng.normal(0, 1, 600)), np.cumsum(rng.normal(0, 1, 600))  # unrelated random walks
+    config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
+    with pytest.raises(ModelError, match="worse than predicting its mean"):
+        diagnose(u_t, y_t, u_v, y_v, config)

@@ -452,8 +452,8 @@ def diagnose(
     DataError
         A record that cannot be identified (named: training or validation).
     ModelError
-        When the identified base model fits the validation record worse than
-        predicting its mean: an error, not "none".
+        When the model, with the effects found, still fits the validation
+        record worse than predicting its mean: an error, not "none".
     """
     train, val = _check_pair((train_u, train_y), (validate_u, validate_y), config.identification)
     ident = identify(*train, config.identification)
@@ -462,13 +462,6 @@ def diagnose(
         train, val = op.centre(*train), op.centre(*val)
     records = _Records(train, val)
     base = ExtendedModel(ident.model)
-    base_fit = records.gap(base)
-    if not base_fit < 1.0:
-        raise ModelError(
-            f"the identified model fits the validation record worse than predicting its mean (free-run NRMSE "
-            f"{base_fit:.3g} >= 1): there is no base to name a missing effect against; check the records, "
-            "the orders and the delay"
-        )
     rounds: list[Round] = []
     current = base
     for _ in range(config.max_effects):
@@ -480,6 +473,14 @@ def diagnose(
         if len(current.effects) == len(config.candidates):
             break
 
+    final_fit = records.gap(current)
+    if not final_fit < 1.0:
+        # "none" (or any effect) on a model no better than the mean would be a confident wrong answer
+        raise ModelError(
+            f"the model fits the validation record worse than predicting its mean (free-run NRMSE "
+            f"{final_fit:.3g} >= 1, base model {records.gap(base):.3g}) even with the effects tried: there is "
+            "nothing to name a missing effect against; check the records, the orders and the delay"
+        )
     before = records.validation(base)
     after = records.validation(current)
     motion = before.x

@@ -251,6 +251,9 @@ class Evidence:
         The play's dead time at a reversal, in samples (None: not known).
     stall_band : float, optional
         The friction stall band (unit of y; None: not modelled).
+    residual_white : bool, optional
+        For the black box as the final answer: whether its residual passed
+        the whiteness test (None: not applied, e.g. a servo-loop answer).
     """
 
     play: float
@@ -261,6 +264,7 @@ class Evidence:
     margin: float | None = None
     dead_time_samples: float | None = None
     stall_band: float | None = None
+    residual_white: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -303,7 +307,11 @@ def verdict(e: Evidence) -> Verdict:
     fit is more than :data:`MAX_FIT_TO_FLOOR` times the floor; the interval
     is unbounded, reaches zero or is wider than :data:`MAX_REL_HALF_WIDTH`
     of the play; the play's dead time at a reversal is under one sample;
-    the friction stall band is not smaller than the play. (Lines of the
+    the friction stall band is not smaller than the play; the black box is
+    the answer and its residual is not white (servoid's addition to the
+    study's rules: on the twins it withholds the black box's confident wrong
+    plays; the cost is that a right model whose residual is coloured by
+    slow quantisation or coloured noise is withheld too). (Lines of the
     backlash that cross inside the data are a warning of
     :func:`servoid.ident.identify.identify`, not a rule: the paper's own
     example crosses at ``x = -4`` and servoid's direction rule defines the
@@ -353,6 +361,11 @@ def verdict(e: Evidence) -> Verdict:
         why.append(
             f"sampled too slowly to see the play inside the loop: its dead time at a reversal is "
             f"{e.dead_time_samples:.2g} samples (sample at least {faster:.2g} times faster)"
+        )
+    if e.residual_white is False:
+        why.append(
+            "the black box's residual is not white (a Ljung-Box test at 1 %) and no second structure explains "
+            "the record: the model misses dynamics, and the play may be absorbing them"
         )
     if e.stall_band is not None and e.stall_band >= play:
         why.append(
