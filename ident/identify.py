@@ -261,6 +261,7 @@ def identify(
     online: MRGIAResult | None = None,
     select: Collection[str] = (),
     sample_period_s: float = 1.0,
+    servo_loop: bool = True,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -295,6 +296,9 @@ def identify(
     sample_period_s : float
         The sample period in seconds, for the servo-loop model (1.0 when the
         record has no time).
+    servo_loop : bool
+        Whether the servo-loop model may be fitted as the second structure (the skip rule still
+        applies); False for a caller that only wants the black box (``diagnose``'s starts).
 
     Returns
     -------
@@ -467,7 +471,7 @@ def identify(
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None
-    if refinement is not None and keep is None and needed(at_floor, white):
+    if servo_loop and refinement is not None and keep is None and needed(at_floor, white):
         loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit))
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)

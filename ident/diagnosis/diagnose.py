@@ -321,7 +321,7 @@ def _delay_starts(
     starts = [current.with_effect(effect)]
     cfg = dataclasses.replace(ident_config, delay=ident_config.delay + extra)
     try:
-        longer = identify(records.u_t, records.y_t, cfg).model
+        longer = identify(records.u_t, records.y_t, cfg, servo_loop=False).model
     except (ModelError, DataError, ArithmeticError):
         return starts
     base = dataclasses.replace(longer, delay=current.base.delay)
@@ -339,7 +339,7 @@ def _pole_starts(records: _Records, current: ExtendedModel, ident_config: MRGIAC
     """
     cfg = dataclasses.replace(ident_config, na=ident_config.na + 1, theta0=None)
     try:
-        wider = identify(records.u_t, records.y_t, cfg).model
+        wider = identify(records.u_t, records.y_t, cfg, servo_loop=False).model
     except (ModelError, DataError, ArithmeticError):
         return []
     starts = []
@@ -456,7 +456,8 @@ def diagnose(
         record worse than predicting its mean: an error, not "none".
     """
     train, val = _check_pair((train_u, train_y), (validate_u, validate_y), config.identification)
-    ident = identify(*train, config.identification)
+    # diagnose extends the black box by effects: the servo-loop model is not its base
+    ident = identify(*train, config.identification, servo_loop=False)
     op = ident.operating_point
     if not op.is_zero:  # the model exists only about the record's operating point: diagnose there
         train, val = op.centre(*train), op.centre(*val)

@@ -41,6 +41,7 @@ from scipy.optimize import least_squares
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel, substeps
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
@@ -503,7 +504,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         simulated=simulated + centre,
         reasons=reasons,
         dead_time_samples=_dead_time_samples(final, uc, yc),
-        stall_band=final.fs / (final.kv * final.kp),
+        stall_band=stall_band(final.fs, final.kv, final.kp),
         model=final,
         candidates=tuple(c for c, _ in candidates),
         seconds=time.perf_counter() - t0,
