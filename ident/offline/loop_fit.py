@@ -141,10 +141,11 @@ class LoopChoice:
         What the fit noticed that weakens the answer beyond the numbers here that the
         "not identifiable" rules read (:func:`servoid.ident.offline.intervals.verdict`: the
         margin, the fit, the dead time, the stall band); empty when nothing did.
-    dead_time_samples : float or None
-        For ``play_in_loop``: the play's dead time at a reversal, in samples,
-        ``play / (kp median|u - y|) / T`` (under one, the place of the play cannot be seen);
-        None for ``output_backlash``.
+    dead_time_samples : float
+        The play's dead time at a reversal, in samples, of the best play-in-loop candidate
+        (the final model when it won): ``play / (kp median|u - y|) / T``. Under about one the
+        record cannot show a play inside the loop, so neither place can be told (the study's Q3:
+        at 5x-10x the XM430's bandwidth the output backlash won with a play 2-3 times too large).
     stall_band : float
         The friction stall band ``fs / (kv kp)``, unit of ``y``: the position error a P loop
         leaves standing against break-away friction (not smaller than the play: the two are confused).
@@ -167,7 +168,7 @@ class LoopChoice:
     params: dict[str, float]
     simulated: np.ndarray = field(repr=False)
     reasons: tuple[str, ...]
-    dead_time_samples: float | None
+    dead_time_samples: float
     stall_band: float
     model: ServoLoopModel
     candidates: tuple[LoopCandidate, ...] = field(repr=False)
@@ -489,6 +490,10 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     )
     evaluations += prob.evaluations
     final = _model(best.structure, period, d)
+    # the dead time is the play-in-loop candidate's: it says whether that place could be seen at all
+    inside = (
+        final if best.structure == PLAY_IN_LOOP else next(c.model for c, _ in candidates if c.structure == PLAY_IN_LOOP)
+    )
     simulated = final.simulate(uc, y0=float(yc[0]))
     fit_nrmse = nrmse(yc, simulated)
     interval = _play_interval(sol.jac, sol.fun, prob.free, d["play"])
@@ -503,7 +508,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         params=final.params(),
         simulated=simulated + centre,
         reasons=reasons,
-        dead_time_samples=_dead_time_samples(final, uc, yc),
+        dead_time_samples=_dead_time_samples(inside, uc, yc),
         stall_band=stall_band(final.fs, final.kv, final.kp),
         model=final,
         candidates=tuple(c for c, _ in candidates),
@@ -532,14 +537,13 @@ def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...],
     return (play * math.exp(-Z95 * se), play * math.exp(Z95 * se))
 
 
-def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float | None:
-    """The play's dead time at a reversal in samples, ``play / (kp median|u - y|) / T`` (play inside the loop only).
+def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float:
+    """The play's dead time at a reversal in samples, ``play / (kp median|u - y|) / T``, of a play-in-loop model.
 
     While the horn waits in the play the loop drives the motor at about ``kp`` times the error;
     the median error of the record stands for the error at a reversal (the study's Q3 rule).
+    Under about one sample the place of the play cannot be seen, whichever place won.
     """
-    if model.structure != PLAY_IN_LOOP:
-        return None
     speed = model.kp * float(np.median(np.abs(u - y)))
     return model.play / speed / model.sample_period_s if speed > 0.0 else math.inf
 

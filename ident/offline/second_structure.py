@@ -73,7 +73,7 @@ class LoopResult(Protocol):
 
     @property
     def dead_time_samples(self) -> float | None:
-        """The play's dead time at a reversal, in samples (None: the play is outside the loop)."""
+        """The play's dead time at a reversal, in samples, were the play inside the loop (None: not known)."""
         ...
 
     @property
