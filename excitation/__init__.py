@@ -25,6 +25,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.excitation.specs import (
         KINDS,
         ChirpSpec,
+        GentleSpec,
         LevelsSpec,
         MultisineSpec,
         PRBSSpec,
@@ -45,6 +46,7 @@ _EXPORTS: dict[str, str] = {
     "MultisineSpec": "servoid.excitation.specs",
     "ChirpSpec": "servoid.excitation.specs",
     "LevelsSpec": "servoid.excitation.specs",
+    "GentleSpec": "servoid.excitation.specs",
     "parse_spec": "servoid.excitation.specs",
     "format_spec": "servoid.excitation.specs",
     "SignalState": "servoid.excitation.generate",
@@ -71,6 +73,7 @@ __all__ = [
     "MultisineSpec",
     "ChirpSpec",
     "LevelsSpec",
+    "GentleSpec",
     "parse_spec",
     "format_spec",
     "SignalState",

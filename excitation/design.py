@@ -7,6 +7,12 @@ smallest amplitude whose signal, run through the prior, passes the
 persistent-excitation report (Remark 2: as small as will do, yet reaching the
 lines and the memory zone), adds a margin for the roughness of the prior, and
 says how many samples to record.
+
+For a servo whose encoder sits on the load (a Dynamixel's or Feetech's horn:
+the play inside its position loop, ``Prior.structure``), the proposal is
+gentle sines instead (:mod:`~servoid.excitation.gentle`): only a set point
+that decelerates more gently than the load's own friction keeps the load on
+the trailing flank, so that each reversal shows the whole play.
 """
 
 from __future__ import annotations
@@ -17,9 +23,11 @@ from dataclasses import dataclass
 from servoid import validation
 from servoid.errors import ConfigError, ModelError
 from servoid.excitation.generate import sample
+from servoid.excitation.gentle import segments
 from servoid.excitation.report import ExcitationReport, Level, Verdict, assess, worst_level
-from servoid.excitation.specs import SignalSpec, StepsSpec, UniformSpec
+from servoid.excitation.specs import GentleSpec, SignalSpec, StepsSpec, UniformSpec
 from servoid.ident.models.pseudo_wiener import BacklashModel
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, STRUCTURES
 
 __all__ = ["Prior", "ServoLimits", "Design", "design"]
 
@@ -42,6 +50,14 @@ MAX_SAMPLES = 1_000_000
 
 _BACKLASH = ("m2", "c1", "c2")
 
+#: Gentle sines: amplitude as a multiple of the play (reversals far beyond the play), segments per record,
+#: the share of the load's friction deceleration the set point may reach, and the frequency of a
+#: full-amplitude segment when that deceleration is unknown (cycles per sample).
+GENTLE_PLAYS = 25.0
+GENTLE_SEGMENTS = 20
+GENTLE_DECEL_SHARE = 0.4
+GENTLE_DEFAULT_FREQUENCY = 0.01
+
 
 @dataclass(frozen=True, kw_only=True)
 class Prior:
@@ -59,14 +75,27 @@ class Prior:
     model : BacklashModel, optional
         A whole prior model; when given it is used as is and the other fields
         are ignored.
+    structure : str
+        Where the play sits (:data:`~servoid.ident.models.structure_names.STRUCTURES`):
+        ``play_in_loop`` for a servo whose encoder is on the load (the horn),
+        which gets gentle sines.
+    load_decel : float, optional
+        The deceleration the load's own friction gives it, unit of ``y`` per
+        s^2, if known: gentle sines stay below ``GENTLE_DECEL_SHARE`` of it.
     """
 
     dead_zone: float = 0.0
     gain: float = 1.0
     m2: float = 1.0
     model: BacklashModel | None = None
+    structure: str = OUTPUT_BACKLASH
+    load_decel: float | None = None
 
     def __post_init__(self) -> None:
+        if self.structure not in STRUCTURES:
+            raise ConfigError(f"structure (={self.structure!r}) must be one of {', '.join(STRUCTURES)}")
+        if self.load_decel is not None:
+            validation.positive("load_decel", self.load_decel)
         if self.model is not None:
             if not isinstance(self.model, BacklashModel):
                 raise ConfigError(f"model must be a BacklashModel, got {type(self.model).__name__}")
@@ -276,6 +305,8 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
     at the rate limit (``2 amplitude / max_step``). With neither, the signal is
     the paper's uniform white noise.
     """
+    if prior.structure == PLAY_IN_LOOP:
+        return _design_gentle(prior, limits, seed=seed, samples=samples)
     model = prior.as_model()
     gain = abs(model.dc_gain)
     play = model.dead_zone
@@ -348,4 +379,61 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
     return Design(
         spec=spec, samples=samples, duration_s=duration, model=model, report=report,
         verdicts=_applicable(report, rough=rough), reasons=tuple(reasons),
+    )  # fmt: skip
+
+
+def _design_gentle(prior: Prior, limits: ServoLimits, *, seed: int, samples: int | None) -> Design:
+    """Gentle sines for a servo whose loop is closed around the play (see the module docstring)."""
+    model = prior.as_model()
+    play = model.dead_zone
+    half = limits.half_range
+    if 2.0 * play >= half:
+        raise ConfigError(
+            f"the position range [{limits.position_min:g}, {limits.position_max:g}] allows an amplitude of "
+            f"{half:.4g}: too small to reverse by more than twice the play {play:.4g}; widen the range"
+        )
+    amplitude = min(GENTLE_PLAYS * play, half)
+    reasons = [
+        "gentle sines: the servo's encoder sits on the load, so its loop is closed around the play; only a "
+        "set point that decelerates more gently than the load's friction keeps the load on the trailing flank, "
+        "so that every reversal shows the whole play (held steps or white noise let it coast across: "
+        "the play vanishes from the record)",
+        f"amplitude {amplitude:.4g}: {GENTLE_PLAYS:g} plays, so that reversals go far beyond the play"
+        + (", capped by the range" if amplitude == half else ""),
+        f"offset {limits.centre:.4g}: the middle of the range [{limits.position_min:g}, {limits.position_max:g}]",
+    ]
+    period = limits.sample_period_s
+    if prior.load_decel is not None and period is not None:
+        accel = GENTLE_DECEL_SHARE * prior.load_decel * period * period
+        reasons.append(
+            f"peak acceleration at most {GENTLE_DECEL_SHARE:g} x the load's friction deceleration "
+            f"{prior.load_decel:.4g}/s^2 ({accel:.4g} per sample^2)"
+        )
+    else:
+        accel = amplitude * (2.0 * math.pi * GENTLE_DEFAULT_FREQUENCY) ** 2
+        reasons.append(
+            f"peak acceleration at most {accel:.4g} per sample^2 (a full-amplitude segment at "
+            f"{GENTLE_DEFAULT_FREQUENCY:g} cycles per sample): the load's friction is not known "
+            "(give it to design for the gentlest fast signal)"
+        )
+    spec = GentleSpec(amplitude=amplitude, offset=limits.centre, rate=limits.max_step, accel=accel)
+    if math.isfinite(limits.max_step):
+        reasons.append(f"rate limit {limits.max_step:g} per sample: the servo's largest step")
+    if samples is None:
+        lengths = segments(spec, seed, 0, GENTLE_SEGMENTS)[2]
+        samples = int(min(max(MIN_SAMPLES, int(lengths.sum())), MAX_SAMPLES))
+        reasons.append(
+            f"{samples} samples: {GENTLE_SEGMENTS} segments of {spec.cycles} periods, {2 * spec.cycles} reversals each"
+        )
+    else:
+        samples = validation.integer("samples", samples, minimum=1)
+        reasons.append(f"{samples} samples, as asked")
+    reasons.append(
+        "sample at least 20 times the position loop's bandwidth: the play's dead time at a reversal must span a sample"
+    )
+    report = assess(sample(spec, samples, seed=seed), model=model)
+    duration = None if period is None else samples * period
+    return Design(
+        spec=spec, samples=samples, duration_s=duration, model=model, report=report,
+        verdicts=_applicable(report, rough=prior.model is None), reasons=tuple(reasons),
     )  # fmt: skip

@@ -18,7 +18,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.excitation import noise, periodic, prbs
+from servoid.excitation import gentle, noise, periodic, prbs
 from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import SignalSpec, parse_spec
 from servoid.excitation.streams import check_seed
@@ -33,6 +33,7 @@ _TARGETS: dict[str, Callable[..., np.ndarray]] = {
     "prbs": prbs.prbs,
     "multisine": periodic.multisine,
     "chirp": periodic.chirp,
+    "gentle": gentle.gentle,
 }
 
 

@@ -26,6 +26,9 @@ multisine   equal-amplitude cosines with Schroeder phases: ``bands``, ``period``
 chirp       a swept sine: ``f0``, ``f1``, ``period``, ``sweep``
 levels      dithered visits to operating levels: ``count``, ``dwell``,
             ``dither``, ``hold``
+gentle      gentle sines, segments of a few periods with a low peak
+            acceleration (a play inside the loop): ``accel``, ``spread``,
+            ``cycles``, ``smallest``
 =========== ================================================================
 
 :func:`parse_spec` reads the text form, :func:`format_spec` writes it back
@@ -52,6 +55,7 @@ __all__ = [
     "MultisineSpec",
     "ChirpSpec",
     "LevelsSpec",
+    "GentleSpec",
     "KINDS",
     "parse_spec",
     "format_spec",
@@ -337,9 +341,52 @@ class LevelsSpec(SignalSpec):
         return tuple(self.offset + reach * (-1.0 + 2.0 * i / (self.count - 1)) for i in range(self.count))
 
 
+@dataclass(frozen=True, kw_only=True)
+class GentleSpec(SignalSpec):
+    """Gentle sines: segments of ``cycles`` periods whose peak acceleration stays low (:mod:`~servoid.excitation.gentle`).
+
+    Made for a servo whose encoder sits on the load (the play inside its
+    position loop): decelerations gentler than the load's own friction keep
+    the load on the trailing flank until the motor reverses, so every
+    reversal crosses the whole play.
+
+    Parameters
+    ----------
+    accel : float, optional
+        Highest peak acceleration of a segment, unit of ``u`` per sample
+        squared, ``> 0``; default ``amplitude (2 pi 0.01)^2`` (a full-amplitude
+        segment at 0.01 cycles per sample). From a physical limit ``A`` in
+        unit/s^2 at a sample period ``T``: ``A T^2``.
+    spread : float
+        Ratio of the highest to the lowest peak acceleration, ``>= 1``.
+    cycles : int
+        Periods per segment, ``>= 1``.
+    smallest : float
+        Smallest segment amplitude as a fraction of ``amplitude``, in (0, 1].
+    """
+
+    kind: ClassVar[str] = "gentle"
+
+    accel: float | None = field(default=None, metadata={"default": "amplitude*(2pi*0.01)^2"})
+    spread: float = 8.0
+    cycles: int = 3
+    smallest: float = 0.25
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        accel = self.amplitude * (2.0 * math.pi * 0.01) ** 2 if self.accel is None else self.accel
+        self._set("accel", validation.positive("accel", accel))
+        spread = validation.real("spread", self.spread)
+        if spread < 1.0:
+            raise ConfigError(f"spread (={spread:g}) must be >= 1 (highest over lowest peak acceleration)")
+        self._set("spread", spread)
+        self._set("cycles", validation.integer("cycles", self.cycles, minimum=1))
+        self._set("smallest", validation.in_unit_interval("smallest", self.smallest, open_high=False))
+
+
 #: Every kind by name, in the order help texts list them.
 KINDS: dict[str, type[SignalSpec]] = {
-    cls.kind: cls for cls in (UniformSpec, PRBSSpec, StepsSpec, MultisineSpec, ChirpSpec, LevelsSpec)
+    cls.kind: cls for cls in (UniformSpec, PRBSSpec, StepsSpec, MultisineSpec, ChirpSpec, LevelsSpec, GentleSpec)
 }
 
 

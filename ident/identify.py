@@ -1,14 +1,21 @@
-"""Identify a backlash model from a record: MRGIA, then output-error refinement.
+"""Identify a backlash model from a record: operating point, structure, MRGIA, refinement, the honest answer.
 
-This is the pipeline behind ``servoid identify``: validate the record, run the
-MRGIA over it (online estimate), refine the estimate offline, and report both
-with the free-run fit of the best one.
+This is the pipeline behind ``servoid identify``: validate the record, take
+its operating point off (:mod:`servoid.ident.offline.operating_point`),
+choose the orders by BIC unless they are given
+(:mod:`servoid.ident.offline.structure`), run the MRGIA over it (online
+estimate), refine from rest with the initial state (offline), and judge the
+play: its 95 % interval and the "not identifiable" rules
+(:mod:`servoid.ident.offline.intervals`). When the black box is off the
+floor or its residual is coloured, the second structure (the servo-loop
+model, :mod:`servoid.ident.offline.second_structure`) is fitted and chosen
+by validation.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Collection, Sequence
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -16,16 +23,36 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.kernels import rest_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PSEUDO_WIENER, SERVO_LOOP, STRUCTURES
+from servoid.ident.offline.intervals import (
+    MAX_FIT_TO_FLOOR,
+    Evidence,
+    Verdict,
+    floor_nrmse,
+    hac_stderr,
+    play_interval,
+    quantum,
+    residual_white,
+    reversals,
+    verdict,
+)
+from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
 from servoid.ident.offline.refine import Refinement, arx_start, refine
+from servoid.ident.offline.second_structure import LoopResult, needed, second_structure
+from servoid.ident.offline.structure import OrderChoice, select_orders
 from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 
-__all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE"]
+__all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE", "SELECTABLE"]
 
 #: A free-run NRMSE from here on says the model explains almost nothing of y (1 is y's mean):
 #: even output noise as strong as the signal itself (SNR 1) leaves a good model near 0.7.
 POOR_FIT_NRMSE = 0.9
+
+#: What :func:`identify` can choose from the data (``select=``).
+SELECTABLE: tuple[str, ...] = ("na", "nb", "delay")
 
 Method = Literal["mrgia", "mrgia+oe"]
 
@@ -37,7 +64,10 @@ class Identification:
     Attributes
     ----------
     model : BacklashModel
-        The best estimate: refined when refinement ran, else the MRGIA's.
+        The best pseudo-Wiener estimate: refined when refinement ran, else the
+        MRGIA's. It applies to ``u - operating_point.u`` and
+        ``y - operating_point.y`` (the record's own coordinates when the
+        operating point is zero, which it is whenever the model exists there).
     method : {"mrgia", "mrgia+oe"}
         How :attr:`model` was obtained.
     mrgia : MRGIAResult
@@ -45,10 +75,11 @@ class Identification:
     mrgia_model : BacklashModel or None
         The MRGIA estimate as a model, None when it is not a valid model.
     refinement : Refinement or None
-        The output-error refinement that won, when refinement ran.
-    refined_from : {"mrgia", "arx"} or None
-        Which start that refinement came from: the MRGIA estimate, or the
-        MRGIA-independent ARX start (:func:`servoid.ident.offline.refine.arx_start`).
+        The output-error refinement that won, when refinement ran (about the
+        record's operating point, :attr:`centred_point`).
+    refined_from : {"mrgia", "arx", "bic"} or None
+        Which start that refinement came from: the MRGIA estimate, the
+        MRGIA-independent ARX start, or the order selection's fit.
     start_nrmse : dict
         Free-run NRMSE reached from each start that was tried.
     samples : int
@@ -60,6 +91,35 @@ class Identification:
     warnings : tuple of str
         Things the user must know (an unsettled run, recoveries, an invalid
         online estimate, a refinement that did not converge).
+    operating_point : OperatingPoint
+        What :attr:`model` subtracts from ``u`` and ``y``.
+    centred_point : OperatingPoint
+        The record's operating point the fit ran about (``mean(u)``).
+    delta0 : float
+        Where in the play the record starts, in :attr:`model`'s coordinates
+        (the simulation from rest, :func:`servoid.ident.models.kernels.rest_kernel`).
+    orders : OrderChoice or None
+        How the orders were chosen (None when they were all given).
+    structure : str
+        Where the play sits (:mod:`servoid.ident.models.structure_names`).
+    form : str
+        The model form that gave the answer (``pseudo_wiener`` or ``servo_loop``).
+    play : float
+        The answer's play ``c1 + c2`` (unit of y).
+    play_interval : tuple of float
+        Its 95 % interval (HAC for the black box; NaN ends when there is none).
+    play_stderr : float
+        The black box's HAC standard error of ``c1 + c2``.
+    floor_nrmse : float
+        The NRMSE the record's resolution and noise leave (estimated from the data).
+    reversals : int
+        Output reversals larger than twice the play.
+    residual_white : bool
+        Whether the black box's residual passed the whiteness test.
+    loop : LoopResult or None
+        The servo-loop model's result, when it was fitted.
+    verdict : Verdict
+        Whether the play is identified, and why not.
     """
 
     model: BacklashModel
@@ -73,25 +133,80 @@ class Identification:
     fit_nrmse: float
     mrgia_nrmse: float | None
     warnings: tuple[str, ...]
+    operating_point: OperatingPoint = OperatingPoint()
+    centred_point: OperatingPoint = OperatingPoint()
+    delta0: float = 0.0
+    orders: OrderChoice | None = None
+    structure: str = OUTPUT_BACKLASH
+    form: str = PSEUDO_WIENER
+    play: float = float("nan")
+    play_interval: tuple[float, float] = (float("nan"), float("nan"))
+    play_stderr: float = float("nan")
+    floor_nrmse: float = float("nan")
+    reversals: int = 0
+    residual_white: bool = False
+    loop: LoopResult | None = None
+    verdict: Verdict = Verdict(False, ("not judged",))
 
     @property
     def stderr(self) -> dict[str, float] | None:
         """Standard errors of :attr:`model`'s parameters, when refinement ran."""
         return None if self.refinement is None else self.refinement.stderr_dict()
 
+    @property
+    def identifiable(self) -> bool:
+        """Whether the play is identified (every rule of :func:`servoid.ident.offline.intervals.verdict` passed)."""
+        return self.verdict.identifiable
+
+    @property
+    def reason(self) -> str:
+        """Why the play is not identified ("" when it is)."""
+        return self.verdict.reason
+
+    @property
+    def runner_up_structure(self) -> str | None:
+        """The other place of the play, when both were fitted."""
+        if self.loop is None:
+            return None
+        others = [s for s in STRUCTURES if s != self.structure]
+        return others[0] if others else None
+
+    def headline(self) -> str:
+        """One line naming the structure and the verdict, for reports and plots' titles."""
+        low, high = self.play_interval
+        ends = f"[{low:.4g}, {high:.4g}]" if np.isfinite(low) and np.isfinite(high) else "[none]"
+        text = f"{self.structure} ({self.form}): play {self.play:.4g}, 95 % {ends}"
+        return text + (", identifiable" if self.identifiable else f", NOT IDENTIFIABLE: {self.reason}")
+
     def to_dict(self) -> dict[str, Any]:
         """For JSON: ``model``, ``method``, ``samples``, ``fit_nrmse``, ``stderr``, ``refined_from``,
-        ``start_nrmse``, ``mrgia`` (:meth:`MRGIAResult.to_dict` with its own ``fit_nrmse``) and ``warnings``.
+        ``start_nrmse``, ``mrgia`` (:meth:`MRGIAResult.to_dict` with its own ``fit_nrmse``),
+        ``warnings``, and the answer: ``structure``, ``form``, ``play``, ``play_interval``,
+        ``identifiable``, ``reason``, ``reasons``, ``operating_point``, ``delta0``, ``orders``,
+        ``floor_nrmse``, ``reversals``, ``residual_white``, ``second_structure``.
 
         ``stderr`` is null without refinement; one of its entries is null where
         the data do not determine that parameter. ``mrgia.model`` is null (with
         ``model_error``) when the online estimate is not a valid model.
         """
+        loop = self.loop
         return {
             "model": self.model.to_dict(), "method": self.method, "samples": self.samples,
             "fit_nrmse": self.fit_nrmse, "stderr": self.stderr, "refined_from": self.refined_from,
             "start_nrmse": dict(self.start_nrmse), "mrgia": {**self.mrgia.to_dict(), "fit_nrmse": self.mrgia_nrmse},
             "warnings": list(self.warnings),
+            "structure": self.structure, "form": self.form, "play": self.play,
+            "play_interval": list(self.play_interval), "play_stderr": self.play_stderr,
+            **self.verdict.to_dict(),
+            "operating_point": self.operating_point.to_dict(), "delta0": self.delta0,
+            "orders": None if self.orders is None else self.orders.to_dict(),
+            "floor_nrmse": self.floor_nrmse, "reversals": self.reversals, "residual_white": self.residual_white,
+            "second_structure": None if loop is None else {
+                "structure": loop.structure, "play": loop.play, "play_interval": list(loop.play_interval),
+                "fit_nrmse": loop.fit_nrmse, "validation_nrmse": dict(loop.validation_nrmse),
+                "margin": loop.margin, "runner_up": self.runner_up_structure, "params": dict(loop.params),
+                "reasons": list(loop.reasons),
+            },
         }  # fmt: skip
 
 
@@ -144,13 +259,17 @@ def identify(
     progress: Callable[[int, int], None] | None = None,
     valid: Sequence[bool] | np.ndarray | None = None,
     online: MRGIAResult | None = None,
+    select: Collection[str] = (),
+    sample_period_s: float = 1.0,
+    servo_loop: bool = True,
 ) -> Identification:
     """Identify a backlash model from a record.
 
     Parameters
     ----------
     u, y : array_like
-        Input and measured output.
+        Input and measured output, in the same unit (a position servo's set
+        point and position: one operating point is taken off both).
     config : MRGIAConfig
         Orders, delay and estimator settings.
     refine_model : bool
@@ -168,7 +287,18 @@ def identify(
         The MRGIA's result over this record, already computed (a live
         session ran it sample by sample: :meth:`servoid.session.listeners.EstimatorFeed.mrgia_result`);
         it is used as it is, and only the offline stage runs here. Its
-        configuration must have ``config``'s orders and delay.
+        configuration must have ``config``'s orders and delay (which are
+        then not searched).
+    select : collection of str
+        Which of ``"na"``, ``"nb"``, ``"delay"`` to choose from the data by
+        BIC (:func:`servoid.ident.offline.structure.select_orders`); the
+        others are ``config``'s. The command line selects those not given.
+    sample_period_s : float
+        The sample period in seconds, for the servo-loop model (1.0 when the
+        record has no time).
+    servo_loop : bool
+        Whether the servo-loop model may be fitted as the second structure (the skip rule still
+        applies); False for a caller that only wants the black box (``diagnose``'s starts).
 
     Returns
     -------
@@ -178,21 +308,47 @@ def identify(
     ------
     DataError
         For a record that cannot be identified (see :func:`check_record`).
+    ConfigError
+        For an unknown name in ``select``.
     EstimatorDiverged
         If the MRGIA diverged, with the sample index.
     """
+    unknown = sorted(set(select) - set(SELECTABLE))
+    if unknown:
+        raise ConfigError(f"select names {unknown}; expected some of {list(SELECTABLE)}")
+    period = validation.positive("sample_period_s", sample_period_s)
     u_arr, y_arr, keep = _record(u, y, valid, config)
     first = 0 if keep is None else int(np.argmax(keep))
     y0 = float(y_arr[first])
     warnings: list[str] = []
     if keep is not None and not keep.all():
         warnings.append(f"{int(keep.size - keep.sum())} of {keep.size} samples were lost or late and left out")
+    y_valid = y_arr if keep is None else y_arr[keep]
+    # the operating point: one constant off u and y (raw counts and centred records give the same numbers)
+    centre = operating_point(u_arr, y_valid)
+    u_c, y_c = centre.centre(u_arr, y_arr)
+    if keep is not None:
+        y_c = np.where(keep, y_c, 0.0)
+
+    orders: OrderChoice | None = None
+    if select and refine_model and online is None:
+        if keep is None or keep.all():
+            orders = select_orders(
+                u_c, y_c, **{name: None if name in select else getattr(config, name) for name in SELECTABLE}
+            )
+            c = orders.chosen
+            if (c.na, c.nb, c.delay) != (config.na, config.nb, config.delay):
+                # a start theta0 for other orders does not fit: the paper's for the chosen ones
+                config = replace(config, na=c.na, nb=c.nb, delay=c.delay, theta0=None)
+        else:
+            warnings.append("the orders were not searched on a record with lost samples: na, nb, delay as given")
+
     if online is None:
         online = run_mrgia(u_arr, y_arr, config, valid=keep, record_every=record_every, progress=progress)
     elif (online.config.na, online.config.nb, online.config.delay) != (config.na, config.nb, config.delay):
-        c = online.config
+        oc = online.config
         raise ConfigError(
-            f"the online result is for na={c.na}, nb={c.nb}, delay={c.delay}; "
+            f"the online result is for na={oc.na}, nb={oc.nb}, delay={oc.delay}; "
             f"config asks for na={config.na}, nb={config.nb}, delay={config.delay}"
         )
     if online.recoveries:
@@ -218,34 +374,47 @@ def identify(
         mrgia_model, mrgia_nrmse = None, None
         warnings.append(str(exc))
 
-    # Refine from the MRGIA estimate and from a start that does not depend on
-    # it: where the MRGIA's convergence condition fails (slow plants), its
-    # estimate can sit in another basin of the output error. Keep the best fit.
+    # Refine, about the operating point and from rest, from the MRGIA estimate, from a start that
+    # does not depend on it (where the MRGIA's convergence condition fails, its estimate can sit in
+    # another basin of the output error) and from the order selection's fit. Keep the best fit.
     refinement: Refinement | None = None
     refined_from: str | None = None
     start_nrmse: dict[str, float] = {}
     if refine_model:
-        starts: dict[str, BacklashModel] = {
-            "mrgia": mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
-        }
-        try:
-            starts["arx"] = arx_start(u_arr, y_arr, na=config.na, nb=config.nb, delay=config.delay, valid=keep)
-        except (ConfigError, ModelError):
-            pass
-        for name, start in starts.items():
-            candidate = refine(u_arr, y_arr, start, y0=y0, valid=keep)
+        online_start = mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
+        starts: dict[str, tuple[BacklashModel, float]] = {}
+        moved = to_centred(online_start, centre)
+        if moved is not None:
+            starts["mrgia"] = (moved, 0.0)
+        if orders is not None:
+            starts["bic"] = (orders.start, orders.delta0)  # an ARX-started fit on the window
+        else:
+            try:
+                starts["arx"] = (arx_start(u_c, y_c, na=config.na, nb=config.nb, delay=config.delay, valid=keep), 0.0)
+            except (ConfigError, ModelError):
+                pass
+        for name, (start, d0) in starts.items():
+            candidate = refine(u_c, y_c, start, y0=y0 - centre.y, valid=keep, initial_state=True, delta0=d0)
             start_nrmse[name] = candidate.nrmse
             if refinement is None or candidate.nrmse < refinement.nrmse:
                 refinement, refined_from = candidate, name
-        assert refinement is not None
-        if not refinement.success:
+        if refinement is not None and not refinement.success:
             warnings.append(f"the refinement did not converge: {refinement.message}")
-        if mrgia_nrmse is not None and refinement.nrmse > mrgia_nrmse:
+        if refinement is not None and mrgia_nrmse is not None and refinement.nrmse > mrgia_nrmse:
             warnings.append("the refinement fits worse than the MRGIA estimate; keeping the MRGIA estimate")
             refinement, refined_from = None, None
 
+    point = OperatingPoint()
+    delta0 = 0.0
     if refinement is not None:
-        model, method, fit = refinement.model, "mrgia+oe", refinement.nrmse
+        method: Method = "mrgia+oe"
+        fit = refinement.nrmse
+        model_rec = to_record(refinement.model, centre)
+        if model_rec is not None:
+            # the same system in the record's own coordinates: x moves by G r, y by r
+            model, delta0 = model_rec, refinement.delta0 + (refinement.model.dc_gain - 1.0) * centre.u
+        else:
+            model, point, delta0 = refinement.model, centre, refinement.delta0
     elif mrgia_model is not None and mrgia_nrmse is not None:
         model, method, fit = mrgia_model, "mrgia", mrgia_nrmse
     else:
@@ -272,9 +441,52 @@ def identify(
             f"the model explains almost nothing of y: free-run NRMSE {fit:.3g} (1 is no better than y's mean); "
             "y may not depend on u here (check the columns, the delay and the orders): its parameters mean nothing"
         )
+
+    # the honest answer for the black box
+    floor = floor_nrmse(y_valid)
+    play = model.dead_zone
+    stderr = float("nan")
+    white = False
+    lines_cross = False
+    if refinement is not None:
+        stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
+        # an exact fit (noise-free record) leaves rounding, whose colour means nothing
+        white = fit < 1e-6 or residual_white(refinement.residual)
+        lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
+    interval = play_interval(play, stderr)
+    # a reversal must exceed twice the play and the record's own jitter: its resolution and three
+    # times the fit's residual RMS (the noise, where the model is right; more where it is not)
+    residual_rms = fit * float(np.std(y_valid))
+    jitter = 2.0 * (quantum(y_valid) + 3.0 * residual_rms)
+    turns = reversals(y_valid, max(2.0 * play, jitter))
+    if lines_cross:
+        warnings.append(
+            f"the up and down lines of the backlash cross inside the data (at x = {model.lines_cross_at:.4g}): "
+            "there the play c1 + c2 is not the gap between them (servoid's direction rule decides the output)"
+        )
+    evidence = Evidence(
+        play=play, interval=interval, reversals=turns, fit_nrmse=fit, floor=floor,
+        residual_white=None if refinement is None else white,
+    )  # fmt: skip
+    structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
+    at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
+    loop: LoopResult | None = None
+    if servo_loop and refinement is not None and keep is None and needed(at_floor, white):
+        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit))
+    if loop is not None:
+        structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
+        interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))
+        evidence = Evidence(
+            play=play, interval=(float(interval[0]), float(interval[1])),
+            reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,
+            margin=float(loop.margin), dead_time_samples=loop.dead_time_samples, stall_band=float(loop.stall_band),
+        )  # fmt: skip
+    judged = verdict(evidence)
+    if loop is not None and loop.reasons:
+        judged = Verdict(False, (*judged.reasons, *loop.reasons))
     return Identification(
         model=model,
-        method=method,  # type: ignore[arg-type]
+        method=method,
         mrgia=online,
         mrgia_model=mrgia_model,
         refinement=refinement,
@@ -284,7 +496,42 @@ def identify(
         fit_nrmse=fit,
         mrgia_nrmse=mrgia_nrmse,
         warnings=tuple(warnings),
+        operating_point=point,
+        centred_point=centre,
+        delta0=float(delta0),
+        orders=orders,
+        structure=structure,
+        form=form,
+        play=float(play),
+        play_interval=(float(interval[0]), float(interval[1])),
+        play_stderr=stderr,
+        floor_nrmse=floor,
+        reversals=evidence.reversals,
+        residual_white=white,
+        loop=loop,
+        verdict=judged,
     )
+
+
+@dataclass(frozen=True)
+class _BlackBox:
+    """The pseudo-Wiener result as the seam reads it."""
+
+    model: BacklashModel
+    fit_nrmse: float
+
+
+def _lines_cross_inside(fit: Refinement, u: np.ndarray, y0: float) -> bool:
+    """Whether the fitted up and down lines cross inside the range of the simulated ``x`` (centred)."""
+    at = fit.model.lines_cross_at
+    if at is None:
+        return False
+    m = fit.model
+    x = np.empty_like(u)
+    y_hat = np.empty_like(u)
+    zone = np.empty(u.shape, dtype=np.int8)
+    rest_kernel(np.asarray(m.a), np.asarray(m.b), m.delay, m.m2, m.c1, m.c2, u, y0, fit.delta0, x, y_hat, zone)
+    return bool(np.min(x) < at < np.max(x))
 
 
 def _record(

@@ -129,6 +129,15 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         servo=record.servo,
         noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
         extra=dict(record.live),
+        structure=result.structure,
+        form=result.form,
+        identifiable=result.identifiable,
+        reason=result.reason,
+        play=result.play,
+        play_interval=result.play_interval,
+        operating_point=(result.operating_point.u, result.operating_point.y),
+        delta0=result.delta0,
+        loop=None if result.loop is None else dict(result.loop.params),
     )
     paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], content))
     if plots:
@@ -138,15 +147,31 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         convergence = _plots.plot_convergence(result.mrgia, truth=record.truth, refined=refined)
         paths["convergence_plot"] = str(_plots.save(convergence, out_dir / OUTPUT_FILES["convergence_plot"]))
         y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
-        simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, record.u, y0=y0)}
+        op = result.operating_point
+        u_m, y0_m = record.u - op.u, y0 - op.y  # the model's own coordinates
+        simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, u_m, y0=y0_m) + op.y}
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
+        if result.loop is not None:
+            simulated[f"{result.form}, {result.structure} (NRMSE {result.loop.fit_nrmse:.3g})"] = (
+                np.asarray(result.loop.simulated) + result.centred_point.y
+            )
         fit = _plots.plot_fit(record.y, simulated, u=record.u, t=record.t, output_unit=record.output_unit)
+        fit.suptitle(_wrapped(result.headline()), fontsize=8)
         paths["fit_plot"] = str(_plots.save(fit, out_dir / OUTPUT_FILES["fit_plot"]))
-        x_hat = simulate(result.model, record.u, y0=y0).x
-        loop = _plots.plot_backlash(result.model, x_hat, record.y, output_unit=record.output_unit, truth=record.truth)
+        x_hat = simulate(result.model, u_m, y0=y0_m).x
+        loop = _plots.plot_backlash(
+            result.model, x_hat, record.y - op.y, output_unit=record.output_unit, truth=record.truth
+        )
+        loop.suptitle(_wrapped(result.headline()), fontsize=8)
         paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
     return paths
+
+
+def _wrapped(text: str, width: int = 110) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width))
 
 
 def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[list[str], list[list[str]]]:

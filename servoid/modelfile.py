@@ -1,12 +1,12 @@
 """``model.json``: an identified model and its compensation parameters on disk, versioned.
 
-Schema ``servoid.model``, version 2 (documented field by field, with units, in
+Schema ``servoid.model``, version 3 (documented field by field, with units, in
 ``docs/model-schema.md``; machine-readable as the JSON Schema
 ``servoid/model.schema.json``)::
 
     {
       "schema": "servoid.model",
-      "version": 2,
+      "version": 3,
       "model": {"a": [...], "b": [...], "delay": 1, "m1": 1.0, "m2": ..., "c1": ..., "c2": ...},
       "stderr": {"a1": ..., ..., "c2": ...} | null,
       "units": {"input": "<unit of u>", "output": "<unit of y, x, c1, c2>",
@@ -18,6 +18,11 @@ Schema ``servoid.model``, version 2 (documented field by field, with units, in
       "servo": {<identity reported by the driver>} | null,
       "compensation": {"band": <smoothing band of the backlash inverse, output unit>,
                        "noise_std": <output noise it was chosen for, output unit> | null},
+      "structure": {"name": "output_backlash" | "play_in_loop", "form": "pseudo_wiener" | "servo_loop",
+                    "identifiable": <bool> | null, "reason": "<why not>" | null, "play": <c1 + c2> | null,
+                    "play_interval": [<low> | null, <high> | null],
+                    "operating_point": {"u": <float>, "y": <float>}, "delta0": <float>,
+                    "loop": {<servo-loop parameters>} | null},
       "effects": [<model extension>, ...]          (optional, see docs/diagnose.md)
     }
 
@@ -27,7 +32,9 @@ samples; the output unit is whatever the recording was in (``rad``,
 
 Versions: version 1 (no ``compensation``) is still read; its band is then
 servoid's default (:func:`servoid.ident.control.compensate.default_band`) and
-:attr:`ModelFile.read_version` says so. Unknown top-level keys, ``effects``
+:attr:`ModelFile.read_version` says so. Versions 1 and 2 (no ``structure``)
+read as the output backlash of a pseudo-Wiener model about zero, not judged
+(``identifiable`` None). Unknown top-level keys, ``effects``
 among them, are kept in :attr:`ModelFile.extra` and written back unchanged.
 """
 
@@ -60,9 +67,9 @@ __all__ = ["SCHEMA", "VERSION", "READABLE_VERSIONS", "EFFECTS_KEY", "ModelFile",
            "json_schema"]  # fmt: skip
 
 SCHEMA = "servoid.model"
-VERSION = 2
+VERSION = 3
 #: Versions this servoid reads; it writes :data:`VERSION`.
-READABLE_VERSIONS = (1, 2)
+READABLE_VERSIONS = (1, 2, 3)
 #: Top-level key of the optional list of model extensions (docs/diagnose.md).
 EFFECTS_KEY = "effects"
 
@@ -75,7 +82,11 @@ class ModelFile:
     ``noise_std`` are ``compensation.band`` (``None``: servoid's default for
     the model, see :attr:`compensation_band`) and ``compensation.noise_std``
     (the identification's residual RMS), ``read_version`` the version the
-    file had when it was read (``None`` for content made in memory).
+    file had when it was read (``None`` for content made in memory). The
+    ``structure`` section is ``structure``, ``form``, ``identifiable``
+    (``None``: not judged, a file older than version 3), ``reason``,
+    ``play``, ``play_interval``, ``operating_point`` (``(u, y)``),
+    ``delta0`` and ``loop``.
     """
 
     model: BacklashModel
@@ -94,6 +105,15 @@ class ModelFile:
     band: float | None = None
     noise_std: float | None = None
     read_version: int | None = None
+    structure: str = "output_backlash"
+    form: str = "pseudo_wiener"
+    identifiable: bool | None = None
+    reason: str = ""
+    play: float | None = None
+    play_interval: tuple[float | None, float | None] = (None, None)
+    operating_point: tuple[float, float] = (0.0, 0.0)
+    delta0: float = 0.0
+    loop: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         for name in ("band", "noise_std"):
@@ -149,6 +169,17 @@ class ModelFile:
             },
             "servo": self.servo,
             "compensation": {"band": self.compensation_band, "noise_std": self.noise_std},
+            "structure": {
+                "name": self.structure,
+                "form": self.form,
+                "identifiable": self.identifiable,
+                "reason": self.reason or None,
+                "play": number(self.play),
+                "play_interval": [number(v) for v in self.play_interval],
+                "operating_point": {"u": self.operating_point[0], "y": self.operating_point[1]},
+                "delta0": self.delta0,
+                "loop": self.loop,
+            },  # fmt: skip
         }
         out.update(self.extra)
         return out
@@ -209,7 +240,11 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         )
     if version not in READABLE_VERSIONS:
         raise DataError(f"{p}: schema version {version} is older than any this servoid reads ({_readable()})")
-    required = ("model", "units", "identified") + (("compensation",) if version >= 2 else ())
+    required = (
+        ("model", "units", "identified")
+        + (("compensation",) if version >= 2 else ())
+        + (("structure",) if version >= 3 else ())
+    )
     for key in required:
         if key not in data:
             raise DataError(f"{p}: missing field {key!r} (required in version {version})")
@@ -256,7 +291,8 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
     except ModelError as exc:
         raise ModelError(f"{p}: {exc}") from exc
     known = {"schema", "version", "model", "stderr", "units", "method", "fit_nrmse", "identified", "servo",
-             "compensation"}  # fmt: skip
+             "compensation", "structure"}  # fmt: skip
+    structure = _structure(data) if version >= 3 else {}
     return ModelFile(
         model=model,
         stderr=stderr,
@@ -274,7 +310,22 @@ def load_model(path: str | os.PathLike[str]) -> ModelFile:
         band=band,
         noise_std=noise,
         read_version=version,
+        **structure,
     )
+
+
+def _structure(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``structure`` section (checked by the schema) as :class:`ModelFile`'s fields."""
+    sec = data["structure"]
+    point = sec.get("operating_point") or {}
+    interval = sec.get("play_interval") or [None, None]
+    return {
+        "structure": str(sec["name"]), "form": str(sec["form"]), "identifiable": None if sec["identifiable"] is None else bool(sec["identifiable"]),
+        "reason": str(sec.get("reason") or ""), "play": sec.get("play"),
+        "play_interval": (interval[0], interval[1]),
+        "operating_point": (float(point.get("u", 0.0)), float(point.get("y", 0.0))),
+        "delta0": float(sec.get("delta0", 0.0)), "loop": sec.get("loop"),
+    }  # fmt: skip
 
 
 @functools.cache
@@ -283,10 +334,10 @@ def _schema_text() -> str:
 
 
 def json_schema(version: int = VERSION) -> dict[str, Any]:
-    """The JSON Schema of a model file of ``version``: the shipped ``model.schema.json`` (version 2).
+    """The JSON Schema of a model file of ``version``: the shipped ``model.schema.json`` (version 3).
 
-    Version 1 is the same but for its ``version`` and no ``compensation``
-    section (it had none).
+    Version 2 is the same but for its ``version`` and no ``structure``
+    section; version 1 has no ``compensation`` section either.
 
     Parameters
     ----------
@@ -294,10 +345,12 @@ def json_schema(version: int = VERSION) -> dict[str, Any]:
         One of :data:`READABLE_VERSIONS`.
     """
     schema: dict[str, Any] = json.loads(_schema_text())
-    if version == 1:
+    if version < VERSION:
         schema = copy.deepcopy(schema)
-        schema["properties"]["version"] = {"const": 1}
-        schema["required"] = [key for key in schema["required"] if key != "compensation"]
+        schema["properties"]["version"] = {"const": version}
+        dropped = {"structure"} | ({"compensation"} if version == 1 else set())
+        schema["required"] = [key for key in schema["required"] if key not in dropped]
+        del schema["properties"]["structure"]
     return schema
 
 

@@ -103,7 +103,7 @@ CASES = [
     ("--excitation levels:...,count=1e9 (23 GB)", ["identify", "--excitation", "levels:amplitude=1,count=1000000000"], 2,
      "count (=1000000000) must be <= 100000 (servoid's limit on an excitation's levels)"),
     ("fit with NRMSE ~ 1, y unrelated to u", ["identify", "--data", "unrelated.csv", "--no-plots", "--out", "run2"], 0,
-     "the model explains almost nothing of y"),
+     "NOT IDENTIFIABLE: only 0 reversals of the output"),
     ("model breaking the schema: a = [true, 0.5]", ["export", "bool.json", "--format", "c"], 2,
      "model.a[0] (=True) must be a number"),
     ("model with NaN", ["export", "nan.json", "--format", "json"], 2, "model.c2 (=nan) must be finite"),

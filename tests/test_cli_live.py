@@ -38,9 +38,9 @@ def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp
     assert saved.servo["driver"] == "sim" and saved.sample_period_s == pytest.approx(0.001)
     rec = read_recording(tmp_path / "recording.csv")
     assert rec.status is not None and len(rec) == 3000
-    # the recording identifies again offline, leaving out the same samples
+    # the recording identifies again offline with the live run's orders, leaving out the same samples
     code, again, _ = run_json(capsys, "--data", str(tmp_path / "recording.csv"), "--out", str(tmp_path / "b"),
-                              "--no-plots")  # fmt: skip
+                              "--no-plots", "--na", "2", "--nb", "0", "--delay", "1")  # fmt: skip
     assert code == 0 and again["warnings"] == obj["warnings"]
     np.testing.assert_allclose(again["model"]["c2"], obj["model"]["c2"], rtol=1e-9)
 

@@ -90,3 +90,18 @@ def test_bad_priors_are_named():
     with pytest.raises(ConfigError, match="dead_zone"):
         Prior(dead_zone=-1.0, gain=1.0)
     assert ServoLimits(position_min=0, position_max=1).max_step == math.inf
+
+
+def test_a_servo_with_its_encoder_on_the_load_gets_gentle_sines_and_the_reason():
+    limits = ServoLimits(position_min=-0.5, position_max=0.5, sample_period_s=1 / 70)
+    d = design(Prior(dead_zone=0.004, structure="play_in_loop", load_decel=20.0), limits)
+    assert d.spec.kind == "gentle"
+    assert d.spec.accel == pytest.approx(0.4 * 20.0 / 70**2)
+    assert any("encoder sits on the load" in r for r in d.reasons)
+    u = sample(d.spec, d.samples, seed=0)
+    assert np.all(np.abs(u) <= 0.5)
+    # many reversals far beyond the play, none steeper than the acceleration asked for
+    assert np.sum(np.diff(np.sign(np.diff(u))) != 0) >= 100
+    assert np.quantile(np.abs(np.diff(u, 2)), 0.99) <= d.spec.accel * 1.01
+    with pytest.raises(ConfigError, match="structure"):
+        Prior(dead_zone=0.004, structure="inside")

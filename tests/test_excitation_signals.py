@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from servoid.errors import ConfigError
 from servoid.excitation import (
     ChirpSpec,
+    GentleSpec,
     LevelsSpec,
     MultisineSpec,
     PRBSSpec,
@@ -32,7 +33,7 @@ rates = st.one_of(st.just(math.inf), st.floats(1e-4, 1e3))
 @st.composite
 def specs(draw):
     common = dict(amplitude=draw(amplitudes), offset=draw(offsets), rate=draw(rates))
-    kind = draw(st.sampled_from(["uniform", "prbs", "steps", "multisine", "chirp", "levels"]))
+    kind = draw(st.sampled_from(["uniform", "prbs", "steps", "multisine", "chirp", "levels", "gentle"]))
     if kind == "uniform":
         return UniformSpec(**common)
     if kind == "prbs":
@@ -50,6 +51,14 @@ def specs(draw):
             f1=draw(st.floats(0.001, 0.5)),
             period=draw(st.integers(2, 3000)),
             sweep=draw(st.sampled_from(["linear", "log"])),
+        )
+    if kind == "gentle":
+        return GentleSpec(
+            **common,
+            accel=common["amplitude"] * draw(st.floats(1e-5, 0.5)),
+            spread=draw(st.floats(1.0, 20.0)),
+            cycles=draw(st.integers(1, 4)),
+            smallest=draw(st.floats(0.01, 1.0)),
         )
     count = draw(st.integers(1, 5))
     share = draw(st.floats(0.0, 0.99))
@@ -203,3 +212,16 @@ def test_the_compiled_rate_limit_equals_its_python_original():
     last_p = python_version(rate_limit_kernel)(target, 0.3, 0.07, -1.0, 1.0, plain)
     np.testing.assert_array_equal(compiled, plain)
     assert last_c == last_p == compiled[-1]
+
+
+def test_gentle_sines_keep_their_peak_acceleration_and_amplitude():
+    spec = GentleSpec(amplitude=0.1, accel=2e-3, spread=8.0, smallest=0.25)
+    u = sample(spec, 20000, seed=7)
+    # the second difference of a sampled sine is at most its peak acceleration (plus the jump between segments)
+    accel = np.abs(np.diff(u, 2))
+    assert np.quantile(accel, 0.99) <= 2e-3 * 1.01
+    assert np.max(np.abs(u)) <= 0.1
+    # segments of random amplitude and acceleration: many reversals, some small, some near the bound
+    reversals = np.sum(np.diff(np.sign(np.diff(u))) != 0)
+    assert reversals >= 40
+    assert np.max(np.abs(u)) > 0.07

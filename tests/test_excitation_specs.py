@@ -47,6 +47,9 @@ def test_parse_reads_the_issue_examples():
         ("chirp:amplitude=1,sweep=cubic", ["sweep (='cubic')"]),
         ("levels:amplitude=1,dither=1", ["dither (=1) must be < amplitude"]),
         ("uniform:amplitude=nan", ["amplitude (=nan) must be finite"]),
+        ("gentle:amplitude=1,spread=0.5", ["spread (=0.5) must be >= 1"]),
+        ("gentle:amplitude=1,smallest=0", ["smallest (=0.0) must lie in (0, 1]"]),
+        ("gentle:amplitude=1,accel=-1", ["accel (=-1.0) must be > 0"]),
     ],
 )
 def test_a_bad_spec_is_one_line_naming_the_problem(text, fragments):

@@ -43,11 +43,11 @@ def test_version_2_roundtrip_keeps_band_noise_and_effects(tmp_path):
                         extra={"effects": effects, "vendor_note": "kept"})  # fmt: skip
     path = save_model(tmp_path / "model.json", content)
     data = json.loads(path.read_text())
-    assert data["version"] == 2
+    assert data["version"] == 3
     assert data["compensation"] == {"band": 0.012, "noise_std": 0.004}
     assert data["effects"] == effects and data["vendor_note"] == "kept"
     back = load_model(path)
-    assert back.band == 0.012 and back.noise_std == 0.004 and back.read_version == 2
+    assert back.band == 0.012 and back.noise_std == 0.004 and back.read_version == 3
     assert back.effects == effects and back.effect_names() == ["coulomb_friction", "drift"]
     # written back unchanged
     save_model(tmp_path / "again.json", back)
@@ -84,7 +84,7 @@ def test_version_1_is_read_with_the_default_band(tmp_path):
     assert content.read_version == 1 and content.band is None
     assert content.compensation_band == pytest.approx(0.02 * PAPER_PLANT.dead_zone)
     assert content.output_unit == "rad" and content.sample_period_s == 0.002
-    assert json.loads(content.to_json())["version"] == 2
+    assert json.loads(content.to_json())["version"] == 3
 
 
 def test_version_1_nan_stderr_reads_as_null(tmp_path):
@@ -97,8 +97,8 @@ def test_version_1_nan_stderr_reads_as_null(tmp_path):
     "obj, fragment",
     [
         (
-            {"schema": "servoid.model", "version": 3},
-            "schema version 3 is newer than this servoid reads (versions 1, 2); upgrade",
+            {"schema": "servoid.model", "version": 4},
+            "schema version 4 is newer than this servoid reads (versions 1, 2, 3); upgrade",
         ),
         ({"schema": "servoid.model", "version": 0}, "schema version 0 is older than any this servoid reads"),
         ({"schema": "servoid.model", "version": "2"}, "schema version '2' is not a version number"),

@@ -47,7 +47,7 @@ def test_yaml_is_a_ros2_parameter_file():
     assert params["backlash"] == {"m1": 1.0, "m2": 1.5, "c1": 0.5, "c2": 1.0, "band": 0.03}
     assert params["linear"] == {"a": [0.45, 0.55], "b": [0.8], "delay": 1}
     assert params["units"] == {"input": "V", "output": "rad", "time": "sample", "sample_period_s": 0.002}
-    assert params["schema_version"] == 2 and params["identified"]["samples"] == 5000
+    assert params["schema_version"] == 3 and params["identified"]["samples"] == 5000
     assert "a2" not in params["stderr"]  # NaN: not determined, left out (ROS 2 has no null)
     assert params["servo"] == {"model_name": "XM430-W350", "firmware": 45, "ids": ["1", "a"]}
     assert "# Units: backlash.c1, backlash.c2, backlash.band in rad" in text
@@ -77,7 +77,7 @@ def test_json_export_upgrades_version_1_and_keeps_effects(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "schema version 1, which stores no smoothing band" in err and "0.03 rad" in err
     new = load_model(out)
-    assert new.read_version == 2 and new.effects == [{"name": "drift"}]
+    assert new.read_version == 3 and new.effects == [{"name": "drift"}]
     assert new.band == pytest.approx(0.02 * PAPER_PLANT.dead_zone)
 
 

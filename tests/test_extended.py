@@ -22,7 +22,10 @@ def with_effect(name, value):
 
 
 def test_names_are_defined_once_and_include_none():
-    assert EFFECT_NAMES == (*CANDIDATE_NAMES, NONE)
+    from servoid.ident.models.effect_names import LOOP_EFFECTS
+
+    assert EFFECT_NAMES == (*CANDIDATE_NAMES, *LOOP_EFFECTS, NONE)
+    assert not set(LOOP_EFFECTS) & set(CANDIDATE_NAMES)  # the servo loop's effects are not searched here
     assert {"coulomb_friction", "input_saturation", "dead_zone", "extra_delay", "extra_pole"} <= set(CANDIDATE_NAMES)
 
 

@@ -21,7 +21,7 @@ def test_roundtrip(tmp_path):
     )
     p = save_model(tmp_path / "model.json", content)
     data = json.loads(p.read_text())
-    assert data["schema"] == "servoid.model" and data["version"] == 2
+    assert data["schema"] == "servoid.model" and data["version"] == 3
     assert data["model"] == {"a": [0.45, 0.55], "b": [0.8], "delay": 1, "m1": 1.0, "m2": 1.5, "c1": 0.5, "c2": 1.0}
     back = load_model(p)
     assert back.model == PAPER_PLANT

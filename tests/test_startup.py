@@ -97,6 +97,7 @@ def test_a_missing_vendor_library_names_the_extra():
 
 def test_the_command_line_and_the_python_api_share_their_defaults():
     from servoid.cli import build_parser
+    from servoid.cli.identify import _config, _selected
     from servoid.ident import MRGIAConfig
     from servoid.ident.diagnosis.diagnose import DiagnoseConfig
     from servoid.ident.monitoring.wear_estimator import WearEstimatorConfig
@@ -104,8 +105,12 @@ def test_the_command_line_and_the_python_api_share_their_defaults():
 
     identify = build_parser(["identify"]).parse_args(["identify"])
     api = MRGIAConfig()
+    assert identify.rho_exponent == api.rho_exponent
+    # the orders default to "chosen from the data" on a recording; where nothing is chosen, the API's
+    assert (identify.na, identify.nb, identify.delay) == (None, None, None) and _selected(identify) == ()
+    cfg = _config(identify, 0.0)
     for name in ("na", "nb", "delay", "rho_exponent"):
-        assert getattr(identify, name) == getattr(api, name), name
+        assert getattr(cfg, name) == getattr(api, name), name
     diagnose = build_parser(["diagnose"]).parse_args(["diagnose", "--train", "a", "--validate", "b"])
     config = DiagnoseConfig(identification=api)
     for name in ("penalty", "max_effects", "reversal_window"):

@@ -5,4 +5,5 @@
 ``tracking``            reference tracking control of a backlash servo, with and without the inverse
 ``references``          reference paths for those tracking tests
 ``compensation_study``  proof by simulation: does the inverse help, and how wrong may the model be?
+``reversal_lead``       the compensator for a play inside the position loop: a set-point lead at reversals
 """

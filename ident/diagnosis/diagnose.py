@@ -321,7 +321,7 @@ def _delay_starts(
     starts = [current.with_effect(effect)]
     cfg = dataclasses.replace(ident_config, delay=ident_config.delay + extra)
     try:
-        longer = identify(records.u_t, records.y_t, cfg).model
+        longer = identify(records.u_t, records.y_t, cfg, servo_loop=False).model
     except (ModelError, DataError, ArithmeticError):
         return starts
     base = dataclasses.replace(longer, delay=current.base.delay)
@@ -339,7 +339,7 @@ def _pole_starts(records: _Records, current: ExtendedModel, ident_config: MRGIAC
     """
     cfg = dataclasses.replace(ident_config, na=ident_config.na + 1, theta0=None)
     try:
-        wider = identify(records.u_t, records.y_t, cfg).model
+        wider = identify(records.u_t, records.y_t, cfg, servo_loop=False).model
     except (ModelError, DataError, ArithmeticError):
         return []
     starts = []
@@ -451,10 +451,17 @@ def diagnose(
     ------
     DataError
         A record that cannot be identified (named: training or validation).
+    ModelError
+        When the model, with the effects found, still fits the validation
+        record worse than predicting its mean: an error, not "none".
     """
     train, val = _check_pair((train_u, train_y), (validate_u, validate_y), config.identification)
+    # diagnose extends the black box by effects: the servo-loop model is not its base
+    ident = identify(*train, config.identification, servo_loop=False)
+    op = ident.operating_point
+    if not op.is_zero:  # the model exists only about the record's operating point: diagnose there
+        train, val = op.centre(*train), op.centre(*val)
     records = _Records(train, val)
-    ident = identify(*train, config.identification)
     base = ExtendedModel(ident.model)
     rounds: list[Round] = []
     current = base
@@ -467,6 +474,14 @@ def diagnose(
         if len(current.effects) == len(config.candidates):
             break
 
+    final_fit = records.gap(current)
+    if not final_fit < 1.0:
+        # "none" (or any effect) on a model no better than the mean would be a confident wrong answer
+        raise ModelError(
+            f"the model fits the validation record worse than predicting its mean (free-run NRMSE "
+            f"{final_fit:.3g} >= 1, base model {records.gap(base):.3g}) even with the effects tried: there is "
+            "nothing to name a missing effect against; check the records, the orders and the delay"
+        )
     before = records.validation(base)
     after = records.validation(current)
     motion = before.x

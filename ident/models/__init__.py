@@ -7,6 +7,5 @@
 ``wear``           a plant whose dead zones change with its age (gear wear, a gear swap)
 ``effects``        the library of candidate physical effects (friction, saturation, ...)
 ``extended``       the pseudo-Wiener model extended by effects, its simulation and fit
-
-A new model structure (say, the play inside the position loop) is a module of its own here.
+``servo_loop``     the grey-box servo loop: the play outside or inside the position loop (``structure_names``)
 """

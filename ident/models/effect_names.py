@@ -17,6 +17,8 @@ __all__ = [
     "SUMMARIES",
     "CANDIDATE_NAMES",
     "EFFECT_NAMES",
+    "FRICTION_STALL",
+    "LOOP_EFFECTS",
 ]
 
 #: The name the diagnosis gives when nothing significant is missing.
@@ -39,5 +41,19 @@ SUMMARIES: dict[str, str] = {
 #: Every candidate, in the order they are tried.
 CANDIDATE_NAMES: tuple[str, ...] = tuple(SUMMARIES)
 
-#: Every name the diagnosis can give: the candidates and ``"none"``.
-EFFECT_NAMES: tuple[str, ...] = (*CANDIDATE_NAMES, NONE)
+#: Friction that stalls the drive: the motor holds after a reversal until the drive's integrator
+#: (or, in a P loop, the position error) overcomes break-away friction. It lives inside the
+#: servo-loop model (:mod:`servoid.ident.models.servo_loop`), not as an extension of the
+#: pseudo-Wiener model, so it is not a candidate of the effect search above; the diagnosis names
+#: it from the loop model's fit with and without its friction terms
+#: (:func:`servoid.ident.diagnosis.friction_stall.matters`).
+FRICTION_STALL = "friction_stall"
+
+#: Effects of the servo-loop model, named by the diagnosis when they matter.
+LOOP_EFFECTS: dict[str, str] = {
+    FRICTION_STALL: "the drive stalls after each reversal until its integrator overcomes break-away friction "
+    "(inside the servo loop; a black box books it as play)",
+}
+
+#: Every name the diagnosis can give: the candidates, the servo loop's effects and ``"none"``.
+EFFECT_NAMES: tuple[str, ...] = (*CANDIDATE_NAMES, *LOOP_EFFECTS, NONE)

@@ -11,7 +11,16 @@ import numpy as np
 
 from servoid.ident._jit import jit
 
-__all__ = ["backlash_step", "simulate_kernel", "extended_kernel", "schur_stable", "ZONE_UP", "ZONE_DOWN", "ZONE_MEMORY"]
+__all__ = [
+    "backlash_step",
+    "simulate_kernel",
+    "rest_kernel",
+    "extended_kernel",
+    "schur_stable",
+    "ZONE_UP",
+    "ZONE_DOWN",
+    "ZONE_MEMORY",
+]
 
 #: Zone codes returned per sample by :func:`simulate_kernel`.
 ZONE_UP = 1
@@ -157,6 +166,59 @@ def simulate_kernel(
     or ``ZONE_MEMORY``) in place.
     """
     extended_kernel(a, b, delay, m2, c1, c2, np.inf, 0.0, 0.0, u, y0, x_out, y_out, zone_out)
+
+
+@jit
+def rest_kernel(
+    a: np.ndarray,
+    b: np.ndarray,
+    delay: int,
+    m2: float,
+    c1: float,
+    c2: float,
+    u: np.ndarray,
+    y0: float,
+    delta0: float,
+    x_out: np.ndarray,
+    y_out: np.ndarray,
+    zone_out: np.ndarray,
+) -> None:
+    """Free-run simulation of eq. (1) and :func:`backlash_step` from a servo at rest.
+
+    Before the first sample the linear block sits at its steady state
+    ``x(-i) = x0 = y0 + delta0`` for every ``i``, held there by the input
+    ``u(-j) = x0 / G(1)`` (``G(1) = sum b / (1 + sum a)``, the static gain);
+    the backlash's memory is the first reading, ``y(-1) = y0``. ``delta0`` is
+    where in the play the record starts: ``c1`` on the up line, ``-c2`` on
+    the down line (``m2 = 1``), in between inside the play. With ``G(1) = 0``
+    the input before the record is 0. Fills the outputs in place.
+    """
+    na = a.shape[0]
+    nb = b.shape[0] - 1
+    n = u.shape[0]
+    den = 1.0
+    for i in range(na):
+        den += a[i]
+    num = 0.0
+    for j in range(nb + 1):
+        num += b[j]
+    x0 = y0 + delta0
+    u_before = x0 * den / num if num != 0.0 else 0.0
+    x_prev = x0
+    y_prev = y0
+    for k in range(n):
+        x = 0.0
+        for i in range(1, na + 1):
+            x -= a[i - 1] * (x_out[k - i] if k - i >= 0 else x0)
+        for j in range(nb + 1):
+            idx = k - delay - j
+            x += b[j] * (u[idx] if idx >= 0 else u_before)
+        y, zone = backlash_step(x, x_prev, y_prev, m2, c1, c2)
+        zone_out[k] = zone
+        x_out[k] = x
+        y_out[k] = y
+        x_prev = x
+        y_prev = y
 
 
 @jit

@@ -9,7 +9,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, simulate_kernel
+from servoid.ident.models.kernels import ZONE_DOWN, ZONE_MEMORY, ZONE_UP, rest_kernel, simulate_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["Simulation", "simulate", "free_run", "noise_std_for_snr"]
@@ -89,13 +89,17 @@ def noise_std_for_snr(y_clean: np.ndarray, snr: float) -> float:
     return std / snr
 
 
-def _run(model: BacklashModel, u: np.ndarray, y0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _run(
+    model: BacklashModel, u: np.ndarray, y0: float, delta0: float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     x = np.empty_like(u)
     y = np.empty_like(u)
     zone = np.empty(u.shape, dtype=np.int8)
-    simulate_kernel(
-        np.asarray(model.a), np.asarray(model.b), model.delay, model.m2, model.c1, model.c2, u, y0, x, y, zone
-    )
+    a, b = np.asarray(model.a), np.asarray(model.b)
+    if delta0 is None:
+        simulate_kernel(a, b, model.delay, model.m2, model.c1, model.c2, u, y0, x, y, zone)
+    else:
+        rest_kernel(a, b, model.delay, model.m2, model.c1, model.c2, u, y0, delta0, x, y, zone)
     return x, y, zone
 
 
@@ -153,7 +157,9 @@ def simulate(
     )  # fmt: skip
 
 
-def free_run(model: BacklashModel, u: Sequence[float] | np.ndarray, *, y0: float = 0.0) -> np.ndarray:
+def free_run(
+    model: BacklashModel, u: Sequence[float] | np.ndarray, *, y0: float = 0.0, delta0: float | None = None
+) -> np.ndarray:
     """Noise-free output of ``model`` driven by ``u`` from rest (the free-run simulation ``y-hat``).
 
     Parameters
@@ -163,6 +169,11 @@ def free_run(model: BacklashModel, u: Sequence[float] | np.ndarray, *, y0: float
     u : array_like
         Input.
     y0 : float
-        Backlash output before the first sample (``x`` starts at 0).
+        Backlash output before the first sample.
+    delta0 : float, optional
+        Where in the play the record starts: the linear block then starts at
+        rest at ``x = y0 + delta0`` (:func:`~servoid.ident.models.kernels.rest_kernel`,
+        what :func:`servoid.ident.identify.identify` fits). None: ``x`` starts at 0.
     """
-    return _run(model, validation.signal("u", u), validation.real("y0", y0))[1]
+    d0 = None if delta0 is None else validation.real("delta0", delta0)
+    return _run(model, validation.signal("u", u), validation.real("y0", y0), d0)[1]

@@ -48,6 +48,8 @@ class OEFit:
     covariance, stderr : ndarray
         ``s^2 (J^T J)^+`` and the square roots of its diagonal (NaN where the
         data do not determine a direction).
+    jacobian : ndarray
+        The residual's Jacobian at the optimum (the optimiser's last one).
     nfev : int
         Simulations used.
     success : bool
@@ -60,6 +62,7 @@ class OEFit:
     residual: np.ndarray
     covariance: np.ndarray
     stderr: np.ndarray
+    jacobian: np.ndarray
     nfev: int
     success: bool
     message: str
@@ -148,6 +151,6 @@ def fit_output_error(
         res = residual(sol.x)
         cov, stderr = covariance_from_jacobian(res, sol.jac, start.size)
     return OEFit(
-        x=np.asarray(sol.x), residual=res, covariance=cov, stderr=stderr,
+        x=np.asarray(sol.x), residual=res, covariance=cov, stderr=stderr, jacobian=np.asarray(sol.jac),
         nfev=int(sol.nfev), success=bool(sol.success), message=str(sol.message),
     )  # fmt: skip

@@ -12,7 +12,7 @@ parameter error from ~4e-3 (MRGIA) to ~1e-3 at 5000 samples.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -20,7 +20,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.kernels import schur_stable, simulate_kernel
+from servoid.ident.models.kernels import rest_kernel, schur_stable, simulate_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
 
@@ -44,7 +44,9 @@ class Refinement:
         Standard error of each parameter, in the order of ``model.names``
         (``m2`` itself, not ``m2 - 1``); NaN where the data do not determine it.
     covariance : ndarray
-        Their covariance matrix ``s^2 (J^T J)^-1``.
+        Their covariance matrix ``s^2 (J^T J)^-1`` (over the fitted vector:
+        the model's values, then ``delta0`` when the initial state was fitted;
+        without ``c2`` when the play was held).
     nrmse, initial_nrmse : float
         Free-run NRMSE of the refined and of the initial model on the record.
     residual_std : float
@@ -55,6 +57,17 @@ class Refinement:
         Whether the optimiser reported convergence.
     message : str
         The optimiser's message.
+    delta0 : float
+        Where in the play the record starts (:func:`servoid.ident.models.kernels.rest_kernel`);
+        0 when the initial state was not fitted (the simulation then starts at ``x = 0``).
+    initial_state : bool
+        Whether the simulation starts from rest with ``delta0`` fitted (else from ``x = 0``).
+    residual : ndarray
+        ``y_hat - y`` at the optimum, on the samples fitted.
+    jacobian : ndarray
+        The residual's Jacobian there, one column per fitted parameter (see ``covariance``).
+    sse : float
+        ``sum(residual^2)``.
     """
 
     model: BacklashModel
@@ -67,30 +80,59 @@ class Refinement:
     nfev: int
     success: bool
     message: str
+    delta0: float = 0.0
+    initial_state: bool = False
+    residual: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    jacobian: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
+    sse: float = 0.0
 
     def stderr_dict(self) -> dict[str, float]:
         """``{name: standard error}`` for every parameter."""
         return dict(zip(self.model.names, self.stderr))
+
+    def play_gradient(self) -> np.ndarray:
+        """The gradient of ``c1 + c2`` in the fitted vector (for its standard error from :attr:`jacobian`)."""
+        grad = np.zeros(self.jacobian.shape[1])
+        lay = self.model.layout
+        grad[lay.c1] = 1.0
+        if lay.c2 < grad.size - int(self.initial_state):
+            grad[lay.c2] = 1.0
+        return grad
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON: the model, its standard errors (null where the data do not determine one), the fit, the search."""
         return {
             "model": self.model.to_dict(), "stderr": self.stderr_dict(), "nrmse": self.nrmse,
             "initial_nrmse": self.initial_nrmse, "residual_std": self.residual_std, "nfev": self.nfev,
-            "success": self.success, "message": self.message,
+            "success": self.success, "message": self.message, "delta0": self.delta0,
         }  # fmt: skip
 
 
 class _OutputError:
-    """Residual ``y_hat(p) - y`` of the free-run model, for the optimiser."""
+    """Residual ``y_hat(p) - y`` of the free-run model, for the optimiser.
+
+    The vector ``p`` holds the model's values (``m2`` itself), without ``c2``
+    when the play ``c1 + c2`` is held (``c2 = play - c1``), then ``delta0``
+    when the simulation starts from rest.
+    """
 
     def __init__(
-        self, u: np.ndarray, y: np.ndarray, template: BacklashModel, y0: float, valid: np.ndarray | None = None
+        self,
+        u: np.ndarray,
+        y: np.ndarray,
+        template: BacklashModel,
+        y0: float,
+        valid: np.ndarray | None = None,
+        *,
+        initial_state: bool = False,
+        play: float | None = None,
     ) -> None:
         self.u, self.y, self.y0 = u, y, y0
         # lost samples (valid False) are simulated through but left out of the residual
         self.keep = valid
         self.na, self.nb, self.delay = template.na, template.nb, template.delay
+        self.initial_state = initial_state
+        self.play = play
         self.x = np.empty_like(u)
         self.y_hat = np.empty_like(u)
         self.zone = np.empty(u.shape, dtype=np.int8)
@@ -98,16 +140,41 @@ class _OutputError:
         self.y_used = y if valid is None else y[valid]
         self.penalty = failure_residual(self.y_used)
 
-    def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float]:
-        lay = ThetaLayout(self.na, self.nb)  # p holds the model's values (m2 itself)
-        return p[lay.a], p[lay.b], float(p[lay.m2]), float(p[lay.c1]), float(p[lay.c2])
+    def full(self, p: np.ndarray) -> tuple[np.ndarray, float]:
+        """The model's values (``c2`` restored) and ``delta0`` from a fitted vector."""
+        lay = ThetaLayout(self.na, self.nb)
+        values = p[: p.size - 1] if self.initial_state else p
+        delta0 = float(p[-1]) if self.initial_state else 0.0
+        if self.play is not None:
+            values = np.concatenate((values[: lay.c2], [self.play - values[lay.c1]]))
+        return values, delta0
+
+    def pack(self, values: np.ndarray, delta0: float) -> np.ndarray:
+        """Inverse of :meth:`full`."""
+        lay = ThetaLayout(self.na, self.nb)
+        p = values[: lay.c2] if self.play is not None else values
+        return np.concatenate((p, [delta0])) if self.initial_state else np.array(p, dtype=np.float64)
+
+    def split(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float, float]:
+        values, delta0 = self.full(p)
+        lay = ThetaLayout(self.na, self.nb)
+        return values[lay.a], values[lay.b], float(values[lay.m2]), float(values[lay.c1]), float(values[lay.c2]), delta0
+
+    def simulate(self, p: np.ndarray) -> bool:
+        """Fill :attr:`y_hat` for ``p``; False where the model is not valid (unstable, negative dead zone)."""
+        a, b, m2, c1, c2, delta0 = self.split(p)
+        if not schur_stable(np.ascontiguousarray(a)) or c2 <= 0.0:
+            return False
+        a_c, b_c = np.ascontiguousarray(a), np.ascontiguousarray(b)
+        if self.initial_state:
+            rest_kernel(a_c, b_c, self.delay, m2, c1, c2, self.u, self.y0, delta0, self.x, self.y_hat, self.zone)
+        else:
+            simulate_kernel(a_c, b_c, self.delay, m2, c1, c2, self.u, self.y0, self.x, self.y_hat, self.zone)
+        return True
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
-        a, b, m2, c1, c2 = self.split(p)
-        if not schur_stable(np.ascontiguousarray(a)):
+        if not self.simulate(p):
             return self.penalty
-        simulate_kernel(np.ascontiguousarray(a), np.ascontiguousarray(b), self.delay, m2, c1, c2,
-                        self.u, self.y0, self.x, self.y_hat, self.zone)  # fmt: skip
         out: np.ndarray = self.y_hat - self.y
         if self.keep is not None:
             out = out[self.keep]
@@ -116,7 +183,7 @@ class _OutputError:
         return out
 
     def model(self, p: np.ndarray) -> BacklashModel:
-        a, b, m2, c1, c2 = self.split(p)
+        a, b, m2, c1, c2, _ = self.split(p)
         return BacklashModel(a=tuple(a), b=tuple(b), delay=self.delay, m2=m2, c1=c1, c2=c2)
 
 
@@ -137,6 +204,9 @@ def refine(
     y0: float | None = None,
     max_nfev: int | None = None,
     valid: Sequence[bool] | np.ndarray | None = None,
+    initial_state: bool = False,
+    delta0: float = 0.0,
+    play: float | None = None,
 ) -> Refinement:
     """Fit all parameters of ``initial`` to ``(u, y)`` by simulation-error least squares.
 
@@ -147,13 +217,24 @@ def refine(
     initial : BacklashModel
         Start of the search and template for the orders and delay (kept fixed).
     y0 : float, optional
-        Backlash output before the first sample; default ``y[0]``.
+        Backlash output before the first sample; default ``y[0]`` (the first valid one).
     max_nfev : int, optional
         Cap on the number of simulations (default: scipy's, 100 per parameter).
     valid : array_like of bool, optional
         ``False`` marks samples whose measurement was lost (a live session's
-        late, missed or timed-out samples): the model is simulated through
-        them with their ``u``, but their ``y`` (which may be NaN) is not fitted.
+        late, missed or timed-out samples) or that are held out (validation
+        blocks): the model is simulated through them with their ``u``, but
+        their ``y`` (which may be NaN) is not fitted.
+    initial_state : bool
+        Start the simulation from rest (:func:`~servoid.ident.models.kernels.rest_kernel`)
+        and fit ``delta0``, where in the play the record starts; use it on
+        records centred on their operating point
+        (:mod:`servoid.ident.offline.operating_point`). False: from ``x = 0``.
+    delta0 : float
+        Start of ``delta0`` (with ``initial_state``).
+    play : float, optional
+        Hold ``c1 + c2`` at this value (``> 0``) and fit the rest: a point of
+        the play's profile (:mod:`servoid.ident.offline.intervals`).
 
     Returns
     -------
@@ -172,21 +253,35 @@ def refine(
         u_arr, y_arr, start_y = fit_record(u, y, initial.n_params, y0)
     else:
         u_arr, y_arr, start_y, valid_arr = _masked_record(u, y, valid, initial.n_params, y0)
-    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr)
-
-    p0 = initial.values()
-    lower = np.full(p0.size, -np.inf)
+    if play is not None:
+        play = validation.positive("play", play)
+    problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr, initial_state=initial_state, play=play)
+    lay = initial.layout
+    values0 = initial.values()
     floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
-    lower[initial.layout.backlash] = floor
-    p0 = np.maximum(p0, lower + floor)  # least_squares needs a strictly feasible start
+    if play is not None:
+        values0[lay.c1] = float(np.clip(values0[lay.c1] * play / initial.dead_zone, 2 * floor, play - 2 * floor))
+        values0[lay.c2] = play - values0[lay.c1]
+    p0 = problem.pack(values0, validation.real("delta0", delta0))
+    lower = np.full(p0.size, -np.inf)
+    upper = np.full(p0.size, np.inf)
+    lower[lay.m2 : lay.c2 + (0 if play is not None else 1)] = floor
+    if play is not None:
+        upper[lay.c1] = play - floor
+    p0 = np.clip(p0, lower + floor, upper - floor)  # least_squares needs a strictly feasible start
 
-    fit = fit_output_error(problem, p0, lower, np.full(p0.size, np.inf), max_nfev=max_nfev)
+    fit = fit_output_error(problem, p0, lower, upper, max_nfev=max_nfev)
     model = problem.model(fit.x)
+    _, delta_hat = problem.full(fit.x)
     y_used = problem.y_used
+    n_model = model.n_params
+    stderr = np.full(n_model, np.nan)
+    kept = [i for i in range(n_model) if play is None or i != lay.c2]
+    stderr[kept] = fit.stderr[: len(kept)]
     return Refinement(
         model=model,
         initial=initial,
-        stderr=tuple(float(s) for s in fit.stderr),
+        stderr=tuple(float(s) for s in stderr),
         covariance=fit.covariance,
         nrmse=nrmse(y_used, fit.residual + y_used),
         initial_nrmse=nrmse(y_used, problem(p0) + y_used),
@@ -194,6 +289,11 @@ def refine(
         nfev=fit.nfev,
         success=fit.success,
         message=fit.message,
+        delta0=delta_hat,
+        initial_state=initial_state,
+        residual=fit.residual,
+        jacobian=fit.jacobian,
+        sse=float(fit.residual @ fit.residual),
     )
 
 

@@ -10,8 +10,17 @@ from servoid.ident.paper import PAPER_RHO_EXPONENT
 __all__ = ["add_structure_options", "add_rho_option"]
 
 
-def add_structure_options(group: argparse._ArgumentGroup) -> None:
-    """``--na``, ``--nb``, ``--delay``, defaulting as ``MRGIAConfig()`` does (:mod:`servoid.ident.defaults`)."""
+def add_structure_options(group: argparse._ArgumentGroup, *, selectable: bool = False) -> None:
+    """``--na``, ``--nb``, ``--delay``, defaulting as ``MRGIAConfig()`` does (:mod:`servoid.ident.defaults`).
+
+    With ``selectable`` they default to None: chosen from the data (``identify(select=...)``).
+    """
+    if selectable:
+        chosen = "default: chosen from the data by BIC, see servoid.ident.offline.structure"
+        group.add_argument("--na", type=int, help=f"denominator order n_a >= 1 ({chosen})")
+        group.add_argument("--nb", type=int, help=f"numerator order n_b >= 0 ({chosen})")
+        group.add_argument("--delay", type=int, help=f"input delay d >= 1 in samples ({chosen})")
+        return
     group.add_argument(
         "--na", type=int, default=defaults.NA, help=f"denominator order n_a >= 1 (default {defaults.NA})"
     )

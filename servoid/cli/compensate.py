@@ -52,6 +52,14 @@ Reported per path: RMS and peak tracking error, the dead time after reversals
 to the output having done so), and motor travel (how far the backlash input
 moved per unit of reference travel: a stuttering command drives it up).
 Plots in --out: compensation.png and robustness.png.
+
+A model whose play sits inside the position loop (structure play_in_loop,
+a servo-loop model: an encoder on the load) gets its own compensator, the
+reversal lead: at each reversal of the set point it adds c1 (up) or takes c2
+(down) until the load has moved --band in the new direction (or for at most
+3/kp seconds). compensate then simulates the servo-loop model on sines of 10
+plays with periods of 30, 120 and 480 samples, with and without the lead, and
+reports the play's error against the same loop without play.
 """
 
 EPILOG = """\
@@ -175,6 +183,38 @@ def study_json(study: CompensationStudy, content: ModelFile, plant_name: str, pa
     }
 
 
+def _run_lead(args: argparse.Namespace, content: ModelFile) -> int:
+    """A play inside the loop: the reversal lead on the servo-loop model, against sending the set point as it is."""
+    from servoid.ident.control.reversal_lead import STUDY_AMPLITUDE_PLAYS, lead_study
+    from servoid.loop_compensation import loop_model, reversal_lead
+
+    if args.plant is not None:
+        raise ConfigError("--plant applies to the output backlash; this model holds the play inside the loop")
+    model = loop_model(content)
+    lead = reversal_lead(content, args.band)
+    paths = lead_study(model, lead)
+    unit = content.output_unit
+    if args.json:
+        _term.print_json({
+            "structure": content.structure, "compensator": "reversal_lead", "lead": lead.to_dict(),
+            "units": {"output": unit, "time": "sample", "sample_period_s": content.sample_period_s},
+            "paths": [vars(p) for p in paths],
+        })  # fmt: skip
+        return 0
+    out = _term.stdout
+    out.print(f"servoid compensate: {args.model} holds the play inside the position loop (servo-loop model): the "
+              f"compensator is the reversal lead, not the backlash inverse; errors in {unit}")  # fmt: skip
+    out.print(f"lead +{lead.lead_up:.4g} / -{lead.lead_down:.4g} {unit} at each reversal of the set point, removed "
+              f"when the load has moved {lead.threshold:.3g} {unit} or after {lead.max_samples} samples")  # fmt: skip
+    _term.table(
+        f"the play's error (against the same loop without play) on sines of {STUDY_AMPLITUDE_PLAYS:g} plays",
+        ["period (samples)", "RMS without", "RMS with lead", "peak without", "peak with lead"],
+        [[str(p.period), _fmt(p.rms_without), _fmt(p.rms_with), _fmt(p.peak_without), _fmt(p.peak_with)]
+         for p in paths],
+    )  # fmt: skip
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     from servoid.ident.control.compensation_study import CHANGES, FAMILIES, compensation_study, default_resolution
     from servoid.ident.control.references import amplitude_limit, reference_suite
@@ -187,6 +227,11 @@ def run(args: argparse.Namespace) -> int:
         output_dir(args.out if args.out is not None else args.model.parent, option="--out",
                    files=("compensation.png", "robustness.png"))  # fmt: skip
     content = load_model(args.model)
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+    from servoid.loop_compensation import has_loop
+
+    if content.structure == PLAY_IN_LOOP and has_loop(content):
+        return _run_lead(args, content)
     plant, plant_name = _plant(args.plant, content)
     slowest = max(content.model.delay, plant.delay)
     if args.samples < 4 * slowest:

@@ -12,6 +12,7 @@ from servoid import limits
 from servoid.cli import _term
 from servoid.errors import ConfigError
 from servoid.excitation.specs import KINDS, SignalSpec, format_spec, grammar, parse_spec
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, STRUCTURES
 from servoid.output_paths import output_file
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -58,6 +59,7 @@ examples:
   servoid excite uniform:amplitude=0.5 --out weak.csv          (flagged: inside the play)
   servoid excite steps:amplitude=2,hold=4,rate=0.5 --model servoid-run/model.json
   servoid excite --design --range -3 3 --max-step 0.5 --dead-zone 1.5 --gain 0.4
+  servoid excite --design --range -0.5 0.5 --dead-zone 0.004 --structure play_in_loop --sample-period 0.014
   servoid identify --excitation prbs:amplitude=1.5,hold=3     (use a spec to identify)
 """
 
@@ -102,6 +104,19 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     des.add_argument("--dead-zone", type=float, metavar="W", help="rough play c1 + c2, unit of y")
     des.add_argument("--gain", type=float, metavar="G", help="rough steady-state gain from u to y (default 1)")
     des.add_argument("--m2", type=float, default=1.0, help="rough down-line slope (default 1)")
+    des.add_argument(
+        "--structure",
+        choices=STRUCTURES,
+        default=OUTPUT_BACKLASH,
+        help=f"where the play sits (default {OUTPUT_BACKLASH}); {PLAY_IN_LOOP} for an encoder on the load "
+        "(Dynamixel, Feetech horn): gentle sines",
+    )
+    des.add_argument(
+        "--load-decel",
+        type=float,
+        metavar="A",
+        help="deceleration the load's own friction gives it, unit of y per s^2 (gentle sines stay below it)",
+    )
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("excitation.csv"), metavar="FILE.csv",
                      help="where to write the signal (default ./excitation.csv)")  # fmt: skip
@@ -181,12 +196,15 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
     if rough:
         if args.dead_zone is None:
             raise ConfigError("--design with a rough prior needs --dead-zone W (the play c1 + c2, unit of y)")
-        prior = Prior(dead_zone=args.dead_zone, gain=1.0 if args.gain is None else args.gain, m2=args.m2)
+        prior = Prior(
+            dead_zone=args.dead_zone, gain=1.0 if args.gain is None else args.gain, m2=args.m2,
+            structure=args.structure, load_decel=args.load_decel,
+        )  # fmt: skip
         source = f"rough prior: play {args.dead_zone:g}, gain {prior.gain:g}, m2 {args.m2:g}"
     else:
         model, source = _model(args)
         assert model is not None
-        prior = Prior(model=model)
+        prior = Prior(model=model, structure=args.structure, load_decel=args.load_decel)
     return design(prior, servo, seed=args.seed, samples=args.samples), source
 
 

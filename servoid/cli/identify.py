@@ -96,7 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     _data.add_options(p)
     _live.add_options(p)
     mdl = p.add_argument_group("model")
-    _model.add_structure_options(mdl)
+    _model.add_structure_options(mdl, selectable=True)
     est = p.add_argument_group("estimator")
     _model.add_rho_option(est)
     est.add_argument("--epsilon", type=float, metavar="E",
@@ -112,15 +112,34 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     out.add_argument("--out", type=Path, default=Path("servoid-run"), metavar="DIR",
                      help="output folder (default ./servoid-run/)")  # fmt: skip
     out.add_argument("--json", action="store_true", help="print one JSON object on stdout and nothing else there")
+    out.add_argument("--strict", action="store_true",
+                     help="exit 1 when the play is not identifiable (the outputs are written all the same)")  # fmt: skip
     out.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.set_defaults(handler=run)
+
+
+def _orders(args: argparse.Namespace) -> dict[str, int]:
+    """The orders given on the command line, the defaults for those left to the data."""
+    from servoid.ident import defaults
+
+    given = {"na": args.na, "nb": args.nb, "delay": args.delay}
+    fallback = {"na": defaults.NA, "nb": defaults.NB, "delay": defaults.DELAY}
+    return {k: fallback[k] if v is None else v for k, v in given.items()}
+
+
+def _selected(args: argparse.Namespace) -> tuple[str, ...]:
+    """The orders to choose from the data: those not given (none for the simulated paper servo or a live run)."""
+    if args.data is None:
+        return ()
+    return tuple(name for name in ("na", "nb", "delay") if getattr(args, name) is None)
 
 
 def _config(args: argparse.Namespace, epsilon: float) -> MRGIAConfig:
     from servoid.ident.online.mrgia import MRGIAConfig
 
+    orders = _orders(args)
     return MRGIAConfig(
-        na=args.na, nb=args.nb, delay=args.delay, rho_exponent=args.rho_exponent, epsilon=epsilon,
+        na=orders["na"], nb=orders["nb"], delay=orders["delay"], rho_exponent=args.rho_exponent, epsilon=epsilon,
         project=not args.paper_algorithm, recover=not args.paper_algorithm,
     )  # fmt: skip
 
@@ -135,7 +154,7 @@ def _simulated(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     from servoid.identify_outputs import Record
     from servoid.readers.excitation_file import is_file_spec, read_excitation
 
-    if (args.na, args.nb, args.delay) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
+    if tuple(_orders(args).values()) != (PAPER_PLANT.na, PAPER_PLANT.nb, PAPER_PLANT.delay):
         raise ConfigError(
             "the simulated servo is the paper's plant (na=2, nb=0, delay=1); "
             "--na/--nb/--delay apply to --data recordings"
@@ -202,7 +221,7 @@ def _check_sizes(args: argparse.Namespace) -> None:
     """The record's length, the orders, the delay and the seed within servoid's limits, before any work."""
     if args.samples is not None:
         limits.bounded_count("--samples", args.samples, limit=limits.MAX_SAMPLES, what="a record's length")
-    limits.orders(args.na, args.nb, args.delay, prefix="--")
+    limits.orders(*_orders(args).values(), prefix="--")
     limits.seed("--seed", args.seed)
 
 
@@ -218,15 +237,17 @@ def run(args: argparse.Namespace) -> int:
     ) as bar:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
-                          online=record.online)  # fmt: skip
+                          online=record.online, select=_selected(args),
+                          sample_period_s=record.sample_period_s or 1.0)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
     record = _live.with_verdict(record, result, quiet=args.json)
     paths = write_outputs(args.out, record, result, plots=not args.no_plots)
+    status = 1 if args.strict and not result.identifiable else 0
     if args.json:
         _term.print_json(result_json(record, result, paths))
-        return 0
+        return status
     cols, rows = summary_rows(result, record.truth)
     _term.table(f"servoid identify: {record.source} ({result.samples} samples, {elapsed:.2f} s)", cols, rows)
     out = _term.stdout
@@ -243,6 +264,17 @@ def run(args: argparse.Namespace) -> int:
     if twin is not None:
         out.print(f"the twin {twin['name']}: true play {twin['play_rad']:.6g} rad at the output; its loop closes on "
                   f"the {twin['loop_encoder']} encoder, the output is read on the {twin['output_encoder']} encoder")  # fmt: skip
+    if not result.operating_point.is_zero:
+        out.print(f"about the operating point u0 = {result.operating_point.u:.6g}, y0 = {result.operating_point.y:.6g} "
+                  "(the dead zones do not exist in the record's own coordinates)")  # fmt: skip
+    if result.orders is not None:
+        out.print(result.orders.describe())
+    out.print(result.headline())
+    if result.loop is None and not result.identifiable:
+        out.print("  the servo-loop model (the play inside the loop) was not fitted: the output backlash is the only "
+                  "structure tried")  # fmt: skip
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
-    return 0
+    if status:
+        _term.warn("--strict: the play is not identifiable; exit 1")
+    return status

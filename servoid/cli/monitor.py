@@ -301,6 +301,7 @@ def _noise(args: argparse.Namespace, model_file: ModelFile, identity: dict[str, 
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers import driver_from_url
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
     from servoid.ident.monitoring.wear_estimator import WearEstimatorConfig
     from servoid.modelfile import load_model
     from servoid.monitor_run import run_monitor
@@ -313,6 +314,14 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         output_file(args.plot, option="--plot", force=args.force)
     model_file = load_model(args.model)
+    if model_file.structure != OUTPUT_BACKLASH:
+        raise ConfigError(
+            f"{args.model} holds the structure {model_file.structure} (the play inside the position loop): "
+            f"the monitor's wear estimator (the MRGIA) tracks the {OUTPUT_BACKLASH} structure only"
+        )
+    if model_file.operating_point != (0.0, 0.0):
+        _term.warn(f"{args.model} applies about an operating point {model_file.operating_point}: the monitor "
+                   "tracks the servo's own coordinates, so its dead zones are shifted by the offset")  # fmt: skip
     if model_file.effects:
         _term.warn(f"{args.model} has model extensions ({', '.join(model_file.effect_names())}); "
                    "the monitor tracks the plain backlash model")  # fmt: skip

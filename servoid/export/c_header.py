@@ -1,4 +1,10 @@
-"""``--format c``: a C99 header with the parameters and the smoothed backlash inverse.
+"""``--format c``: a C99 header with the parameters and the smoothed backlash inverse (or the reversal lead).
+
+For a model whose play sits inside the position loop (``play_in_loop``, a
+servo-loop model) the header is the reversal lead instead
+(``templates/reversal_lead.h``: ``servoid_lead_params NAME`` = lead_up,
+lead_down, threshold, max_samples, and ``servoid_reversal_lead(&NAME, &state,
+r, y) -> u``, mirroring :func:`servoid.ident.control.reversal_lead.lead_step`).
 
 Rendered from the package template ``templates/backlash_compensator.h``: a
 ``static const servoid_backlash_params NAME`` (m2, c1, c2, band), the linear
@@ -52,17 +58,21 @@ C_KEYWORDS = frozenset(
 )
 
 
-def _template_text() -> str:
-    return resources.files("servoid.export.templates").joinpath("backlash_compensator.h").read_text(encoding="utf-8")
+#: The templates: the backlash inverse (output backlash) and the reversal lead (play in the loop).
+TEMPLATES = ("backlash_compensator.h", "reversal_lead.h")
 
 
-def _template() -> Template:
-    return Template(_template_text())
+def _template_text(template: str = TEMPLATES[0]) -> str:
+    return resources.files("servoid.export.templates").joinpath(template).read_text(encoding="utf-8")
+
+
+def _template(template: str = TEMPLATES[0]) -> Template:
+    return Template(_template_text(template))
 
 
 def header_names() -> frozenset[str]:
-    """The identifiers the header's code uses itself (types, functions, parameters, macros), comments left out."""
-    code = re.sub(r"/\*.*?\*/", " ", _template_text(), flags=re.DOTALL)
+    """The identifiers the headers' code uses itself (types, functions, parameters, macros), comments left out."""
+    code = re.sub(r"/\*.*?\*/", " ", "\n".join(_template_text(t) for t in TEMPLATES), flags=re.DOTALL)
     code = re.sub(r"\$\{\w+\}\w*", " ", code)  # NAME_a, MACRO_NA: made from the name
     return frozenset(re.findall(r"[A-Za-z_][A-Za-z0-9_]*", code)) - {"ifndef", "define", "endif"}
 
@@ -125,26 +135,18 @@ def render(content: ModelFile, *, name: str = DEFAULT_NAME, source_name: str = "
         If ``name`` cannot name the parameters (:func:`check_name`).
     """
     check_name(name)
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+    from servoid.loop_compensation import has_loop
+
+    if content.structure == PLAY_IN_LOOP and has_loop(content):
+        return _render_lead(content, name, source_name)
     model = content.model
     macro = name.upper()
-    period = content.sample_period_s
     names = model.names
     linear_names = [n for n in names if n not in ("m2", "c1", "c2")]
-    fields = {
-        "title": _comment(f"{name}: backlash compensation parameters for one servo axis"),
-        "servoid_version": _comment(__version__),
-        "model_file": _comment(source_name),
-        "identified_at": _comment(content.identified_at or "unknown"),
-        "identified_source": _comment(content.source or "unknown"),
-        "samples": _comment(content.samples if content.samples is not None else "unknown"),
-        "method": _comment(content.method or "unknown"),
-        "fit_nrmse": _comment(f"{content.fit_nrmse:.4g}" if content.fit_nrmse is not None else "unknown"),
-        "servo": _comment(", ".join(f"{k} {v}" for k, v in content.servo.items()) if content.servo else "not reported"),
-        "output_unit": _comment(content.output_unit),
+    fields = _common(content, name, source_name, "backlash compensation parameters")
+    fields.update({
         "input_unit": _comment(content.input_unit),
-        "sample_period": _comment(f"{period:g} s" if period else "not known"),
-        "name": name,
-        "macro": macro,
         "guard": f"{macro}_BACKLASH_PARAMS_H",
         "m2": _number(model.m2),
         "c1": _number(model.c1),
@@ -159,9 +161,48 @@ def render(content: ModelFile, *, name: str = DEFAULT_NAME, source_name: str = "
         "delay": str(model.delay),
         "a": ", ".join(_number(v) for v in model.a),
         "b": ", ".join(_number(v) for v in model.b),
+    })  # fmt: skip
+    return _template().substitute(fields)
+
+
+def _common(content: ModelFile, name: str, source_name: str, what: str) -> dict[str, str]:
+    """The fields both templates share: provenance, units, the name and the guard."""
+    period = content.sample_period_s
+    macro = name.upper()
+    return {
+        "title": _comment(f"{name}: {what} for one servo axis"),
+        "servoid_version": _comment(__version__),
+        "model_file": _comment(source_name),
+        "identified_at": _comment(content.identified_at or "unknown"),
+        "identified_source": _comment(content.source or "unknown"),
+        "samples": _comment(content.samples if content.samples is not None else "unknown"),
+        "method": _comment(content.method or "unknown"),
+        "fit_nrmse": _comment(f"{content.fit_nrmse:.4g}" if content.fit_nrmse is not None else "unknown"),
+        "servo": _comment(", ".join(f"{k} {v}" for k, v in content.servo.items()) if content.servo else "not reported"),
+        "output_unit": _comment(content.output_unit),
+        "sample_period": _comment(f"{period:g} s" if period else "not known"),
+        "name": name,
+        "macro": macro,
         "sample_period_line": (
             f"#define {macro}_SAMPLE_PERIOD_S {_number(period)} /* seconds */\n" if period
             else "/* sample period not known: the identification record had no time column */\n"
         ),
     }  # fmt: skip
-    return _template().substitute(fields)
+
+
+def _render_lead(content: ModelFile, name: str, source_name: str) -> str:
+    """The reversal lead's header, for a play inside the loop (a servo-loop model)."""
+    from servoid.loop_compensation import loop_model, reversal_lead
+
+    loop = loop_model(content)
+    lead = reversal_lead(content)
+    fields = _common(content, name, source_name, "reversal lead for a play inside the position loop")
+    fields.update({
+        "guard": f"{name.upper()}_REVERSAL_LEAD_H",
+        "loop": _comment(", ".join(f"{k} {v:.4g}" for k, v in loop.params().items())),
+        "lead_up": _number(lead.lead_up),
+        "lead_down": _number(lead.lead_down),
+        "threshold": _number(lead.threshold),
+        "max_samples": _number(float(lead.max_samples)),
+    })  # fmt: skip
+    return _template("reversal_lead.h").substitute(fields)

@@ -123,6 +123,17 @@ def ros_parameters(content: ModelFile) -> dict[str, Any]:
         },
         "servo": content.servo,
     }
+    from servoid.loop_compensation import has_loop
+
+    if has_loop(content):
+        from servoid.ident.models.structure_names import PLAY_IN_LOOP
+        from servoid.loop_compensation import loop_model, reversal_lead
+
+        params["structure"] = content.structure
+        params["servo_loop"] = loop_model(content).params()
+        if content.structure == PLAY_IN_LOOP:
+            # the compensator for a play inside the loop: the backlash section above does not apply
+            params["reversal_lead"] = reversal_lead(content).to_dict()
     return _value(params)  # type: ignore[no-any-return]
 
 

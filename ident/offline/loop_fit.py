@@ -1,0 +1,556 @@
+"""Fit the servo-loop model with the play in both places and choose the place by validation: :func:`fit_loop`.
+
+The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the model):
+
+1. **Operating point.** The same constant ``mean(u)`` comes off ``u`` and ``y`` (the loop
+   compares set point and reading, so they share a unit); the model depends on differences
+   only, so raw counts and centred records give the same fit up to rounding.
+2. **Linear start.** A least-squares ARX(2, 2) of ``y`` on ``u``; its two poles in continuous
+   time matched to ``kp kv / (s^2 + kv s + kp kv)``: ``kv = -(s1 + s2)``, ``kp = s1 s2 / kv``.
+   Friction, Stribeck and smoothing speeds start from the record's typical speed
+   ``v_typ = std(diff y) / T``.
+3. **Scan.** For each place of the play, simulate (no fitting) a grid of plays (half the
+   record's quantum to a quarter of its range) times three friction levels; the best is the start.
+4. **Four candidates**: the play outside the loop (``output_backlash``) or inside it
+   (``play_in_loop``), each with and without the velocity integrator; least squares over
+   ``kp, kv, fc, fs, vs, veps, a0, play, asymmetry [, ki]`` on the **estimation blocks**
+   (8 interleaved blocks; the simulation runs through the validation blocks but they are
+   not scored).
+5. **Select** the candidate with the smallest free-run NRMSE on the validation blocks; the
+   **margin** is the best candidate of the other place relative to it (``val_other / val_best - 1``).
+6. **Final refit** of the winner on all samples, and the play's 95 % interval from the
+   Newey-West (HAC) sandwich on that fit's Jacobian: a statistical interval, which measures
+   noise, not model error.
+
+What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
+contact is the play operator, so the free-run output is continuous in the parameters;
+rates and the play are fitted as ``ln(p / p_start)`` with a 3 % finite-difference step,
+which sees the slope rather than the sub-step roughness of events; the simulation stops at
+the last scored sample; BLAS runs single-threaded (small matrices, many of them).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from servoid import validation
+from servoid.errors import ConfigError
+from servoid.ident.diagnosis.friction_stall import stall_band
+from servoid.ident.metrics import nrmse
+from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel, substeps
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+from servoid.ident.offline._oefit import single_threaded_blas
+from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, Z95, hac_stderr, quantum
+
+__all__ = [
+    "LoopChoice",
+    "LoopCandidate",
+    "fit_loop",
+    "block_mask",
+    "MIN_SAMPLES",
+]
+
+#: Fewest samples :func:`fit_loop` accepts (8 blocks of at least 25 samples).
+MIN_SAMPLES = 200
+#: Interleaved blocks: even ones estimate, odd ones validate.
+BLOCKS = 8
+#: Relative finite-difference step of the fit (see the module docstring).
+DIFF_STEP = 0.03
+#: Evaluations of each candidate's fit and of the final refit (scipy's ``max_nfev``; a Jacobian
+#: costs one simulation per free parameter on top).
+CANDIDATE_NFEV = 40
+FINAL_NFEV = 25
+#: Parameters fitted as ``ln(p / p_start)``.
+_LOG = frozenset({"kp", "kv", "ki", "fc", "fs", "vs", "veps", "play"})
+#: The first stage of each candidate's fit: the loop's rates, the friction level and the play.
+_STAGE = ("kp", "kv", "fc", "play")
+STAGE_NFEV = 15
+#: Free parameters of every candidate; see :func:`_free` for what each structure adds.
+_FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "play")
+
+
+def _free(structure: str, integrator: bool) -> tuple[str, ...]:
+    """The free parameters of a candidate: only what the record can determine.
+
+    The play's asymmetry ``c1 - c2`` only shifts the motor side when the loop reads the load
+    (play in the loop), so it is fitted for the output backlash only; an integrator holds any
+    constant force, so ``a0`` is fitted without one and ``ki`` with one.
+    """
+    extra = ("asym",) if structure == OUTPUT_BACKLASH else ()
+    return _FREE + extra + (("ki",) if integrator else ("a0",))
+
+
+@dataclass(frozen=True)
+class LoopCandidate:
+    """One fitted candidate of :func:`fit_loop`.
+
+    Attributes
+    ----------
+    structure : str
+        Where the play sits (a name of ``STRUCTURES``).
+    integrator : bool
+        Whether the velocity loop has an integrator (``ki`` fitted).
+    model : ServoLoopModel
+        The fitted model (estimation blocks only).
+    estimation_nrmse, validation_nrmse : float
+        Free-run NRMSE on the estimation and on the validation blocks.
+    evaluations : int
+        Simulations the fit used (its Jacobians included).
+    """
+
+    structure: str
+    integrator: bool
+    model: ServoLoopModel
+    estimation_nrmse: float
+    validation_nrmse: float
+    evaluations: int
+
+
+@dataclass(frozen=True)
+class LoopChoice:
+    """Result of :func:`fit_loop`: the place of the play chosen by validation, the play and the fitted loop.
+
+    Attributes
+    ----------
+    structure : str
+        The chosen place of the play: ``output_backlash`` or ``play_in_loop``.
+    play : float
+        ``c1 + c2`` of the final fit, in the unit of ``y``.
+    play_interval : tuple of float
+        Its 95 % interval ``(lo, hi)`` from the HAC (Newey-West) sandwich (statistical: noise,
+        not model error); ``(nan, nan)`` when the Jacobian does not determine the play.
+    fit_nrmse : float
+        Free-run NRMSE of the final fit on the whole record.
+    validation_nrmse : dict
+        Structure name -> the best validation-block NRMSE of that place of the play.
+    margin : float
+        ``validation_nrmse[other] / validation_nrmse[structure] - 1``: how much worse the other
+        place of the play validates (under 0.05 the two are not told apart).
+    params : dict
+        The final model's parameters by name (:data:`~servoid.ident.models.servo_loop.PARAM_NAMES`),
+        in the record's units.
+    simulated : ndarray
+        The final model's free-run output, in the record's coordinates.
+    reasons : tuple of str
+        What the fit noticed that weakens the answer beyond the numbers here that the
+        "not identifiable" rules read (:func:`servoid.ident.offline.intervals.verdict`: the
+        margin, the fit, the dead time, the stall band); empty when nothing did.
+    dead_time_samples : float
+        The play's dead time at a reversal, in samples, of the best play-in-loop candidate
+        (the final model when it won): ``play / (kp median|u - y|) / T``. Under about one the
+        record cannot show a play inside the loop, so neither place can be told (the study's Q3:
+        at 5x-10x the XM430's bandwidth the output backlash won with a play 2-3 times too large).
+    stall_band : float
+        The friction stall band ``fs / (kv kp)``, unit of ``y``: the position error a P loop
+        leaves standing against break-away friction (not smaller than the play: the two are confused).
+    model : ServoLoopModel
+        The final model (simulate it with ``y0 = y[0]`` to get ``simulated``).
+    candidates : tuple of LoopCandidate
+        Every candidate, best validation first.
+    seconds : float
+        Wall-clock time of the whole fit.
+    evaluations : int
+        Simulations used in all.
+    """
+
+    structure: str
+    play: float
+    play_interval: tuple[float, float]
+    fit_nrmse: float
+    validation_nrmse: dict[str, float]
+    margin: float
+    params: dict[str, float]
+    simulated: np.ndarray = field(repr=False)
+    reasons: tuple[str, ...]
+    dead_time_samples: float
+    stall_band: float
+    model: ServoLoopModel
+    candidates: tuple[LoopCandidate, ...] = field(repr=False)
+    seconds: float
+    evaluations: int
+
+    @property
+    def determined(self) -> bool:
+        """Whether the two places of the play differ by at least :data:`MIN_STRUCTURE_MARGIN` in validation (the study's rule)."""
+        return bool(self.margin >= MIN_STRUCTURE_MARGIN)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (no arrays; non-finite numbers are left to ``servoid.ident.serialise``)."""
+        return {
+            "structure": self.structure,
+            "play": self.play,
+            "play_interval": list(self.play_interval),
+            "fit_nrmse": self.fit_nrmse,
+            "validation_nrmse": dict(self.validation_nrmse),
+            "margin": self.margin,
+            "params": dict(self.params),
+            "reasons": list(self.reasons),
+            "dead_time_samples": self.dead_time_samples,
+            "stall_band": self.stall_band,
+            "seconds": self.seconds,
+            "evaluations": self.evaluations,
+        }
+
+
+def block_mask(n: int, blocks: int = BLOCKS) -> np.ndarray:
+    """Interleaved estimation (True) and validation (False) samples: ``blocks`` equal blocks, the odd ones validate.
+
+    Parameters
+    ----------
+    n : int
+        Samples.
+    blocks : int
+        Blocks (even, so that the record ends on a validation block).
+
+    Returns
+    -------
+    ndarray of bool
+    """
+    edges = np.linspace(0, n, blocks + 1).astype(int)
+    keep = np.ones(n, dtype=bool)
+    for i in range(1, blocks, 2):
+        keep[edges[i] : edges[i + 1]] = False
+    return keep
+
+
+class _Problem:
+    """The residual ``y_hat - y`` on the scored samples over the scaled free parameters."""
+
+    def __init__(
+        self,
+        u: np.ndarray,
+        y: np.ndarray,
+        period: float,
+        structure: str,
+        free: tuple[str, ...],
+        start: dict[str, float],
+        score: np.ndarray,
+        a_scale: float,
+    ) -> None:
+        self.u = u
+        self.y = y
+        self.period = period
+        self.structure = structure
+        self.feedback_load = structure == PLAY_IN_LOOP
+        self.free = free
+        self.start = dict(start)
+        self.score = score
+        self.stop = int(np.flatnonzero(score)[-1]) + 1
+        self.y_scored = y[: self.stop][score[: self.stop]]
+        self.a_scale = a_scale
+        self.m = substeps(period, start["kv"])
+        self.buffer = np.empty(self.stop)
+        self.evaluations = 0
+        self._last: tuple[np.ndarray, np.ndarray] | None = None
+
+    def values(self, z: np.ndarray) -> dict[str, float]:
+        d = dict(self.start)
+        for zi, name in zip(z, self.free, strict=True):
+            if name in _LOG:
+                d[name] = self.start[name] * math.exp(float(zi))
+            elif name == "a0":
+                d[name] = self.start[name] + self.a_scale * float(zi)
+            else:
+                d[name] = float(zi)
+        return d
+
+    def vector(self, z: np.ndarray) -> np.ndarray:
+        d = self.values(z)
+        d["c1"] = d["play"] * (0.5 + d["asym"])
+        d["c2"] = d["play"] * (0.5 - d["asym"])
+        return np.array([d[name] for name in PARAM_NAMES])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        lo = [math.log(1e-6) if n in _LOG else (-0.5 if n == "asym" else -np.inf) for n in self.free]
+        hi = [math.log(1e6) if n in _LOG else (0.5 if n == "asym" else np.inf) for n in self.free]
+        return np.array(lo), np.array(hi)
+
+    def simulate(self, p: np.ndarray) -> np.ndarray:
+        self.evaluations += 1
+        simulate_kernel(p, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, self.buffer)
+        return self.buffer
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        y_hat = self.simulate(self.vector(z))
+        r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
+        if not np.all(np.isfinite(r)):
+            r = np.full(r.size, 10.0 * (float(np.ptp(self.y)) + 1.0))
+        self._last = (z.copy(), r.copy())
+        return r
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        """Forward differences with the absolute step :data:`DIFF_STEP` in the scaled coordinates.
+
+        scipy's relative ``diff_step`` shrinks with ``|z|``, and ``z`` starts at 0: its steps would
+        be far below the sub-step roughness of the simulation, whose slope a 3 % step sees.
+        """
+        z = np.asarray(z, dtype=np.float64)
+        last = self._last
+        r0 = last[1] if last is not None and np.array_equal(last[0], z) else self(z)
+        lo, hi = self.bounds()
+        jac = np.empty((r0.size, z.size))
+        for i in range(z.size):
+            step = DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP
+            zi = z.copy()
+            zi[i] += step
+            jac[:, i] = (self(zi) - r0) / step
+        return jac
+
+
+def _linear_start(u: np.ndarray, y: np.ndarray, period: float) -> tuple[float, float]:
+    """``(kp, kv)`` from the two poles of an ARX(2, 2) of ``y`` on ``u`` (step 2 of the module docstring)."""
+    phi = np.column_stack([-y[1:-1], -y[:-2], u[1:-1], u[:-2], np.ones(y.size - 2)])
+    theta, *_ = np.linalg.lstsq(phi, y[2:], rcond=None)
+    poles = np.roots(np.r_[1.0, theta[:2]]).astype(complex)
+    # an integrating or unstable fit: pull the pole inside; a pole at 0 has no continuous image
+    poles = np.where(np.abs(poles) >= 0.999, 0.999 * poles / np.maximum(np.abs(poles), 1e-12), poles)
+    poles = np.where(np.abs(poles) < 1e-3, 1e-3, poles)
+    s = np.log(poles) / period
+    kv = float(max(-np.sum(s).real, 0.05 / period))
+    kp = float(max((s[0] * s[1]).real / kv, 0.02 * kv))
+    return kp, kv
+
+
+def _start(kp: float, kv: float, v_typ: float, play: float, *, integrator: bool, friction: float) -> dict[str, float]:
+    return {
+        "kp": kp,
+        "kv": kv,
+        "ki": 0.2 * kp * kv if integrator else 0.0,
+        "vmax": 0.0,
+        "fc": 0.1 * kv * v_typ * friction,
+        "fs": 0.15 * kv * v_typ * friction,
+        "vs": 0.1 * v_typ,
+        "veps": 0.01 * v_typ,
+        "a0": 0.0,
+        "play": play,
+        "asym": 0.0,
+        "s0": 0.5,
+    }
+
+
+def _scan(
+    u: np.ndarray,
+    y: np.ndarray,
+    period: float,
+    structure: str,
+    kp: float,
+    kv: float,
+    v_typ: float,
+    score: np.ndarray,
+    plays: np.ndarray,
+) -> tuple[dict[str, float], int]:
+    """The best start of a grid of plays x friction levels, simulated (not fitted) on the estimation blocks."""
+    best: tuple[float, dict[str, float]] | None = None
+    evaluations = 0
+    for play in plays:
+        for friction in (0.3, 1.0, 3.0):
+            start = _start(kp, kv, v_typ, float(play), integrator=False, friction=friction)
+            prob = _Problem(u, y, period, structure, (), start, score, 1.0)
+            r = prob(np.zeros(0))
+            evaluations += 1
+            cost = float(r @ r)
+            if best is None or cost < best[0]:
+                best = (cost, start)
+    assert best is not None
+    return best[1], evaluations
+
+
+def _fit(
+    u: np.ndarray,
+    y: np.ndarray,
+    period: float,
+    structure: str,
+    start: dict[str, float],
+    score: np.ndarray,
+    a_scale: float,
+    *,
+    integrator: bool,
+    max_nfev: int,
+    free: tuple[str, ...] | None = None,
+) -> tuple[dict[str, float], _Problem, Any]:
+    if free is None:
+        free = _free(structure, integrator)
+    prob = _Problem(u, y, period, structure, free, start, score, a_scale)
+    lo, hi = prob.bounds()
+    z0 = np.array([start[n] if n == "asym" else 0.0 for n in free])
+    with single_threaded_blas():
+        sol = least_squares(prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev)
+    return prob.values(sol.x), prob, sol
+
+
+def _model(structure: str, period: float, d: dict[str, float]) -> ServoLoopModel:
+    p = dict(d)
+    p["c1"] = p["play"] * (0.5 + p["asym"])
+    p["c2"] = p["play"] * (0.5 - p["asym"])
+    return ServoLoopModel(structure=structure, sample_period_s=period, **{n: float(p[n]) for n in PARAM_NAMES})
+
+
+def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopChoice:
+    """Fit the servo-loop model with the play outside and inside the loop; choose by validation.
+
+    Parameters
+    ----------
+    u : array_like
+        Set points sent at the host instants, in the unit of ``y`` (the loop compares them).
+    y : array_like
+        The readings at the host instants (before each command is applied).
+    sample_period_s : float
+        The host period, s.
+    seed : int
+        Seeds the jitter of the play grid scanned for starts (each grid value moves within its
+        own geometric cell), so that a second seed is a second look from other starts.
+
+    Returns
+    -------
+    LoopChoice
+        The chosen place of the play, the play with its interval, the validation NRMSE of both
+        places and the margin between them, the final model and what the fit noticed.
+
+    Raises
+    ------
+    ConfigError
+        Non-finite or mismatched signals, fewer than :data:`MIN_SAMPLES` samples, a constant
+        output, or a non-positive period.
+    """
+    t0 = time.perf_counter()
+    u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
+    y_arr = validation.signal("y", y, min_length=MIN_SAMPLES)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    period = validation.positive("sample_period_s", sample_period_s)
+    seed = validation.integer("seed", seed, minimum=0)
+    if float(np.ptp(y_arr)) <= 0.0:
+        raise ConfigError("y is constant: the servo never moved, there is no loop to fit")
+    # the operating point: one constant off both (they share a unit); the model sees differences only
+    centre = float(np.mean(u_arr))
+    uc = np.ascontiguousarray(u_arr - centre)
+    yc = np.ascontiguousarray(y_arr - centre)
+    n = yc.size
+
+    kp, kv = _linear_start(uc, yc, period)
+    v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
+    a_scale = 0.1 * kv * v_typ
+    q = quantum(yc)
+    low = q / 2 if q > 0.0 else 1e-3 * float(np.std(yc))
+    high = max(float(np.ptp(yc)) / 4, 2 * low)
+    grid = np.geomspace(low, high, 10)
+    rng = np.random.default_rng(seed)
+    if seed:
+        cell = (high / low) ** (1 / 9)
+        grid = grid * cell ** rng.uniform(-0.5, 0.5, grid.size)
+
+    est = block_mask(n)
+    val = ~est
+    candidates: list[tuple[LoopCandidate, dict[str, float]]] = []
+    evaluations = 0
+    for structure in (OUTPUT_BACKLASH, PLAY_IN_LOOP):
+        start, used = _scan(uc, yc, period, structure, kp, kv, v_typ, est, grid)
+        evaluations += used
+        for integrator in (False, True):
+            s = dict(start)
+            s["ki"] = 0.2 * s["kp"] * s["kv"] if integrator else 0.0
+            # the loop's rates and the play first (the linear start's rates are biased by the play), then everything
+            s, prob, _ = _fit(
+                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE
+            )
+            evaluations += prob.evaluations
+            d, prob, _ = _fit(
+                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV
+            )
+            evaluations += prob.evaluations
+            model = _model(structure, period, d)
+            y_hat = model.simulate(uc, y0=float(yc[0]))
+            cand = LoopCandidate(
+                structure=structure,
+                integrator=integrator,
+                model=model,
+                estimation_nrmse=nrmse(yc[est], y_hat[est]),
+                validation_nrmse=nrmse(yc[val], y_hat[val]),
+                evaluations=prob.evaluations,
+            )
+            candidates.append((cand, d))
+    candidates.sort(key=lambda c: c[0].validation_nrmse)
+    best, best_d = candidates[0]
+    per_structure = {
+        s: min(c.validation_nrmse for c, _ in candidates if c.structure == s) for s in (OUTPUT_BACKLASH, PLAY_IN_LOOP)
+    }
+    other = PLAY_IN_LOOP if best.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
+    margin = per_structure[other] / best.validation_nrmse - 1.0 if best.validation_nrmse > 0.0 else math.inf
+
+    # the final refit of the winner on every sample
+    everything = np.ones(n, dtype=bool)
+    d, prob, sol = _fit(
+        uc, yc, period, best.structure, best_d, everything, a_scale, integrator=best.integrator, max_nfev=FINAL_NFEV
+    )
+    evaluations += prob.evaluations
+    final = _model(best.structure, period, d)
+    # the dead time is the play-in-loop candidate's: it says whether that place could be seen at all
+    inside = (
+        final if best.structure == PLAY_IN_LOOP else next(c.model for c, _ in candidates if c.structure == PLAY_IN_LOOP)
+    )
+    simulated = final.simulate(uc, y0=float(yc[0]))
+    fit_nrmse = nrmse(yc, simulated)
+    interval = _play_interval(sol.jac, sol.fun, prob.free, d["play"])
+    reasons = _noticed(final, q)
+    return LoopChoice(
+        structure=best.structure,
+        play=final.play,
+        play_interval=interval,
+        fit_nrmse=fit_nrmse,
+        validation_nrmse=per_structure,
+        margin=float(margin),
+        params=final.params(),
+        simulated=simulated + centre,
+        reasons=reasons,
+        dead_time_samples=_dead_time_samples(inside, uc, yc),
+        stall_band=stall_band(final.fs, final.kv, final.kp),
+        model=final,
+        candidates=tuple(c for c, _ in candidates),
+        seconds=time.perf_counter() - t0,
+        evaluations=evaluations,
+    )
+
+
+def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...], play: float) -> tuple[float, float]:
+    """95 % interval of the play from the HAC standard error of ``ln(play)`` (so both ends are positive).
+
+    Columns of the Jacobian the record does not move at all (a nuisance parameter at a bound)
+    are left out: the interval is then conditional on them.
+    """
+    jac = np.asarray(jac, dtype=np.float64)
+    norms = np.linalg.norm(jac, axis=0)
+    used = norms > 1e-9 * float(np.max(norms)) if norms.size and float(np.max(norms)) > 0.0 else norms > 0.0
+    i = free.index("play")
+    if not used[i]:
+        return (math.nan, math.nan)
+    gradient = np.zeros(int(np.sum(used)))
+    gradient[int(np.sum(used[:i]))] = 1.0
+    se = hac_stderr(jac[:, used], np.asarray(residual, dtype=np.float64), gradient)
+    if not math.isfinite(se):
+        return (math.nan, math.nan)
+    return (play * math.exp(-Z95 * se), play * math.exp(Z95 * se))
+
+
+def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float:
+    """The play's dead time at a reversal in samples, ``play / (kp median|u - y|) / T``, of a play-in-loop model.
+
+    While the horn waits in the play the loop drives the motor at about ``kp`` times the error;
+    the median error of the record stands for the error at a reversal (the study's Q3 rule).
+    Under about one sample the place of the play cannot be seen, whichever place won.
+    """
+    speed = model.kp * float(np.median(np.abs(u - y)))
+    return model.play / speed / model.sample_period_s if speed > 0.0 else math.inf
+
+
+def _noticed(model: ServoLoopModel, q: float) -> tuple[str, ...]:
+    """What the fit noticed beyond the numbers the verdict rules read (margin, stall band, dead time, fit)."""
+    reasons = []
+    if q > 0.0 and model.play < q:
+        reasons.append(f"the fitted play {model.play:.4g} is smaller than the record's resolution {q:.4g}")
+    return tuple(reasons)

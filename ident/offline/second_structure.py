@@ -1,0 +1,134 @@
+"""The seam to the second model structure: the grey-box servo-loop model, fitted when the black box is not enough.
+
+:func:`servoid.ident.identify.identify` fits the paper's pseudo-Wiener model
+first. When its fit is at the floor and its residual is white (the paper's
+example), nothing can do better and this is skipped (:func:`needed`).
+Otherwise the pipeline calls :func:`second_structure`, which fits the
+servo-loop model with both places of the play and chooses between them by
+validation (:func:`servoid.ident.offline.loop_fit.fit_loop`, issue 12 part B).
+
+What the pipeline reads from the result is :class:`LoopResult`, a protocol:
+part B's frozen ``LoopChoice`` satisfies it as it is.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.pseudo_wiener import BacklashModel
+
+__all__ = ["LoopResult", "BlackBox", "needed", "second_structure"]
+
+
+class LoopResult(Protocol):
+    """What :func:`second_structure` returns (part B: ``servoid.ident.offline.loop_fit.LoopChoice``)."""
+
+    @property
+    def structure(self) -> str:
+        """A name from :mod:`servoid.ident.models.structure_names`."""
+        ...
+
+    @property
+    def play(self) -> float:
+        """The play ``c1 + c2`` in y's units."""
+        ...
+
+    @property
+    def play_interval(self) -> tuple[float, float]:
+        """Its 95 % interval."""
+        ...
+
+    @property
+    def fit_nrmse(self) -> float:
+        """Free-run NRMSE of the chosen structure on the whole record."""
+        ...
+
+    @property
+    def validation_nrmse(self) -> dict[str, float]:
+        """Validation NRMSE per structure name."""
+        ...
+
+    @property
+    def margin(self) -> float:
+        """Relative validation margin of the chosen structure over the other."""
+        ...
+
+    @property
+    def params(self) -> dict[str, float]:
+        """The servo-loop model's parameters."""
+        ...
+
+    @property
+    def simulated(self) -> np.ndarray:
+        """The chosen model's free run over the record."""
+        ...
+
+    @property
+    def reasons(self) -> tuple[str, ...]:
+        """What the fit itself found doubtful (added to the verdict's reasons)."""
+        ...
+
+    @property
+    def dead_time_samples(self) -> float | None:
+        """The play's dead time at a reversal, in samples, were the play inside the loop (None: not known)."""
+        ...
+
+    @property
+    def stall_band(self) -> float:
+        """The friction stall band ``fs / (kv kp)``, y's units."""
+        ...
+
+
+class BlackBox(Protocol):
+    """What the seam may read of the black-box result (the pseudo-Wiener fit)."""
+
+    @property
+    def model(self) -> BacklashModel:
+        """The fitted pseudo-Wiener model (about the operating point)."""
+        ...
+
+    @property
+    def fit_nrmse(self) -> float:
+        """Its free-run NRMSE."""
+        ...
+
+
+def needed(at_floor: bool, white: bool) -> bool:
+    """The skip rule: the loop model can only do better when the black box is off the floor or its residual is coloured."""
+    return not (at_floor and white)
+
+
+def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black_box: BlackBox) -> LoopResult | None:
+    """Fit the servo-loop model with both places of the play and choose by validation (:func:`fit_loop`).
+
+    Parameters
+    ----------
+    u, y : ndarray
+        The record, centred on its operating point, without lost samples.
+    sample_period_s : float
+        The sample period in seconds (1.0 when the record has no time).
+    black_box : BlackBox
+        The pseudo-Wiener result (the comparison; the loop model starts from its own scan).
+
+    Returns
+    -------
+    LoopResult or None
+        None when the record is too short for the servo-loop model
+        (:data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES`), or when the black box fits the
+        record clearly better (the servo-loop model's free-run NRMSE more than
+        ``1 + MIN_STRUCTURE_MARGIN`` times the black box's): then the black box is the answer.
+        When the two fit about equally the servo-loop result is returned, so that its margin
+        between the two places of the play reaches the verdict (equal fits: undetermined).
+    """
+    from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+    from servoid.ident.offline.loop_fit import MIN_SAMPLES, fit_loop
+
+    if np.asarray(u).size < MIN_SAMPLES:
+        return None
+    choice = fit_loop(u, y, sample_period_s)
+    if choice.fit_nrmse > (1.0 + MIN_STRUCTURE_MARGIN) * black_box.fit_nrmse:
+        return None
+    return choice

@@ -1,0 +1,153 @@
+"""Issue 12 part A: operating point, order selection, the play's interval and the "not identifiable" verdict."""
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from servoid.cli import main
+from servoid.ident import PAPER_PLANT
+from servoid.ident.identify import identify
+from servoid.ident.models.simulate import simulate
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.offline.intervals import Evidence, reversals, verdict
+from servoid.ident.online.mrgia import MRGIAConfig
+from servoid.modelfile import load_model, save_model
+
+
+def _paper(n, seed, snr=43.0):
+    rng = np.random.default_rng(seed)
+    u = rng.uniform(-3.0, 3.0, n)
+    sim = simulate(PAPER_PLANT, u, snr=snr, rng=rng)
+    return sim.u, sim.y
+
+
+def test_raw_counts_and_centred_records_give_the_same_model():
+    u, y = _paper(1500, 4)
+    centred = identify(u, y, MRGIAConfig())
+    raw = identify(u + 2047.0, y + 2047.0, MRGIAConfig())
+    a, b = centred.refinement, raw.refinement
+    assert np.allclose(a.model.values(), b.model.values(), rtol=1e-6)
+    assert a.delta0 == pytest.approx(b.delta0, rel=1e-6, abs=1e-9)
+    assert b.model.dead_zone == pytest.approx(1.5, rel=0.02)
+    assert raw.operating_point.u == pytest.approx(2047.0 + np.mean(u))  # the model exists only about it
+
+
+def test_bic_chooses_the_paper_orders_and_names_the_runner_up():
+    u, y = _paper(1200, 5, snr=None)
+    result = identify(u, y, MRGIAConfig(na=1, nb=2, delay=3), select=("na", "nb", "delay"))
+    assert result.orders is not None and result.orders.chosen.orders == (2, 0, 1)
+    assert result.orders.runner_up is not None and result.orders.bic_difference > 0
+    assert result.model.max_relative_error(PAPER_PLANT) < 1e-6
+    assert result.identifiable, result.reason
+
+
+def test_each_rule_gives_its_reason():
+    good = Evidence(play=1.0, interval=(0.9, 1.1), reversals=40, fit_nrmse=0.05, floor=0.05)
+    assert verdict(good).identifiable and verdict(good).reason == ""
+    cases = {
+        "reversals": dataclasses.replace(good, reversals=3),
+        "structure undetermined": dataclasses.replace(good, margin=0.01),
+        "times the floor": dataclasses.replace(good, fit_nrmse=0.2),
+        "reaches zero": dataclasses.replace(good, interval=(-0.1, 2.0)),
+        "wider than": dataclasses.replace(good, interval=(0.3, 1.7)),
+        "sampled too slowly": dataclasses.replace(good, dead_time_samples=0.4),
+        "stall band": dataclasses.replace(good, stall_band=1.5),
+        "not white": dataclasses.replace(good, residual_white=False),
+        "worse than predicting the mean": dataclasses.replace(good, fit_nrmse=1.3, floor=float("nan")),
+    }
+    for words, evidence in cases.items():
+        v = verdict(evidence)
+        assert not v.identifiable and words in v.reason, (words, v.reason)
+    assert verdict(dataclasses.replace(good, margin=0.2)).identifiable
+
+
+def test_reversals_count_only_turns_larger_than_the_threshold():
+    t = np.linspace(0.0, 10.0, 2001)
+    wave = np.sin(2 * np.pi * t) + 0.05 * np.sin(2 * np.pi * 37 * t)
+    assert reversals(wave, 0.5) == 20  # 10 peaks and 10 troughs, each confirmed by the next half-wave
+    assert reversals(wave, 2.5) == 0
+
+
+def _static_csv(path):
+    rng = np.random.default_rng(0)
+    u = np.r_[np.zeros(600), 40.0 * np.ones(600), np.zeros(600)] + 2047.0  # encoder counts
+    lag = np.convolve(u - 2047.0, np.full(20, 1 / 20))[: u.size]  # a servo that follows in 20 samples
+    y = np.round(2047.0 + np.clip(lag, 3.0, 37.0) + rng.normal(0, 0.3, u.size))  # held: 3 counts of play
+    path.write_text("u,y\n" + "\n".join(f"{a:.6f},{b:.6f}" for a, b in zip(u, y)) + "\n")
+    return path
+
+
+def test_a_record_that_cannot_determine_the_play(tmp_path, capsys):
+    """Held steps: two reversals. Not identifiable, --strict exits 1, strict JSON, export refuses unless --force."""
+    data = _static_csv(tmp_path / "steps.csv")
+    argv = ["identify", "--data", str(data), "--na", "2", "--nb", "0", "--delay", "1", "--no-plots", "--json"]
+    assert main([*argv, "--out", str(tmp_path / "a")]) == 0
+    text = capsys.readouterr().out
+    obj = json.loads(text, parse_constant=lambda c: pytest.fail(f"{c} in --json"))
+    assert obj["identifiable"] is False and "reversals" in obj["reason"]
+    assert obj["structure"] == "output_backlash" and obj["form"] == "pseudo_wiener"
+    assert main([*argv, "--out", str(tmp_path / "b"), "--strict"]) == 1
+    capsys.readouterr()
+    model = tmp_path / "a" / "model.json"
+    assert load_model(model).identifiable is False
+    assert main(["export", str(model), "--format", "json"]) == 2
+    assert "not identifiable" in capsys.readouterr().err
+    assert main(["export", str(model), "--format", "json", "--force"]) == 0
+
+
+def test_the_seam_carries_a_loop_result(monkeypatch):
+    """What part B's fit returns is the answer, with the verdict applied to it (margin < 5 %: undetermined)."""
+    import importlib
+
+    pipeline = importlib.import_module("servoid.ident.identify")
+
+    @dataclasses.dataclass(frozen=True)
+    class FakeLoop:
+        structure: str = PLAY_IN_LOOP
+        play: float = 1.4
+        play_interval: tuple = (1.3, 1.5)
+        fit_nrmse: float = 0.01
+        validation_nrmse: dict = dataclasses.field(default_factory=lambda: {PLAY_IN_LOOP: 0.01})
+        margin: float = 0.02
+        params: dict = dataclasses.field(default_factory=dict)
+        simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+        reasons: tuple = ()
+        dead_time_samples: float | None = 3.0
+        stall_band: float = 0.1
+
+    seen = []
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or FakeLoop())
+    u, y = _paper(800, 6, snr=5.0)
+    y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
+    result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert seen == [0.01]
+    assert result.structure == PLAY_IN_LOOP and result.form == "servo_loop" and result.play == 1.4
+    assert not result.identifiable and "structure undetermined" in result.reason
+    assert result.to_dict()["second_structure"]["runner_up"] == "output_backlash"
+
+
+def test_old_model_files_read_as_output_backlash_not_judged(tmp_path):
+    from servoid.modelfile import ModelFile
+
+    path = save_model(tmp_path / "m.json", ModelFile(model=PAPER_PLANT))
+    data = json.loads(path.read_text())
+    data["version"] = 2
+    del data["structure"]
+    path.write_text(json.dumps(data))
+    old = load_model(path)
+    assert old.structure == "output_backlash" and old.identifiable is None and old.read_version == 2
+
+
+def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
+    """The output does not depend on the input: no base model, and no effect, beats the mean."""
+    from servoid.errors import ModelError
+    from servoid.ident.diagnosis.diagnose import DiagnoseConfig, diagnose
+
+    rng = np.random.default_rng(7)
+    u_t, u_v = rng.uniform(-2, 2, 600), rng.uniform(-2, 2, 600)
+    y_t, y_v = np.cumsum(rng.normal(0, 1, 600)), np.cumsum(rng.normal(0, 1, 600))  # unrelated random walks
+    config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
+    with pytest.raises(ModelError, match="worse than predicting its mean"):
+        diagnose(u_t, y_t, u_v, y_v, config)

@@ -1,0 +1,74 @@
+"""The servo-loop model (second structure): its kernel, its physics, its parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from servoid.errors import ConfigError
+from servoid.ident._jit import python_version
+from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+
+
+def _model(structure: str, **kw: float) -> ServoLoopModel:
+    values = {"kp": 20.0, "kv": 150.0, "ki": 300.0, "fc": 2.0, "fs": 3.0, "vs": 0.05, "veps": 0.005}
+    values.update({"a0": 0.5, "c1": 0.01, "c2": 0.012, "s0": 0.3})
+    values.update(kw)
+    return ServoLoopModel(structure=structure, sample_period_s=0.01, **values)
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_compiled_kernel_equals_python(structure: str) -> None:
+    model = _model(structure)
+    u = 0.1 * np.sin(np.arange(300) * 0.05)
+    fast = np.empty(u.size)
+    slow = np.empty(u.size)
+    args = (model.vector(), model.feedback_load, u, 0.0, 0.01, model.substeps)
+    simulate_kernel(*args, fast)
+    python_version(simulate_kernel)(*args, slow)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_simulation_does_not_depend_on_the_origin(structure: str) -> None:
+    model = _model(structure)
+    u = 0.1 * np.sin(np.arange(500) * 0.03)
+    shifted = model.simulate(u + 2047.0, y0=2047.0)
+    np.testing.assert_allclose(shifted - 2047.0, model.simulate(u, y0=0.0), atol=1e-9)
+
+
+def test_where_the_loop_reads_decides_where_the_load_settles() -> None:
+    # no friction, no force: after a step up the loop settles where its encoder reads the set point
+    u = np.full(400, 0.2)
+    outside = _model(OUTPUT_BACKLASH, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0)
+    inside = _model(PLAY_IN_LOOP, fc=0.0, fs=0.0, a0=0.0, ki=0.0).simulate(u, y0=0.0)
+    # motor side on the set point, the load one play side behind it
+    assert outside[-1] == pytest.approx(0.2 - 0.01, abs=1e-6)
+    # the loop closed on the load drives the load itself to the set point
+    assert inside[-1] == pytest.approx(0.2, abs=1e-6)
+
+
+def test_the_load_waits_in_the_play_at_a_reversal() -> None:
+    model = _model(PLAY_IN_LOOP, fc=0.0, fs=0.0, a0=0.0)
+    u = np.r_[np.linspace(0, 0.2, 200), np.linspace(0.2, 0.0, 200)]
+    y = model.simulate(u, y0=0.0)
+    # the horn stands still for a while after the set point reverses: the motor crosses the play
+    after = np.diff(y[200:260])
+    assert np.sum(np.abs(after) < 1e-12) >= 2
+
+
+def test_parameters_round_trip_and_are_checked() -> None:
+    model = _model(PLAY_IN_LOOP)
+    assert ServoLoopModel.from_dict(model.to_dict()) == model
+    assert ServoLoopModel.from_vector(PLAY_IN_LOOP, 0.01, model.vector()) == model
+    assert model.play == pytest.approx(0.022)
+    assert tuple(model.params()) == PARAM_NAMES
+    with pytest.raises(ConfigError, match="structure"):
+        _model("somewhere")
+    with pytest.raises(ConfigError, match="c1"):
+        _model(PLAY_IN_LOOP, c1=-0.1)
+    with pytest.raises(ConfigError, match="kv"):
+        _model(PLAY_IN_LOOP, kv=0.0)
+    with pytest.raises(ConfigError, match="unknown"):
+        ServoLoopModel.from_dict({**model.to_dict(), "mass": 1.0})
