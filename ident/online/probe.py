@@ -249,6 +249,7 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
     rises: list[float] = []
     delays: list[int] = []
     speeds: dict[float, list[float]] = {}
+    segments: list[tuple[float, np.ndarray, np.ndarray]] = []
     for i in range(1, len(plan.levels)):
         size = plan.levels[i] - plan.levels[i - 1]
         seg_y, seg_k = y[i * h : (i + 1) * h], keep[i * h : (i + 1) * h]
@@ -263,14 +264,18 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
         t10, t90 = np.flatnonzero(frac >= 0.1), np.flatnonzero(frac >= 0.9)
         if t10.size and t90.size and t90[0] > t10[0]:
             rises.append((t90[0] - t10[0]) * T)
-        v = np.abs(np.diff(seg_y))[seg_k[1:] & seg_k[:-1]] / T
-        if v.size:
-            speeds.setdefault(abs(size), []).append(float(np.max(v)))
+        segments.append((abs(size), seg_y, seg_k))
     if not rises:
         raise DataError("the servo's output did not follow the probe's steps beyond its noise: check the driver, "
                         "the limits and that the torque is on")  # fmt: skip
     rise = float(np.median(rises))
     rise = max(rise, T)  # a step done within one sample: the bandwidth is at least the rate's
+    # speed over a fifth of the rise time: a one-sample difference would measure the noise
+    m = max(1, int(round(0.2 * rise / T)))
+    for size, seg_y, seg_k in segments:
+        both = seg_k[m:] & seg_k[:-m]
+        if both.any():
+            speeds.setdefault(size, []).append(float(np.max(np.abs(seg_y[m:] - seg_y[:-m])[both])) / (m * T))
     bandwidth = 0.35 / rise
     v_of = {size: float(np.median(v)) for size, v in speeds.items()}
     ratio = v_of.get(2.0, math.nan) / v_of.get(1.0, math.nan)
