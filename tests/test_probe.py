@@ -17,6 +17,7 @@ from servoid.ident.online.decimate import DecimatingEstimator, decimate_record, 
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, convergence_margin, run_mrgia
 from servoid.ident.online.probe_design import design_live
 from servoid.ident.online.verdict import judge_online
+from servoid.modelfile import ModelFile, save_model
 from servoid.session import SessionConfig
 from servoid.session.probe import run_probe
 
@@ -40,13 +41,24 @@ def test_probe_of_the_exact_plant_finds_its_play_and_a_safe_rate() -> None:
     assert design.hold % design.factor == 0 and design.hold >= 3 * design.factor
 
 
-def test_the_design_never_saturates_a_drive_the_probe_saw_saturate() -> None:
+def test_the_design_never_saturates_a_drive_the_probe_saw_saturate(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     probe = _probe("sim://odrive?clock=virtual")
     assert probe.saturated  # the ODrive twin's current limit caps its speed on the largest steps
     design = design_live(probe, RATE)
     assert design.amplitude <= probe.amplitude / 2
     # the designed levels step by up to 2 A: a probe of amplitude A makes exactly those steps
     assert not _probe("sim://odrive?clock=virtual", design.amplitude).saturated
+    # servoid excite --design told about the same servo (its probe in model.json) stays below it too
+    model = BacklashModel(a=(-0.8,), b=(0.2,), delay=1, m2=1.0, c1=0.02, c2=0.02)
+    path = save_model(tmp_path / "model.json", ModelFile(model=model, extra={"probe": probe.to_dict()}))
+    argv = ["excite", "--design", "--range", "-1", "1", "--model", str(path), "--json", "--no-plot",
+            "--out", str(tmp_path / "e.csv")]  # fmt: skip
+    assert main(argv) == 0
+    free = json.loads(capsys.readouterr().out)["design"]["spec"]
+    assert main([*argv, "--probe", str(path), "--force"]) == 0
+    capped = json.loads(capsys.readouterr().out)["design"]["spec"]
+    amp = float(capped.split("amplitude=")[1].split(",")[0])
+    assert amp <= probe.amplitude / 2 < float(free.split("amplitude=")[1].split(",")[0])
 
 
 def test_verdict_settles_the_converged_run_and_not_the_stuck_one() -> None:

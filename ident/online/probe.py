@@ -172,6 +172,40 @@ class ProbeResult:
                 "model_source": self.model_source, "rate_hz": self.rate_hz, "samples": self.samples,
                 "lost": self.lost}  # fmt: skip
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ProbeResult:
+        """Read back :meth:`to_dict` (the ``probe`` section of a ``model.json``; null numbers as NaN).
+
+        Parameters
+        ----------
+        data : dict
+            The section.
+
+        Raises
+        ------
+        DataError
+            A missing or malformed field, named.
+        """
+        try:
+            lo, hi = data["range_seen"]
+
+            def num(key: str) -> float:
+                v = data[key]
+                return math.nan if v is None else float(v)
+
+            return cls(
+                bandwidth_hz=num("bandwidth_hz"), rise_s=num("rise_s"), delay_samples=int(data["delay_samples"]),
+                noise_std=num("noise_std"), quantum=num("quantum"), speed_ratio=num("speed_ratio"),
+                saturated=bool(data["saturated"]), saturated_half=bool(data["saturated_half"]),
+                peak_speed=num("peak_speed"), play=num("hysteresis_at_rest"),
+                y_min=math.nan if lo is None else float(lo), y_max=math.nan if hi is None else float(hi),
+                amplitude=num("amplitude"), a=tuple(float(v) for v in data["a"]), model_source=str(data["model_source"]),
+                rate_hz=num("rate_hz"), samples=int(data["samples"]), lost=int(data["lost"]),
+            )  # fmt: skip
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"the probe section is malformed ({type(exc).__name__}: {exc}): expected what "
+                            "servoid identify --driver writes") from None  # fmt: skip
+
     def rows(self, unit: str = "") -> list[list[str]]:
         """The probe's short table: quantity, value."""
         u = f" {unit}" if unit else ""
