@@ -89,7 +89,7 @@ def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 9, f"{wall:.0f}", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 8, f"{wall:.0f}", outcome(error)]
     online_gap = sum(result["mrgia"]["values"][c] for c in ("c1", "c2")) / scale
     refined_gap = (result["model"]["c1"] + result["model"]["c2"]) / scale
     verdict = result["online"]
