@@ -263,7 +263,8 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
     keep = np.isfinite(y) if valid is None else np.asarray(valid, dtype=np.bool_) & np.isfinite(y)
     if keep.sum() < 0.5 * keep.size:
         raise DataError(
-            f"the probe lost {int(keep.size - keep.sum())} of {keep.size} samples: it cannot judge the servo"
+            f"the probe lost {int(keep.size - keep.sum())} of {keep.size} samples: it cannot judge the servo "
+            "(a slower --rate may keep up; --no-probe with --decimate and --amplitude runs without it)"
         )
     h, T = plan.hold, 1.0 / plan.rate_hz
     ends = []  # settled level at the end of each hold, and its noise
