@@ -149,6 +149,10 @@ class ServoLimits:
     settle_s : float, optional
         Time the servo needs to follow a step, seconds: each level is held at
         least this long.
+    max_amplitude : float
+        Largest amplitude around the centre the servo follows without
+        saturating (a probe's finding,
+        :func:`servoid.ident.online.probe_design.amplitude_cap`); ``inf``: the range's.
     """
 
     position_min: float
@@ -156,6 +160,7 @@ class ServoLimits:
     max_step: float = math.inf
     sample_period_s: float | None = None
     settle_s: float | None = None
+    max_amplitude: float = math.inf
 
     def __post_init__(self) -> None:
         lo = validation.real("position_min", self.position_min)
@@ -166,6 +171,8 @@ class ServoLimits:
             validation.positive("max_step", self.max_step)
         if self.sample_period_s is not None:
             validation.positive("sample_period_s", self.sample_period_s)
+        if not (isinstance(self.max_amplitude, float) and self.max_amplitude == math.inf):
+            validation.positive("max_amplitude", self.max_amplitude)
         if self.settle_s is not None:
             validation.non_negative("settle_s", self.settle_s)
             if self.sample_period_s is None:
@@ -310,11 +317,12 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
     model = prior.as_model()
     gain = abs(model.dc_gain)
     play = model.dead_zone
-    half = limits.half_range
+    half = min(limits.half_range, limits.max_amplitude)
     reach = play / (2.0 * gain)
     if reach >= half:
         raise ConfigError(
-            f"the position range [{limits.position_min:g}, {limits.position_max:g}] allows an amplitude of "
+            f"the position range [{limits.position_min:g}, {limits.position_max:g}]"
+            f"{' allows' if half == limits.half_range else ' and the saturation the probe found allow'} an amplitude of "
             f"{half:.4g}, but the play c1 + c2 = {play:.4g} needs more than {reach:.4g} (play / (2 |gain|), "
             f"gain {gain:.4g}) before the output moves at all: widen the range or check the prior"
         )
@@ -352,7 +360,11 @@ def design(prior: Prior, limits: ServoLimits, *, seed: int = 0, samples: int | N
         reasons.append(
             f"amplitude {chosen:.4g}: the smallest that passes the report on the prior ({found:.4g}, Remark 2: "
             f"as small as will do) x {MARGIN}, a margin for an uncertain prior"
-            + (", capped by the range" if chosen == half else "")
+            + (
+                (", capped by the range" if half == limits.half_range else ", capped where the drive saturates")
+                if chosen == half
+                else ""
+            )
         )
     spec = _spec_for(chosen, limits)
     reasons.append(

@@ -172,6 +172,40 @@ class ProbeResult:
                 "model_source": self.model_source, "rate_hz": self.rate_hz, "samples": self.samples,
                 "lost": self.lost}  # fmt: skip
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> ProbeResult:
+        """Read back :meth:`to_dict` (the ``probe`` section of a ``model.json``; null numbers as NaN).
+
+        Parameters
+        ----------
+        data : dict
+            The section.
+
+        Raises
+        ------
+        DataError
+            A missing or malformed field, named.
+        """
+        try:
+            lo, hi = data["range_seen"]
+
+            def num(key: str) -> float:
+                v = data[key]
+                return math.nan if v is None else float(v)
+
+            return cls(
+                bandwidth_hz=num("bandwidth_hz"), rise_s=num("rise_s"), delay_samples=int(data["delay_samples"]),
+                noise_std=num("noise_std"), quantum=num("quantum"), speed_ratio=num("speed_ratio"),
+                saturated=bool(data["saturated"]), saturated_half=bool(data["saturated_half"]),
+                peak_speed=num("peak_speed"), play=num("hysteresis_at_rest"),
+                y_min=math.nan if lo is None else float(lo), y_max=math.nan if hi is None else float(hi),
+                amplitude=num("amplitude"), a=tuple(float(v) for v in data["a"]), model_source=str(data["model_source"]),
+                rate_hz=num("rate_hz"), samples=int(data["samples"]), lost=int(data["lost"]),
+            )  # fmt: skip
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"the probe section is malformed ({type(exc).__name__}: {exc}): expected what "
+                            "servoid identify --driver writes") from None  # fmt: skip
+
     def rows(self, unit: str = "") -> list[list[str]]:
         """The probe's short table: quantity, value."""
         u = f" {unit}" if unit else ""
@@ -229,7 +263,8 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
     keep = np.isfinite(y) if valid is None else np.asarray(valid, dtype=np.bool_) & np.isfinite(y)
     if keep.sum() < 0.5 * keep.size:
         raise DataError(
-            f"the probe lost {int(keep.size - keep.sum())} of {keep.size} samples: it cannot judge the servo"
+            f"the probe lost {int(keep.size - keep.sum())} of {keep.size} samples: it cannot judge the servo "
+            "(a slower --rate may keep up; --no-probe with --decimate and --amplitude runs without it)"
         )
     h, T = plan.hold, 1.0 / plan.rate_hz
     ends = []  # settled level at the end of each hold, and its noise
@@ -249,6 +284,7 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
     rises: list[float] = []
     delays: list[int] = []
     speeds: dict[float, list[float]] = {}
+    segments: list[tuple[float, np.ndarray, np.ndarray]] = []
     for i in range(1, len(plan.levels)):
         size = plan.levels[i] - plan.levels[i - 1]
         seg_y, seg_k = y[i * h : (i + 1) * h], keep[i * h : (i + 1) * h]
@@ -263,14 +299,18 @@ def analyse_probe(u: np.ndarray, y: np.ndarray, valid: np.ndarray | None, plan: 
         t10, t90 = np.flatnonzero(frac >= 0.1), np.flatnonzero(frac >= 0.9)
         if t10.size and t90.size and t90[0] > t10[0]:
             rises.append((t90[0] - t10[0]) * T)
-        v = np.abs(np.diff(seg_y))[seg_k[1:] & seg_k[:-1]] / T
-        if v.size:
-            speeds.setdefault(abs(size), []).append(float(np.max(v)))
+        segments.append((abs(size), seg_y, seg_k))
     if not rises:
         raise DataError("the servo's output did not follow the probe's steps beyond its noise: check the driver, "
                         "the limits and that the torque is on")  # fmt: skip
     rise = float(np.median(rises))
     rise = max(rise, T)  # a step done within one sample: the bandwidth is at least the rate's
+    # speed over a fifth of the rise time: a one-sample difference would measure the noise
+    m = max(1, int(round(0.2 * rise / T)))
+    for size, seg_y, seg_k in segments:
+        both = seg_k[m:] & seg_k[:-m]
+        if both.any():
+            speeds.setdefault(size, []).append(float(np.max(np.abs(seg_y[m:] - seg_y[:-m])[both])) / (m * T))
     bandwidth = 0.35 / rise
     v_of = {size: float(np.median(v)) for size, v in speeds.items()}
     ratio = v_of.get(2.0, math.nan) / v_of.get(1.0, math.nan)

@@ -35,7 +35,7 @@ from servoid.ident.online.decimate import decimation_factor, slow_denominator
 from servoid.ident.online.mrgia import convergence_margin
 from servoid.ident.online.probe import ProbeResult
 
-__all__ = ["LiveDesign", "design_live", "PLAY_MULTIPLE", "MIN_GROUPS"]
+__all__ = ["LiveDesign", "design_live", "amplitude_cap", "PLAY_MULTIPLE", "MIN_GROUPS"]
 
 #: The amplitude aims at this many times the probe's rough play.
 PLAY_MULTIPLE = 5.0
@@ -87,6 +87,25 @@ class LiveDesign:
         ]
 
 
+def amplitude_cap(probe: ProbeResult) -> tuple[float, str]:
+    """The largest amplitude of uniform levels the probe showed the drive follows linearly, and why.
+
+    Levels in ``+/-A`` step by up to ``2 A``; the probe stepped by ``2 A_probe``,
+    ``A_probe`` and ``A_probe / 2``. ``servoid excite --design --probe`` caps its
+    proposal with the same number.
+
+    Parameters
+    ----------
+    probe : ProbeResult
+        What the probe found.
+    """
+    if probe.saturated_half:
+        return probe.amplitude / 4, "the drive saturated on the probe's steps of one amplitude"
+    if probe.saturated:
+        return probe.amplitude / 2, "the drive saturated on the probe's largest steps"
+    return probe.amplitude, "the probe's amplitude, which the drive followed linearly"
+
+
 def design_live(
     probe: ProbeResult,
     rate_hz: float,
@@ -135,12 +154,7 @@ def design_live(
     if amplitude is None:
         floor = max(probe.noise_std, probe.quantum)
         wanted = max(PLAY_MULTIPLE * probe.play, NOISE_MULTIPLE * floor if math.isfinite(floor) else 0.0)
-        if probe.saturated_half:
-            top, why = probe.amplitude / 4, "the drive saturated on the probe's steps of one amplitude"
-        elif probe.saturated:
-            top, why = probe.amplitude / 2, "the drive saturated on the probe's largest steps"
-        else:
-            top, why = probe.amplitude, "the probe's amplitude, which the drive followed linearly"
+        top, why = amplitude_cap(probe)
         amp = min(max(wanted, 0.5 * top), top) if math.isfinite(wanted) else top
         reasons["amplitude"] = (f"{PLAY_MULTIPLE:g}x the rough play and {NOISE_MULTIPLE:g}x the noise, at least half of and "
                                 f"at most {top:.3g} ({why})")  # fmt: skip

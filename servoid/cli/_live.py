@@ -44,6 +44,10 @@ __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "exc
 #: Samples of a simulated or live run when --samples is not given.
 DEFAULT_SAMPLES = 5000
 
+#: Servo seconds of a live run designed from the probe when --samples is not given: the
+#: decimated estimator sees rate / k samples a second, and 60 s is issue 15's budget.
+DEFAULT_LIVE_S = 60.0
+
 #: Largest share of a live run's samples that may be unusable (lost, late, guarded) before
 #: identify refuses to report a model (--max-lost; --allow-lost overrides): beyond it the
 #: usable samples come in short runs between gaps, and the Dynamixel under load that lost
@@ -95,7 +99,8 @@ def excitation(
     checking them against the driver's ``limits``; a spec (``--excitation
     SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
     amplitude``, its levels held ``hold`` samples when given (the design from
-    the probe). ``--samples`` long (a file: all of it by default).
+    the probe). ``--samples`` long (a file: all of it by default; a design:
+    :data:`DEFAULT_LIVE_S` of servo time).
     """
     from servoid.excitation import StepsSpec, UniformSpec, parse_spec, sample
     from servoid.readers.excitation_file import is_file_spec, read_excitation
@@ -111,7 +116,8 @@ def excitation(
         spec = parse_spec(args.excitation)
     else:
         spec = UniformSpec(amplitude=amplitude) if hold is None else StepsSpec(amplitude=amplitude, hold=hold)
-    return limits.centre + sample(spec, args.samples or DEFAULT_SAMPLES, seed=args.seed)
+    default = DEFAULT_SAMPLES if hold is None else int(round(DEFAULT_LIVE_S * args.rate))
+    return limits.centre + sample(spec, args.samples or default, seed=args.seed)
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:

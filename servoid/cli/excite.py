@@ -117,6 +117,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         metavar="A",
         help="deceleration the load's own friction gives it, unit of y per s^2 (gentle sines stay below it)",
     )
+    des.add_argument("--probe", type=Path, metavar="MODEL.json",
+                     help="a model.json of servoid identify --driver: its probe caps the amplitude below where the drive "
+                          "saturated and sets the hold (and --sample-period) as the live design does")  # fmt: skip
     out = p.add_argument_group("output")
     out.add_argument("--out", type=Path, default=Path("excitation.csv"), metavar="FILE.csv",
                      help="where to write the signal (default ./excitation.csv)")  # fmt: skip
@@ -176,6 +179,29 @@ def _model(args: argparse.Namespace) -> tuple[BacklashModel | None, str]:
     return PAPER_PLANT, DEFAULT_PRIOR_NOTE
 
 
+def _probe_limits(args: argparse.Namespace) -> dict[str, float]:
+    """What ``--probe`` adds to the servo's limits: the amplitude cap, the hold as a settling time, the period.
+
+    The same rules as the live design (:func:`servoid.ident.online.probe_design.design_live`).
+    """
+    if args.probe is None:
+        return {}
+    from servoid.ident.online.probe import ProbeResult
+    from servoid.ident.online.probe_design import amplitude_cap, design_live
+    from servoid.modelfile import load_model
+
+    section = load_model(args.probe).extra.get("probe")
+    if not isinstance(section, dict):
+        raise ConfigError(f"--probe {args.probe} has no probe section: give a model.json of servoid identify --driver "
+                          "run without --no-probe")  # fmt: skip
+    probe = ProbeResult.from_dict(section)
+    if args.settle is not None:
+        raise ConfigError("give --settle or --probe (which sets the hold from the loop's bandwidth), not both")
+    period = args.sample_period if args.sample_period is not None else 1.0 / probe.rate_hz
+    hold = design_live(probe, 1.0 / period).hold
+    return {"max_amplitude": amplitude_cap(probe)[0], "sample_period_s": period, "settle_s": hold * period}
+
+
 def _design(args: argparse.Namespace) -> tuple[Design, str]:
     from servoid.excitation.design import Prior, ServoLimits, design
 
@@ -187,8 +213,8 @@ def _design(args: argparse.Namespace) -> tuple[Design, str]:
         raise ConfigError("--design needs --range LO HI: the command range of the servo, unit of u")
     lo, hi = args.range
     servo = ServoLimits(
-        position_min=lo, position_max=hi, max_step=args.max_step, sample_period_s=args.sample_period,
-        settle_s=args.settle,
+        **{"position_min": lo, "position_max": hi, "max_step": args.max_step, "sample_period_s": args.sample_period,
+           "settle_s": args.settle, **_probe_limits(args)},
     )  # fmt: skip
     rough = args.dead_zone is not None or args.gain is not None
     if rough and (args.model is not None or args.prior is not None):

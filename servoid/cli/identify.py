@@ -80,7 +80,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     src.add_argument("--data", metavar="FILE", type=Path,
                      help="identify from this recording (CSV, .mat, ROS bag, BAM .json) instead of the simulated servo")  # fmt: skip
     src.add_argument("--samples", type=int, metavar="N",
-                     help=f"samples of the simulated or live run (default {_live.DEFAULT_SAMPLES}, or a replayed file's length)")  # fmt: skip
+                     help=f"samples of the simulated or live run (default {_live.DEFAULT_SAMPLES}; a live run designed from "
+                          f"its probe: {_live.DEFAULT_LIVE_S:g} s; a replayed file: its length)")  # fmt: skip
     src.add_argument(
         "--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)"
     )
