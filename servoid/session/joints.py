@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from servoid.bus_facts import DEFAULT_MODE, MODES
 from servoid.drivers.base import Measurement
 from servoid.drivers.clock import NS_PER_S
 from servoid.errors import ConfigError
@@ -44,10 +45,8 @@ from servoid.session.samples import MISSED, TIMEOUT, Sample
 __all__ = ["JointsSample", "BusSampler", "JointFeed", "joint_columns", "joint_result", "bus_excitation",
            "EXCITATION_MODES", "DEFAULT_EXCITATION_MODE"]  # fmt: skip
 
-#: How the joints of a bus are excited (:func:`bus_excitation`).
-EXCITATION_MODES = ("sequential", "together")
-#: The default: one joint after the other (docs/feetech.md says why).
-DEFAULT_EXCITATION_MODE = "sequential"
+#: How the joints of a bus are excited (:func:`bus_excitation`), and the default (docs/feetech.md says why).
+EXCITATION_MODES, DEFAULT_EXCITATION_MODE = MODES, DEFAULT_MODE
 
 
 def joint_columns(ids: Sequence[int]) -> tuple[str, ...]:
