@@ -218,6 +218,8 @@ class SdkTransactions:
     vendor = ""
 
     describe: Callable[[], str]  # Driver's
+    _check: Callable[..., None]  # the vendor's: status code and error byte -> exception
+    goal_entry: Callable[[], tuple[int, int]]  # the vendor's: (address, size) of the per-sample goal
     servo_id: int
     _ph: Any
     #: The SDK's GroupSyncWrite and GroupSyncRead classes (the vendor driver sets them).
