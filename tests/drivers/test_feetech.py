@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+import textwrap
 
 import numpy as np
 import pytest
@@ -174,3 +177,16 @@ def test_sequential_excitation_moves_one_joint_at_a_time():
     with pytest.raises(ConfigError, match="mode"):
         bus_excitation(lambda i, n: np.zeros(n), 2, 3, mode="random")
     assert math.isfinite(float(u.sum()))
+
+
+def test_without_the_sdk_the_driver_names_its_extra_and_the_emulator_still_runs():
+    code = textwrap.dedent("""
+        import sys
+        sys.modules["scservo_sdk"] = None  # as if feetech-servo-sdk were not installed
+        from servoid.drivers.feetech.emulator import FeetechEmulator
+        FeetechEmulator([1]).close()  # written from the protocol: no SDK needed
+        from servoid.drivers import driver_from_url
+        driver_from_url("feetech:///dev/ttyUSB0?id=1")
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "MissingDependency" in out.stderr and "pip install 'servoid[feetech]'" in out.stderr
