@@ -23,6 +23,12 @@ refined fit); its play ``c1 + c2`` against the twin's true play (its
 no coupling here: the table measures what the bus timing does, not what an
 arm's mechanics would (docs/feetech.md).
 
+Table 3: the same, with the emulators taking each goal as one sample (one
+period of the twin at 200 Hz, whatever the host's timing) and the session
+using late samples without a guard window: what identification gives when
+the host's scheduling is taken out (a missed slot still costs: the plant
+does not step while the record holds the command).
+
 The machine's load is printed before and after: on a shared 2-core machine
 the late and missed shares are the scheduler's as much as the bus's.
 """
@@ -69,11 +75,17 @@ def _excitation(joints: int, samples: int, mode: str, amplitude: float, seed: in
     return bus_excitation(make, joints, samples, mode=mode)
 
 
-def _session(url: str, u: np.ndarray, rate: float) -> tuple[Any, str]:
-    """The session's result (the partial one when it stopped on a fault) and the fault, if any."""
+def _session(url: str, u: np.ndarray, rate: float, *, clocked: bool = True) -> tuple[Any, str]:
+    """The session's result (the partial one when it stopped on a fault) and the fault, if any.
+
+    ``clocked=False``: the emulator takes each goal as one sample, so late samples show the
+    plant as it is and may be used, without a guard window.
+    """
+    config = SessionConfig(period_s=1.0 / rate) if clocked else SessionConfig(period_s=1.0 / rate, use_late=True,
+                                                                              guard_samples=0)  # fmt: skip
     try:
         with driver_from_url(url) as driver:
-            return run_session(driver, u if u.shape[1] > 1 else u[:, 0], SessionConfig(period_s=1.0 / rate)), ""
+            return run_session(driver, u if u.shape[1] > 1 else u[:, 0], config), ""
     except ServoidError as exc:  # a stalled host (a Dynamixel's Bus Watchdog), a silent servo: a row says so
         return getattr(exc, "partial", None), f"stopped: {type(exc).__name__}"
 
@@ -103,7 +115,7 @@ def rate_table(seconds: float, rates: list[float]) -> None:
            "x floor", "note"], rows)  # fmt: skip
 
 
-def identification_table(samples: int, rate: float, joints: int) -> None:
+def identification_table(samples: int, rate: float, joints: int, *, clocked: bool = True) -> None:
     rows = []
     config = MRGIAConfig(na=2, nb=0, delay=1)
     for vendor, (process, options, servo) in VENDORS.items():
@@ -111,10 +123,10 @@ def identification_table(samples: int, rate: float, joints: int) -> None:
         amplitude = 0.2
         for mode in ("sequential", "together"):
             ids = list(range(1, joints + 1))
-            with process(ids, servo=servo, period_s=1.0 / rate, **options) as emu:
+            with process(ids, servo=servo, period_s=1.0 / rate if clocked else None, **options) as emu:
                 u, blocks = _excitation(joints, samples, mode, amplitude, 7)
                 started = time.perf_counter()
-                result, fault = _session(_url(emu, ids), u, rate)
+                result, fault = _session(_url(emu, ids), u, rate, clocked=clocked)
                 took = time.perf_counter() - started
             if result is None or len(result) < len(u):
                 rows.append([vendor, mode, f"{took:.0f}", "all", "", "", "", "", "", fault or "no samples"])
@@ -134,7 +146,10 @@ def identification_table(samples: int, rate: float, joints: int) -> None:
                 play = found.model.dead_zone
                 rows.append([*row, f"{play:.4g}", f"{truth:.4g}", f"{100 * (play - truth) / truth:+.0f}",
                              f"{found.fit_nrmse:.3g}"])  # fmt: skip
-    table(f"Table 2: the play identified per joint, {joints} twins on one bus at {rate:g} Hz (true play: the twin's)",
+    title = (f"Table 2: the play identified per joint, {joints} twins on one bus at {rate:g} Hz (true play: the twin's)"
+             if clocked else f"Table 3: as table 2, each goal one sample of the twins (their timing the host's "
+             f"no more), late samples used, no guard; {rate:g} Hz asked")  # fmt: skip
+    table(title,
           ["bus", "excitation", "session s", "joint", "not on time %", "usable", "play rad", "true rad", "error %",
            "fit NRMSE"],
           rows)  # fmt: skip
@@ -151,6 +166,7 @@ def main() -> None:
     print(f"load average before: {' '.join(f'{v:.2f}' for v in os.getloadavg())} ({os.cpu_count()} cores)")
     rate_table(args.seconds, args.rates)
     identification_table(args.samples, args.rate, args.joints)
+    identification_table(args.samples, 200.0, args.joints, clocked=False)
     print(f"\nload average after: {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
 
 
