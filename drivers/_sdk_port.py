@@ -218,6 +218,8 @@ class SdkTransactions:
     vendor = ""
 
     describe: Callable[[], str]  # Driver's
+    _check: Callable[..., None]  # the vendor's: status code and error byte -> exception
+    goal_entry: Callable[[], tuple[int, int]]  # the vendor's: (address, size) of the per-sample goal
     servo_id: int
     _ph: Any
     #: The SDK's GroupSyncWrite and GroupSyncRead classes (the vendor driver sets them).
@@ -276,6 +278,7 @@ class SdkTransactions:
                 reader.addParam(j.servo_id)
             self._group = (ids, writer, reader)
         _, writer, reader = self._group
+        self.drop_stale()
         for j, value in zip(joints, values):
             writer.changeParam(j.servo_id, j.encode_goal(value))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goals")
@@ -321,6 +324,19 @@ class SdkTransactions:
             if self._port is not None:
                 self._port.is_using = False
             raise
+
+    def drop_stale(self) -> None:
+        """Drop answers that came after their request timed out, before a new request (counted in ``stats.stale``).
+
+        The SDKs never clear their input (their ``clearPort`` flushes the
+        output): a late answer left there passes for the answer to the next
+        request of the same length -- a SYNC_READ's answers would then always
+        be one sample old, and every goal read back unconfirmed.
+        """
+        ser = self._open_port().ser
+        if ser.in_waiting:
+            ser.reset_input_buffer()
+            self.stats.stale += 1  # type: ignore[attr-defined]
 
     def _open_port(self) -> Any:
         if self._port is None:

@@ -109,6 +109,7 @@ def driver_class(scheme: str) -> type[Driver]:
     module_name, _, class_name = target.partition(":")
     try:
         module = importlib.import_module(module_name)
+        cls = getattr(module, class_name)  # a lazy package imports the driver (and its library) here
     except ModuleNotFoundError as exc:
         missing = (exc.name or "").split(".")[0]
         if missing in _PACKAGES:
@@ -117,7 +118,7 @@ def driver_class(scheme: str) -> type[Driver]:
                 f"the {scheme}:// driver needs the package {package!r}: pip install 'servoid[{extra}]'"
             ) from exc
         raise
-    return getattr(module, class_name)  # type: ignore[no-any-return]
+    return cls  # type: ignore[no-any-return]
 
 
 def extra_for(module: str) -> str | None:

@@ -20,7 +20,7 @@ from servoid.cli import command_names
 
 #: What --help must not import: each costs from 0.1 s (rich, NumPy) to a second (numba, SciPy, matplotlib).
 HEAVY = ("numpy", "scipy", "numba", "llvmlite", "matplotlib", "rich", "serial", "can", "canopen", "dynamixel_sdk",
-         "msgpack", "rosbags", "h5py", "pandas", "yaml")  # fmt: skip
+         "scservo_sdk", "msgpack", "rosbags", "h5py", "pandas", "yaml")  # fmt: skip
 
 
 def _loaded_by(argv: list[str]) -> tuple[int, list[str]]:
@@ -39,7 +39,8 @@ def _loaded_by(argv: list[str]) -> tuple[int, list[str]]:
     return status, heavy
 
 
-@pytest.mark.parametrize("argv", [["--help"], *([name, "--help"] for name in command_names())], ids=" ".join)
+@pytest.mark.parametrize("argv", [["--help"], *([name, "--help"] for name in command_names()),
+                                  ["emulate", "feetech", "--help"]], ids=" ".join)  # fmt: skip
 def test_help_loads_no_heavy_library(argv):
     status, heavy = _loaded_by(argv)
     assert status == 0 and heavy == []

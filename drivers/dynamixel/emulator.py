@@ -305,7 +305,7 @@ class DynamixelEmulator(PtyBusEmulator[EmulatedServo]):
             clock=own_clock, period_s=period_s))  # fmt: skip
         super().__init__(servos, PacketReader(), clock=own_clock, flip=flip, flip_rx=flip_rx, flip_tx=flip_tx,
                          seed=seed, trace=trace)  # fmt: skip
-        self.bus: DynamixelBus = DynamixelBus(servos)  # type: ignore[assignment]
+        self.bus: DynamixelBus = DynamixelBus(servos)
         for emulated in servos:
             emulated.on_event = on_event
 

@@ -6,8 +6,14 @@ servos on a pseudo-terminal (``servoid emulate feetech --ids 1,2,3``).
 Modules: ``control_table`` (addresses, sign-magnitude encodings, units),
 ``protocol`` (the packet codec), ``emulated_servo`` (one servo's behaviour and
 its twin), ``emulator`` (the bus on a pty), ``driver``.
+
+The driver needs the SDK (``pip install 'servoid[feetech]'``); the codec and
+the emulator do not (they are written from the protocol): importing this
+package imports the driver, and so the SDK, on first use of ``FeetechDriver``.
 """
 
-from servoid.drivers.feetech.driver import FeetechDriver
+from servoid import lazy
 
 __all__ = ["FeetechDriver"]
+
+lazy.install(__name__, {"FeetechDriver": "servoid.drivers.feetech.driver"})

@@ -278,6 +278,7 @@ class FeetechDriver(SdkTransactions, Driver):
         if not self.torque_enabled:
             raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
         value = int(round(command))
+        self.drop_stale()
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(ct.GOAL_POSITION, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")

@@ -215,7 +215,7 @@ class FeetechEmulator(PtyBusEmulator[EmulatedServo]):
             i, servo=spec, return_delay_us=return_delay_us, clock=own_clock, period_s=period_s))  # fmt: skip
         super().__init__(servos, PacketReader(), clock=own_clock, flip=flip, flip_rx=flip_rx, flip_tx=flip_tx,
                          seed=seed, trace=trace)  # fmt: skip
-        self.bus: FeetechBus = FeetechBus(servos)  # type: ignore[assignment]
+        self.bus: FeetechBus = FeetechBus(servos)
         self.restart_after = restart_after
         for emulated in servos:
             emulated.on_event = on_event

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from servoid import limits
-from servoid.cli import _data, _live, _model, _term
+from servoid.cli import _data, _live, _live_bus, _model, _term
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_INPUT_VARIANCE
 from servoid.output_paths import output_dir
@@ -96,6 +96,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="unit of y (rad, counts, mm, ...); default from the recording's '# unit:' line")  # fmt: skip
     _data.add_options(p)
     _live.add_options(p)
+    _live_bus.add_options(p)
     mdl = p.add_argument_group("model")
     _model.add_structure_options(mdl, selectable=True)
     est = p.add_argument_group("estimator")
@@ -231,6 +232,10 @@ def run(args: argparse.Namespace) -> int:
     from servoid.identify_outputs import OUTPUT_FILES, result_json, summary_rows, twin_truth, write_outputs
 
     output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
+    if _live_bus.names_several(args.driver):  # several servos of one bus: a model per joint
+        _check_sizes(args)
+        _refuse_reading_options(args)
+        return _live_bus.run(args, lambda epsilon: _config(args, epsilon))
     record, config = get_record(args)
     started = time.perf_counter()
     with _term.progress(

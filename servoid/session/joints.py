@@ -27,91 +27,21 @@ docs/feetech.md for the measurement and why ``sequential`` is the default.
 from __future__ import annotations
 
 import dataclasses
-import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Callable
 
 import numpy as np
 
-from servoid.drivers.base import Measurement
-from servoid.drivers.clock import NS_PER_S
+from servoid.bus_facts import DEFAULT_MODE, MODES
 from servoid.errors import ConfigError
 from servoid.session.listeners import SampleListener
-from servoid.session.sampler import SessionResult, _Sampler
-from servoid.session.samples import MISSED, TIMEOUT, Sample
+from servoid.session.sampler import BusSampler, SessionResult
+from servoid.session.samples import JointsSample, joint_columns
 
 __all__ = ["JointsSample", "BusSampler", "JointFeed", "joint_columns", "joint_result", "bus_excitation",
            "EXCITATION_MODES", "DEFAULT_EXCITATION_MODE"]  # fmt: skip
 
-#: How the joints of a bus are excited (:func:`bus_excitation`).
-EXCITATION_MODES = ("sequential", "together")
-#: The default: one joint after the other (docs/feetech.md says why).
-DEFAULT_EXCITATION_MODE = "sequential"
-
-
-def joint_columns(ids: Sequence[int]) -> tuple[str, ...]:
-    """A multi-joint recording's columns: the slot's, then ``reference_<id>, u_<id>, y_<id>, clamped_<id>`` per joint.
-
-    Parameters
-    ----------
-    ids : sequence of int
-        The servo IDs, in the order of the joints.
-    """
-    per_joint = tuple(f"{name}_{i}" for i in ids for name in ("reference", "u", "y", "clamped"))
-    return ("k", "t", "t_actual", "status", "device_time", "exchange_s", *per_joint)
-
-
-@dataclass(frozen=True, slots=True)
-class JointsSample:
-    """One slot of a multi-joint session: the slot's times and status, one value per joint for the rest.
-
-    Attributes
-    ----------
-    k : int
-        Slot index.
-    t_scheduled, t_actual : float
-        Scheduled and actual start of the group exchange, s from slot 0.
-    reference, u, y : tuple of float
-        Per joint: the excitation, the command the servo had, the measured position (NaN: none).
-    status : str
-        The slot's status, for every joint.
-    device_time : float
-        The first joint's device clock (NaN when it has none).
-    exchange_s : float
-        Duration of the group exchange, s.
-    clamped : tuple of bool
-        Per joint: whether its limits changed the command.
-    """
-
-    k: int
-    t_scheduled: float
-    t_actual: float
-    reference: tuple[float, ...]
-    u: tuple[float, ...]
-    y: tuple[float, ...]
-    status: str
-    device_time: float = math.nan
-    exchange_s: float = math.nan
-    clamped: tuple[bool, ...] = ()
-
-    def row(self) -> tuple[Any, ...]:
-        """The recording row, in the order of :func:`joint_columns`."""
-        clamped = self.clamped or (False,) * len(self.u)
-        per_joint = [v for j in zip(self.reference, self.u, self.y, clamped) for v in (*j[:3], int(j[3]))]
-        return (self.k, self.t_scheduled, self.t_actual, self.status, self.device_time, self.exchange_s, *per_joint)
-
-    def joint(self, index: int) -> Sample:
-        """Joint ``index``'s view of the slot, as a one-servo :class:`~servoid.session.Sample`.
-
-        Parameters
-        ----------
-        index : int
-            The joint's position in the bus (0 for the first ID).
-        """
-        clamped = bool(self.clamped[index]) if self.clamped else False
-        return Sample(self.k, self.t_scheduled, self.t_actual, self.reference[index], self.u[index], self.y[index],
-                      self.status, self.device_time, self.exchange_s, clamped)  # fmt: skip
+#: How the joints of a bus are excited (:func:`bus_excitation`), and the default (docs/feetech.md says why).
+EXCITATION_MODES, DEFAULT_EXCITATION_MODE = MODES, DEFAULT_MODE
 
 
 class JointFeed:
@@ -129,39 +59,8 @@ class JointFeed:
         self.index = index
         self.listener = listener
 
-    def on_sample(self, sample: JointsSample, usable: bool) -> None:  # type: ignore[override]
+    def on_sample(self, sample: JointsSample, usable: bool) -> None:
         self.listener.on_sample(sample.joint(self.index), usable)
-
-
-class BusSampler(_Sampler):
-    """The sampling loop over a :class:`~servoid.drivers.bus.BusDriver`: one :class:`JointsSample` per slot."""
-
-    def _reference(self, k: int, value: Any) -> Any:
-        reference = np.asarray(value, dtype=np.float64)
-        joints = len(self.driver.joints)  # type: ignore[attr-defined]
-        if reference.shape != (joints,):
-            raise ConfigError(f"excitation[{k}] has shape {reference.shape}; the bus has {joints} joints")
-        if not np.all(np.isfinite(reference)):
-            raise ConfigError(f"excitation[{k}] (={reference.tolist()}) is not finite")
-        return tuple(float(v) for v in reference)
-
-    def _missed(self, k: int, scheduled: int, reference: Any) -> None:
-        u = tuple(0.0 if held is None else held for held in self.driver.last_command)  # type: ignore[union-attr]
-        nan = (math.nan,) * len(u)
-        self._add(JointsSample(k, self._s(scheduled), math.nan, reference, u, nan, MISSED))  # type: ignore[arg-type]
-
-    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: Any, command: Any) -> None:
-        u = tuple(self.driver.last_command)  # type: ignore[arg-type]
-        clamped = tuple(a != b for a, b in zip(u, command))
-        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference, u, (math.nan,) * len(u),  # type: ignore[arg-type]
-                               TIMEOUT, exchange_s=(end - start) / NS_PER_S, clamped=clamped))  # fmt: skip
-
-    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any) -> None:
-        ms: tuple[Measurement, ...] = m
-        status, device_time = self._status_of(k, scheduled, start, end, ms[0].device_time)
-        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference,  # type: ignore[arg-type]
-                               tuple(x.command for x in ms), tuple(x.position for x in ms), status, device_time,
-                               (end - start) / NS_PER_S, tuple(x.clamped for x in ms)))  # fmt: skip
 
 
 def joint_result(result: SessionResult, index: int) -> SessionResult:

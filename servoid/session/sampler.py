@@ -81,12 +81,14 @@ from servoid.session.samples import (
     OK,
     STATUSES,
     TIMEOUT,
+    JointsSample,
     Sample,
     UsableRule,
     guard_after,
+    joint_columns,
 )
 
-__all__ = ["SessionConfig", "SessionProgress", "SessionResult", "run_session"]
+__all__ = ["SessionConfig", "SessionProgress", "SessionResult", "run_session", "BusSampler"]
 
 log = logging.getLogger("servoid.session")
 
@@ -403,8 +405,6 @@ def run_session(
     sampler_class: type[_Sampler] = _Sampler
     columns: tuple[str, ...] = COLUMNS
     if isinstance(driver, BusDriver):
-        from servoid.session.joints import BusSampler, joint_columns
-
         if estimator is not None or command_filter is not None:
             raise ConfigError(
                 "estimator= and command_filter= take one servo; for a bus, give each joint's listener in "
@@ -439,7 +439,8 @@ def run_session(
     chain.extend(listeners)
     if on_sample is not None:
         chain.append(CallbackListener(on_sample))
-    sampler = sampler_class(driver, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
+    one: Any = driver  # a Driver, or a BusDriver for the bus sampler
+    sampler = sampler_class(one, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
     sampler.writer = writer
     try:
         sampler.run(excitation)
@@ -635,3 +636,35 @@ class _Sampler:
             slot_counts=dict(self.counts),
             usable_flags=np.array(self.flags, dtype=np.bool_) if self.keep_samples else None,
         )
+
+
+class BusSampler(_Sampler):
+    """The sampling loop over a :class:`~servoid.drivers.bus.BusDriver`: one :class:`JointsSample` per slot."""
+
+    def _reference(self, k: int, value: Any) -> Any:
+        reference = np.asarray(value, dtype=np.float64)
+        joints = len(self.driver.joints)  # type: ignore[attr-defined]
+        if reference.shape != (joints,):
+            raise ConfigError(f"excitation[{k}] has shape {reference.shape}; the bus has {joints} joints")
+        if not np.all(np.isfinite(reference)):
+            raise ConfigError(f"excitation[{k}] (={reference.tolist()}) is not finite")
+        return tuple(float(v) for v in reference)
+
+    def _missed(self, k: int, scheduled: int, reference: Any) -> None:
+        u = tuple(0.0 if held is None else held for held in self.driver.last_command)  # type: ignore[union-attr]
+        nan = (math.nan,) * len(u)
+        self._add(JointsSample(k, self._s(scheduled), math.nan, reference, u, nan, MISSED))  # type: ignore[arg-type]
+
+    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: Any, command: Any) -> None:
+        bus: Any = self.driver
+        u: tuple[float, ...] = tuple(bus.last_command)
+        clamped = tuple(a != b for a, b in zip(u, command))
+        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference, u, (math.nan,) * len(u),  # type: ignore[arg-type]
+                               TIMEOUT, exchange_s=(end - start) / NS_PER_S, clamped=clamped))  # fmt: skip
+
+    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any) -> None:
+        ms: tuple[Measurement, ...] = m
+        status, device_time = self._status_of(k, scheduled, start, end, ms[0].device_time)
+        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference,  # type: ignore[arg-type]
+                               tuple(x.command for x in ms), tuple(x.position for x in ms), status, device_time,
+                               (end - start) / NS_PER_S, tuple(x.clamped for x in ms)))  # fmt: skip

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +18,8 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 
-__all__ = ["Status", "OK", "LATE", "MISSED", "TIMEOUT", "Sample", "COLUMNS", "UsableRule", "usable",
+__all__ = ["Status", "OK", "LATE", "MISSED", "TIMEOUT", "Sample", "JointsSample", "joint_columns", "COLUMNS",
+           "UsableRule", "usable",
            "DEFAULT_GUARD_SAMPLES", "GUARD_AFTER_ANY", "GUARD_AFTER_TIMEOUT", "guard_after"]  # fmt: skip
 
 
@@ -93,6 +94,70 @@ class Sample:
         """The recording row, in the order of :data:`COLUMNS`."""
         return (self.k, self.t_scheduled, self.t_actual, self.reference, self.u, self.y, self.status,
                 self.device_time, self.exchange_s, int(self.clamped))  # fmt: skip
+
+
+def joint_columns(ids: Sequence[int]) -> tuple[str, ...]:
+    """A multi-joint recording's columns: the slot's, then ``reference_<id>, u_<id>, y_<id>, clamped_<id>`` per joint.
+
+    Parameters
+    ----------
+    ids : sequence of int
+        The servo IDs, in the order of the joints.
+    """
+    per_joint = tuple(f"{name}_{i}" for i in ids for name in ("reference", "u", "y", "clamped"))
+    return ("k", "t", "t_actual", "status", "device_time", "exchange_s", *per_joint)
+
+
+@dataclass(frozen=True, slots=True)
+class JointsSample:
+    """One slot of a multi-joint session: the slot's times and status, one value per joint for the rest.
+
+    Attributes
+    ----------
+    k : int
+        Slot index.
+    t_scheduled, t_actual : float
+        Scheduled and actual start of the group exchange, s from slot 0.
+    reference, u, y : tuple of float
+        Per joint: the excitation, the command the servo had, the measured position (NaN: none).
+    status : str
+        The slot's status, for every joint.
+    device_time : float
+        The first joint's device clock (NaN when it has none).
+    exchange_s : float
+        Duration of the group exchange, s.
+    clamped : tuple of bool
+        Per joint: whether its limits changed the command.
+    """
+
+    k: int
+    t_scheduled: float
+    t_actual: float
+    reference: tuple[float, ...]
+    u: tuple[float, ...]
+    y: tuple[float, ...]
+    status: str
+    device_time: float = math.nan
+    exchange_s: float = math.nan
+    clamped: tuple[bool, ...] = ()
+
+    def row(self) -> tuple[Any, ...]:
+        """The recording row, in the order of :func:`joint_columns`."""
+        clamped = self.clamped or (False,) * len(self.u)
+        per_joint = [v for j in zip(self.reference, self.u, self.y, clamped) for v in (*j[:3], int(j[3]))]
+        return (self.k, self.t_scheduled, self.t_actual, self.status, self.device_time, self.exchange_s, *per_joint)
+
+    def joint(self, index: int) -> Sample:
+        """Joint ``index``'s view of the slot, as a one-servo :class:`~servoid.session.Sample`.
+
+        Parameters
+        ----------
+        index : int
+            The joint's position in the bus (0 for the first ID).
+        """
+        clamped = bool(self.clamped[index]) if self.clamped else False
+        return Sample(self.k, self.t_scheduled, self.t_actual, self.reference[index], self.u[index], self.y[index],
+                      self.status, self.device_time, self.exchange_s, clamped)  # fmt: skip
 
 
 #: Guard window, in samples, after a sample whose command the servo may not

@@ -1,0 +1,182 @@
+"""``servoid identify --driver "feetech://PORT?id=1,2,3"``: identify every servo of one bus in one session.
+
+The joints are excited ``--joints sequential`` (default: one after the other,
+each for ``--samples``, the others holding their centre) or ``--joints
+together`` (each its own signal, seeded ``--seed + index``, all at once), in
+one session whose recording (``OUT/recording.csv``) has a column group per
+joint. Each joint is then identified on its own samples (the slots that
+excite it, less those the session could not use); its outputs go to
+``OUT/joint_<id>/`` (``model.json``, plots), and one summary table has a row
+per joint. The online MRGIA does not run during a bus session: each joint's
+identification runs it afterwards (the progress line shows the bus's
+timing instead).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from servoid.cli import _live, _term
+from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.errors import ConfigError, ServoidError
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+    from servoid.drivers.bus import BusDriver
+    from servoid.ident.online.mrgia import MRGIAConfig
+    from servoid.session import SessionProgress
+
+__all__ = ["add_options", "names_several", "run"]
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """``--joints MODE`` (a group of ``servoid identify``).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+    """
+    from servoid.bus_facts import DEFAULT_MODE, MODES
+
+    parser.add_argument("--joints", choices=MODES, default=DEFAULT_MODE,
+                        help="several servos on one bus (--driver '...?id=1,2,3'): excite them one after the other, "
+                             "the others holding (sequential, the default: on an arm a moving neighbour changes a "
+                             "joint's load and so its play), or all at once with independent signals (together)")  # fmt: skip
+
+
+def names_several(url: str | None) -> bool:
+    """Whether a driver URL names several servos (``id=1,2,3``).
+
+    Parameters
+    ----------
+    url : str or None
+        The ``--driver`` URL.
+    """
+    if not url or "?" not in url:
+        return False
+    from urllib.parse import parse_qsl
+
+    return any(k == "id" and "," in v for k, v in parse_qsl(url.split("?", 1)[1], keep_blank_values=True))
+
+
+def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -> int:
+    """Run the bus session, identify each joint, write its outputs, print the table (or ``--json``).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command line.
+    make_config : callable
+        ``make_config(epsilon)``: the estimator's settings.
+    """
+    import numpy as np
+
+    from servoid.drivers import driver_from_url
+    from servoid.drivers.bus import BusDriver
+    from servoid.ident.identify import identify
+    from servoid.identify_outputs import OUTPUT_FILES, result_json, write_outputs
+    from servoid.session import SessionConfig, run_session
+    from servoid.session.joints import bus_excitation, joint_result
+
+    if args.data is not None:
+        raise ConfigError("give --driver or --data, not both")
+    if not (math.isfinite(args.rate) and 0 < args.rate <= 20_000):
+        raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
+    if args.samples is not None and args.samples < 1:
+        raise ConfigError(f"--samples (={args.samples}) must be >= 1")
+    amplitude = args.amplitude if args.amplitude is not None else MODEL_AMPLITUDE
+    if not (math.isfinite(amplitude) and amplitude > 0):
+        raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
+    bus = driver_from_url(args.driver)
+    if not isinstance(bus, BusDriver):
+        raise ConfigError(f"--driver {args.driver} names one servo")
+    path = args.out / OUTPUT_FILES["recording"]
+    quiet = args.json
+    with bus:
+        ids = bus.ids
+        identities = [j.identity for j in bus.joints]
+        samples = args.samples or _live.DEFAULT_SAMPLES
+
+        def signal(index: int, n: int) -> np.ndarray:
+            one = argparse.Namespace(**{**vars(args), "seed": args.seed + index, "samples": n})
+            limits = bus.joints[index].limits
+            return _live.excitation(one, amplitude, limits, bus.command_unit.unit) - limits.centre
+
+        u, blocks = bus_excitation(signal, len(ids), samples, mode=args.joints)
+        u += np.array([j.limits.centre for j in bus.joints])
+        config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
+                "joints_excitation": args.joints}  # fmt: skip
+        if not quiet:
+            _term.stderr.print(f"servoid identify: {bus.describe()}: {len(ids)} joints, {args.joints}, at "
+                               f"{args.rate:g} Hz, {u.shape[0]} slots ({u.shape[0] / args.rate:.1f} s), "
+                               f"+/-{amplitude:g} {bus.command_unit.unit}; recording to {path}")  # fmt: skip
+        with _term.live_progress("live", u.shape[0]) as bar:
+
+            def update(p: SessionProgress) -> None:
+                bar(p.done, f"late {100 * p.late_share:.1f} %")
+
+            result = run_session(bus, u, config, recording=path, metadata=meta, on_progress=None if quiet else update)
+    if not quiet:
+        cols, rows = _live.session_rows(result)
+        _term.table(f"session: {bus.describe()}", cols, rows, console=_term.stderr)
+    if result.stopped == "interrupted":
+        _term.warn(f"interrupted after {len(result)} slots; they are in {path}")
+        raise KeyboardInterrupt
+    joints: list[dict[str, Any]] = []
+    for index, servo_id in enumerate(ids):
+        one = joint_result(result, index)
+        block = blocks[index]
+        one = dataclasses.replace(one, samples=one.samples[block], usable_flags=result.valid[block], _arrays={})
+        source = f"{bus.describe()} joint {servo_id}"
+        try:
+            record = _live._record(one, source, identities[index], None, path, None)  # noqa: SLF001
+            found = identify(record.u, record.y, make_config(args.epsilon if args.epsilon is not None else 0.0),
+                             refine_model=not args.no_refine, valid=record.valid)  # fmt: skip
+        except ServoidError as exc:  # this joint's samples do not identify it: say so, go on with the next
+            _term.warn(f"joint {servo_id}: {exc}")
+            joints.append({"id": servo_id, "error": str(exc)})
+            continue
+        for w in found.warnings:
+            _term.warn(f"joint {servo_id}: {w}")
+        paths = write_outputs(args.out / f"joint_{servo_id}", record, found, plots=not args.no_plots)
+        joints.append({"id": servo_id, **result_json(record, found, paths), "_found": found})
+    if args.json:
+        _term.print_json({"acquisition": result.to_dict(), "joints_excitation": args.joints,
+                          "joints": [{k: v for k, v in j.items() if k != "_found"} for j in joints]})  # fmt: skip
+        return 0
+    _term.table(f"servoid identify: {len(ids)} joints on {bus.describe()}", *summary_rows(joints, bus))
+    return 0 if all("error" not in j for j in joints) else 1
+
+
+def summary_rows(joints: list[dict[str, Any]], bus: BusDriver) -> tuple[list[str], list[list[str]]]:
+    """One row per joint: samples used, the play (c1 + c2) in rad and degrees, m2, the fit, the model file.
+
+    Parameters
+    ----------
+    joints : list of dict
+        Each joint's result (``_found``: its Identification) or error.
+    bus : BusDriver
+        The bus (for the unit).
+    """
+    unit = bus.position_unit.unit
+    cols = ["joint", "samples", f"play c1+c2 ({unit})", "play (deg)", "m2", "c1", "c2", "fit NRMSE", "model"]
+    rows = []
+    for j in joints:
+        if "error" in j:
+            rows.append([str(j["id"]), "-", "-", "-", "-", "-", "-", "-", j["error"][:60]])
+            continue
+        found = j["_found"]
+        model = found.model
+        degrees = math.degrees(model.dead_zone) if unit == "rad" else math.nan
+        rows.append([
+            str(j["id"]), str(found.samples), f"{model.dead_zone:.4g}", f"{degrees:.3g}", f"{model.m2:.4g}",
+            f"{model.c1:.4g}", f"{model.c2:.4g}", f"{found.fit_nrmse:.3g}", j["outputs"]["model"],
+        ])  # fmt: skip
+    return cols, rows
