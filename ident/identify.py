@@ -15,6 +15,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
+from servoid.ident.diagnosis.compare import compare
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run
@@ -272,6 +273,9 @@ def identify(
             f"the model explains almost nothing of y: free-run NRMSE {fit:.3g} (1 is no better than y's mean); "
             "y may not depend on u here (check the columns, the delay and the orders): its parameters mean nothing"
         )
+    coloured = compare({"the identified model": model}, u_arr, y_arr, valid=keep).fits[0].coloured_warning()
+    if coloured is not None:
+        warnings.append(coloured)
     return Identification(
         model=model,
         method=method,  # type: ignore[arg-type]

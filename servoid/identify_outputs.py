@@ -11,6 +11,9 @@ live driver), so that all of them write the same outputs:
 ``convergence.png``, ``fit.png``, ``backlash.png``
     Parameter estimates against samples; measured against simulated output;
     the identified backlash loop.
+``compare.png``, ``resid.png``, ``bode.png``
+    What ``servoid compare`` draws, on the identification record
+    (:mod:`servoid.compare_outputs`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from servoid.compare_outputs import COMPARE_FILES, write_compare_plots
+from servoid.ident.diagnosis.compare import compare
 from servoid.ident.identify import Identification
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run, simulate
@@ -32,7 +37,7 @@ __all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FIL
 
 #: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
 OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
-                "fit_plot": "fit.png", "backlash_plot": "backlash.png"}  # fmt: skip
+                "fit_plot": "fit.png", "backlash_plot": "backlash.png", **COMPARE_FILES}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -141,6 +146,9 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         x_hat = simulate(result.model, record.u, y0=y0).x
         loop = _plots.plot_backlash(result.model, x_hat, record.y, output_unit=record.output_unit, truth=record.truth)
         paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
+        comparison = compare({f"identified ({result.method})": result.model}, record.u, record.y, valid=record.valid)
+        paths.update(write_compare_plots(out_dir, comparison, t=record.t, sample_period_s=record.sample_period_s,
+                                         input_unit=record.input_unit, output_unit=record.output_unit))  # fmt: skip
     return paths
 
 
