@@ -153,31 +153,8 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
 
 
 def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[list[str], list[list[str]]]:
-    """Columns and rows of the parameter table (values in the record's units)."""
-    names = result.model.names
-    cols = ["parameter"]
-    if truth is not None:
-        cols.append("true")
-    cols.append("MRGIA")
-    if result.refinement is not None:
-        cols += ["refined", "std err"]
-    if truth is not None:
-        cols.append("rel. error")
-    mrgia_vals = result.mrgia.values()
-    stderr = result.stderr or {}
-    rows = []
-    for i, name in enumerate(names):
-        row = [name]
-        if truth is not None:
-            row.append(f"{truth.values()[i]:.6g}")
-        row.append(f"{mrgia_vals[i]:.6g}")
-        if result.refinement is not None:
-            row += [f"{result.model.values()[i]:.6g}", f"{stderr.get(name, float('nan')):.2g}"]
-        if truth is not None:
-            ref = truth.values()[i]
-            row.append(f"{abs(result.model.values()[i] - ref) / abs(ref):.2e}")
-        rows.append(row)
-    return cols, rows
+    """Columns and rows of the parameter table (values in the record's units): :meth:`Identification.table`."""
+    return result.table(truth)
 
 
 def result_json(record: Record, result: Identification, paths: dict[str, str]) -> dict[str, Any]:

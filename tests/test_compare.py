@@ -154,3 +154,22 @@ def test_cli_refuses_what_cannot_be_compared(tmp_path, capsys):
     (tmp_path / "p.json").write_text(json.dumps(stamped))
     code, _, err = run_cli(capsys, str(tmp_path / "p.json"), str(tmp_path / "ms.csv"), "--no-plots")
     assert code == 2 and "sample period of 0.01 s" in err and len(err.strip().splitlines()) == 1
+
+
+def test_results_show_short_in_a_notebook_and_the_linear_block_goes_to_control(monkeypatch):
+    from servoid.errors import MissingDependency
+    from servoid.modelfile import ModelFile
+
+    sim = record(n=1500, snr=40.0, seed=3)
+    result = identify(sim.u, sim.y, MRGIAConfig())
+    for obj in (result, result.mrgia, result.refinement, sim, result.model):
+        assert len(repr(obj)) < 400 and "\n" not in repr(obj)  # never a dump of the arrays
+    assert f"fit {100 * (1 - result.fit_nrmse):.2f} %" in repr(result)
+    html = result._repr_html_()
+    assert html.startswith("<table>") and html.count("<tr>") == 1 + len(result.model.names)
+    content = ModelFile(model=result.model, sample_period_s=0.005)
+    assert content.to_control().dt == 0.005
+    assert "every 0.005 s" in repr(content)
+    monkeypatch.setitem(__import__("sys").modules, "control", None)  # python-control not installed
+    with pytest.raises(MissingDependency, match=r"pip install 'servoid\[control\]'"):
+        result.to_control()

@@ -309,6 +309,9 @@ class ResidualTests:
             "cross_correlation": np.round(self.cross_correlation, 6).tolist(),
         }  # fmt: skip
 
+    def __repr__(self) -> str:
+        return f"ResidualTests({self.summary()})"
+
     @property
     def autocorrelation_outside(self) -> int:
         """Lags >= 1 whose autocorrelation leaves the band."""
