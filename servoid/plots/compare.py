@@ -152,6 +152,7 @@ def plot_linear_block(
     mag = fig.add_subplot(grid[0, 0])
     phase = fig.add_subplot(grid[1, 0], sharex=mag)
     step = fig.add_subplot(grid[:, 1])
+    length = max(_settling_samples(model) for model in models.values())  # one time axis for every model
     out_u = output_unit or "unit of y"
     in_u = input_unit or "unit of u"
     for i, (name, model) in enumerate(models.items()):
@@ -163,7 +164,7 @@ def plot_linear_block(
         label = f"{name}: play c1 + c2 = {model.dead_zone:.4g} {out_u}{referred}"
         mag.semilogx(f, resp.magnitude_db, color=colour, lw=1.2, label=label)
         phase.semilogx(f, resp.phase_deg, color=colour, lw=1.2)
-        x = step_response(model, _settling_samples(model))
+        x = step_response(model, length)
         k = np.arange(x.size)
         step.step(k * dt if dt else k, x, where="post", color=colour, lw=1.2, label=f"{name}: gain {gain:.4g}")
         step.axhline(gain, color=colour, ls=":", lw=0.8)
