@@ -11,13 +11,16 @@ a view of this block, with the play (``c1 + c2``) said beside it.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, MissingDependency
-from servoid.ident.models.pseudo_wiener import BacklashModel
+
+if TYPE_CHECKING:  # pragma: no cover
+    # only the model's attributes are read; BacklashModel.to_control imports this module
+    from servoid.ident.models.pseudo_wiener import BacklashModel
 
 __all__ = ["polynomials", "FrequencyResponse", "frequency_response", "step_response", "to_control"]
 
