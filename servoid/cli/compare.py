@@ -168,7 +168,8 @@ def run(args: argparse.Namespace) -> int:
                 input_unit=rec.metadata.get("input_unit", first.input_unit), output_unit=output_unit,
                 suffix=suffix, bode=i == 0,
             )  # fmt: skip
-            paths.update({f"{k}{suffix.replace('-', '_')}": v for k, v in written.items()})
+            # one Bode figure for all records; the others per record (compare_plot_2, ...)
+            paths.update({k if k == "bode_plot" else f"{k}{suffix.replace('-', '_')}": v for k, v in written.items()})
         results.append({"source": str(data_path), **comparison.to_dict()})
         if not args.json:
             cols, rows = comparison.rows()
