@@ -173,3 +173,19 @@ def test_results_show_short_in_a_notebook_and_the_linear_block_goes_to_control(m
     monkeypatch.setitem(__import__("sys").modules, "control", None)  # python-control not installed
     with pytest.raises(MissingDependency, match=r"pip install 'servoid\[control\]'"):
         result.to_control()
+
+
+def test_cli_leaves_out_a_live_recordings_lost_samples(tmp_path, capsys):
+    assert main(["identify", "--samples", "600", "--snr", "40", "--out", str(tmp_path / "a"), "--no-plots"]) == 0
+    sim = record(n=600, snr=40.0, seed=6)
+    lost = set(range(200, 212))
+    rows = [f"{u:.9g},{'nan' if k in lost else f'{y:.9g}'},{'timeout' if k in lost else 'ok'}"
+            for k, (u, y) in enumerate(zip(sim.u, sim.y))]  # fmt: skip
+    (tmp_path / "live.csv").write_text("# guard_samples: 0\nu,y,status\n" + "\n".join(rows) + "\n")
+    capsys.readouterr()
+    code, out, err = run_cli(capsys, str(tmp_path / "a" / "model.json"), str(tmp_path / "live.csv"), "--json",
+                             "--out", str(tmp_path / "cmp"))  # fmt: skip
+    assert code == 0, err
+    scored = json.loads(out)["records"][0]
+    assert (scored["samples"], scored["used_samples"]) == (600, 588)
+    assert 90 < scored["models"][0]["fit_percent"] < 100
