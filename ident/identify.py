@@ -14,6 +14,7 @@ by validation.
 
 from __future__ import annotations
 
+import html
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Literal
@@ -22,6 +23,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
+from servoid.ident.diagnosis.compare import compare
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.kernels import rest_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel
@@ -44,6 +46,7 @@ from servoid.ident.offline.refine import Refinement, arx_start, refine
 from servoid.ident.offline.second_structure import LoopResult, needed, second_structure
 from servoid.ident.offline.structure import OrderChoice, select_orders
 from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
+from servoid.ident.reprs import html_table
 
 __all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE", "SELECTABLE"]
 
@@ -147,6 +150,53 @@ class Identification:
     residual_white: bool = False
     loop: LoopResult | None = None
     verdict: Verdict = Verdict(False, ("not judged",))
+
+    def __repr__(self) -> str:
+        fit = f"fit {100 * (1 - self.fit_nrmse):.2f} % (NRMSE {self.fit_nrmse:.4g})"
+        said = f", {len(self.warnings)} warning(s)" if self.warnings else ""
+        return f"Identification({self.method}, {self.samples} samples, {fit}{said}; {self.model!r})"
+
+    def _repr_html_(self) -> str:
+        cols, rows = self.table()
+        caption = f"{self.method} on {self.samples} samples: free-run fit {100 * (1 - self.fit_nrmse):.2f} %"
+        notes = "".join(f"<li>{html.escape(w)}</li>" for w in self.warnings)
+        return html_table(cols, rows, caption=caption) + (f"<ul>{notes}</ul>" if notes else "")
+
+    def table(self, truth: BacklashModel | None = None) -> tuple[list[str], list[list[str]]]:
+        """Columns and rows of the parameter table: the MRGIA's and the refined values, standard errors.
+
+        Parameters
+        ----------
+        truth : BacklashModel, optional
+            The true plant, when known (a simulation): adds its values and the relative errors.
+        """
+        cols = ["parameter"] + (["true"] if truth is not None else []) + ["MRGIA"]
+        if self.refinement is not None:
+            cols += ["refined", "std err"]
+        if truth is not None:
+            cols.append("rel. error")
+        stderr = self.stderr or {}
+        rows = []
+        for i, name in enumerate(self.model.names):
+            row = [name] + ([f"{truth.values()[i]:.6g}"] if truth is not None else [])
+            row.append(f"{self.mrgia.values()[i]:.6g}")
+            if self.refinement is not None:
+                row += [f"{self.model.values()[i]:.6g}", f"{stderr.get(name, float('nan')):.2g}"]
+            if truth is not None:
+                ref = truth.values()[i]
+                row.append(f"{abs(self.model.values()[i] - ref) / abs(ref):.2e}")
+            rows.append(row)
+        return cols, rows
+
+    def to_control(self, dt: float | bool = True) -> Any:
+        """The identified linear block as a python-control ``TransferFunction`` (needs ``servoid[control]``).
+
+        Parameters
+        ----------
+        dt : float or True
+            Sample period in seconds; ``True`` (default) when it is not known.
+        """
+        return self.model.to_control(dt)
 
     @property
     def stderr(self) -> dict[str, float] | None:
@@ -484,6 +534,10 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         judged = Verdict(False, (*judged.reasons, *loop.reasons))
+    if form == PSEUDO_WIENER:  # the toolbox's resid view of the black box (compare's band rule), as a warning
+        coloured = compare({"the identified model": model}, u_arr, y_arr, valid=keep).fits[0].coloured_warning()
+        if coloured is not None:
+            warnings.append(coloured)
     return Identification(
         model=model,
         method=method,

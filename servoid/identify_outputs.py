@@ -11,6 +11,9 @@ live driver), so that all of them write the same outputs:
 ``convergence.png``, ``fit.png``, ``backlash.png``
     Parameter estimates against samples; measured against simulated output;
     the identified backlash loop.
+``compare.png``, ``resid.png``, ``bode.png``
+    What ``servoid compare`` draws, on the identification record
+    (:mod:`servoid.compare_outputs`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from servoid.compare_outputs import COMPARE_FILES, write_compare_plots
+from servoid.ident.diagnosis.compare import compare
 from servoid.ident.identify import Identification
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run, simulate
@@ -32,7 +37,7 @@ __all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FIL
 
 #: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
 OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
-                "fit_plot": "fit.png", "backlash_plot": "backlash.png", "probe_recording": "probe.csv"}  # fmt: skip
+                "fit_plot": "fit.png", "backlash_plot": "backlash.png", "probe_recording": "probe.csv", **COMPARE_FILES}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -165,6 +170,9 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         )
         loop.suptitle(_wrapped(result.headline()), fontsize=8)
         paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
+        comparison = compare({f"identified ({result.method})": result.model}, record.u, record.y, valid=record.valid)
+        paths.update(write_compare_plots(out_dir, comparison, t=record.t, sample_period_s=record.sample_period_s,
+                                         input_unit=record.input_unit, output_unit=record.output_unit))  # fmt: skip
     return paths
 
 
@@ -175,31 +183,8 @@ def _wrapped(text: str, width: int = 110) -> str:
 
 
 def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[list[str], list[list[str]]]:
-    """Columns and rows of the parameter table (values in the record's units)."""
-    names = result.model.names
-    cols = ["parameter"]
-    if truth is not None:
-        cols.append("true")
-    cols.append("MRGIA")
-    if result.refinement is not None:
-        cols += ["refined", "std err"]
-    if truth is not None:
-        cols.append("rel. error")
-    mrgia_vals = result.mrgia.values()
-    stderr = result.stderr or {}
-    rows = []
-    for i, name in enumerate(names):
-        row = [name]
-        if truth is not None:
-            row.append(f"{truth.values()[i]:.6g}")
-        row.append(f"{mrgia_vals[i]:.6g}")
-        if result.refinement is not None:
-            row += [f"{result.model.values()[i]:.6g}", f"{stderr.get(name, float('nan')):.2g}"]
-        if truth is not None:
-            ref = truth.values()[i]
-            row.append(f"{abs(result.model.values()[i] - ref) / abs(ref):.2e}")
-        rows.append(row)
-    return cols, rows
+    """Columns and rows of the parameter table (values in the record's units): :meth:`Identification.table`."""
+    return result.table(truth)
 
 
 def twin_truth(record: Record) -> dict[str, Any] | None:

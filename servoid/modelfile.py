@@ -120,6 +120,15 @@ class ModelFile:
             if getattr(self, name) is not None:
                 object.__setattr__(self, name, validation.non_negative(name, getattr(self, name)))
 
+    def __repr__(self) -> str:
+        period = f", every {self.sample_period_s:g} s" if self.sample_period_s else ""
+        fit = f", fit {100 * (1 - self.fit_nrmse):.2f} %" if self.fit_nrmse is not None else ""
+        return f"ModelFile({self.method}{fit}, y in {self.output_unit}{period}; {self.model!r})"
+
+    def to_control(self) -> Any:
+        """The linear block as a python-control ``TransferFunction`` with the file's sample period (``dt=True`` when unknown)."""
+        return self.model.to_control(self.sample_period_s or True)
+
     @property
     def compensation_band(self) -> float:
         """The smoothing band of the backlash inverse, output unit (stored, or servoid's default)."""

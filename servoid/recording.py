@@ -55,6 +55,7 @@ __all__ = [
     "check_time",
     "check_magnitudes",
     "time_scale",
+    "periods_differ",
     "TIME_UNITS",
     "NO_TIME",
     "write_recording",
@@ -191,6 +192,17 @@ _SLOW_PERIOD_S = 1.0
 
 #: Sample intervals longer than this many median periods are reported as gaps.
 _GAP_FACTOR = 2.0
+
+
+def periods_differ(a: float | None, b: float | None) -> bool:
+    """Whether two sample periods (seconds, None when unknown) differ by more than 2 %: a model in samples made at one does not carry over to the other.
+
+    Parameters
+    ----------
+    a, b : float or None
+        The periods; an unknown one differs from nothing.
+    """
+    return a is not None and b is not None and abs(a - b) > 0.02 * max(a, b)
 
 
 def time_scale(unit: str) -> float:

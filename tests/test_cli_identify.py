@@ -23,7 +23,16 @@ def test_default_run_writes_everything(tmp_path, capsys):
     assert obj["method"] == "mrgia+oe" and obj["samples"] == 3000
     assert set(obj["model"]) == {"a", "b", "delay", "m1", "m2", "c1", "c2"}
     assert obj["max_relative_error"] < 1e-8  # noise-free
-    for key in ("recording", "model", "convergence_plot", "fit_plot", "backlash_plot"):
+    for key in (
+        "recording",
+        "model",
+        "convergence_plot",
+        "fit_plot",
+        "backlash_plot",
+        "compare_plot",
+        "resid_plot",
+        "bode_plot",
+    ):
         assert (tmp_path / obj["outputs"][key].split("/")[-1]).stat().st_size > 0
     saved = load_model(tmp_path / "model.json")
     assert saved.model.to_dict() == obj["model"]

@@ -333,6 +333,17 @@ COMMANDS: dict[str, tuple[list[str], dict[str, st.SearchStrategy[str] | None]]] 
             **COMMON,
         },
     ),  # fmt: skip
+    "compare": (
+        ["model.json", "rec.csv"],
+        {
+            "--max-lag": _number(["5", "25"]),
+            "--plot": st.sampled_from(PATHS + ["p.png"]),
+            "--force": None,
+            "--json": None,
+            "--out": st.sampled_from(PATHS + ["out-dir"]),
+            **READING,
+        },
+    ),  # fmt: skip
     "excite": (
         ["prbs:amplitude=1,hold=2"],
         {
@@ -386,6 +397,8 @@ def command_lines(draw: st.DrawFn) -> list[str]:
     if command == "identify":  # a --data recording has its own length
         argv += ["--no-plots"] + ([] if {"--samples", "--data"} & set(chosen) else ["--samples", "300"])
         argv += [] if "--out" in chosen else ["--out", "id-out"]
+    if command == "compare":
+        argv += ["--no-plots"]
     if command == "excite":
         argv += [] if "--no-plot" in chosen else ["--no-plot"]
         argv += [] if "--samples" in chosen else ["--samples", "500"]

@@ -211,6 +211,12 @@ class Diagnosis:
     validation_after: ExtendedSimulation
     config: DiagnoseConfig
 
+    def __repr__(self) -> str:
+        return (
+            f"Diagnosis(missing: {', '.join(self.effects) or NONE}; validation gap {self.gap_before:.4g} -> "
+            f"{self.gap_after:.4g})"
+        )
+
     @property
     def effects(self) -> tuple[str, ...]:
         """Names of the accepted effects, in the order found (empty when nothing is missing)."""

@@ -309,6 +309,9 @@ class ResidualTests:
             "cross_correlation": np.round(self.cross_correlation, 6).tolist(),
         }  # fmt: skip
 
+    def __repr__(self) -> str:
+        return f"ResidualTests({self.summary()})"
+
     @property
     def autocorrelation_outside(self) -> int:
         """Lags >= 1 whose autocorrelation leaves the band."""
@@ -351,6 +354,7 @@ def residual_tests(
     *,
     max_lag: int = 25,
     confidence: float = 0.99,
+    valid: Sequence[bool] | np.ndarray | None = None,
 ) -> ResidualTests:
     """The ``resid`` checks: is the residual white, and independent of past inputs?
 
@@ -362,6 +366,9 @@ def residual_tests(
         Largest lag, in samples.
     confidence : float
         Level of the band, in (0, 1); the band is ``z_{(1+confidence)/2} / sqrt(N)``.
+    valid : array_like of bool, optional
+        ``False`` marks samples left out (lost or late): they take part in no
+        product, and ``N`` counts the others. Their residual may be NaN.
 
     Notes
     -----
@@ -369,21 +376,30 @@ def residual_tests(
     input, each normalised correlation is approximately ``N(0, 1/N)``
     (Ljung, sec. 16.6), which gives the band.
     """
-    r = validation.signal("residual", residual)
     u_arr = validation.signal("u", u)
+    keep = None if valid is None else np.asarray(valid, dtype=np.bool_)
+    if keep is None:
+        r = validation.signal("residual", residual)
+    else:
+        r = np.asarray(residual, dtype=np.float64)
+        if keep.shape != r.shape:
+            raise ConfigError(f"valid and residual differ in shape: {keep.shape} against {r.shape}")
+        validation.signal("residual", r[keep])
     if r.size != u_arr.size:
         raise ConfigError(f"residual and u differ in length: {r.size} against {u_arr.size}")
     max_lag = validation.integer("max_lag", max_lag, minimum=1)
-    if r.size <= 2 * max_lag:
-        raise ConfigError(f"{r.size} samples are too few for max_lag={max_lag}: at least {2 * max_lag + 1} are needed")
+    n = r.size if keep is None else int(np.count_nonzero(keep))
+    if n <= 2 * max_lag:
+        raise ConfigError(f"{n} samples are too few for max_lag={max_lag}: at least {2 * max_lag + 1} are needed")
     level = validation.in_unit_interval("confidence", confidence)
-    rc = r - r.mean()
+    # A left-out sample's residual is zero after centring: it adds nothing to any product.
+    rc = r - r.mean() if keep is None else np.where(keep, r - r[keep].mean(), 0.0)
     uc = u_arr - u_arr.mean()
-    n = r.size
+    n_all = r.size
     denom_r = float(rc @ rc)
     denom_ru = float(np.sqrt(denom_r * float(uc @ uc)))
     lags = np.arange(max_lag + 1)
-    auto = np.array([float(rc[k:] @ rc[: n - k]) for k in lags]) / (denom_r if denom_r > 0 else 1.0)
-    cross = np.array([float(rc[k:] @ uc[: n - k]) for k in lags]) / (denom_ru if denom_ru > 0 else 1.0)
+    auto = np.array([float(rc[k:] @ rc[: n_all - k]) for k in lags]) / (denom_r if denom_r > 0 else 1.0)
+    cross = np.array([float(rc[k:] @ uc[: n_all - k]) for k in lags]) / (denom_ru if denom_ru > 0 else 1.0)
     band = float(norm.ppf(0.5 + level / 2.0) / np.sqrt(n))
     return ResidualTests(lags=lags, autocorrelation=auto, cross_correlation=cross, band=band, confidence=level)

@@ -311,6 +311,27 @@ class BacklashModel:
         scale = np.where(ref != 0.0, np.abs(ref), 1.0)
         return float(np.max(np.abs(self.values() - ref) / scale))
 
+    def to_control(self, dt: float | bool = True) -> Any:
+        """The linear block as a python-control ``TransferFunction`` (:func:`servoid.ident.models.linear_block.to_control`).
+
+        Parameters
+        ----------
+        dt : float or True
+            Sample period in seconds; ``True`` when it is not known.
+        """
+        from servoid.ident.models.linear_block import to_control
+
+        return to_control(self, dt)
+
+    def __repr__(self) -> str:
+        def g(values: tuple[float, ...]) -> str:
+            return "(" + ", ".join(f"{v:.6g}" for v in values) + ("," if len(values) == 1 else "") + ")"
+
+        return (
+            f"BacklashModel(a={g(self.a)}, b={g(self.b)}, delay={self.delay}, "
+            f"m2={self.m2:.6g}, c1={self.c1:.6g}, c2={self.c2:.6g})"
+        )
+
     # -- serialisation -------------------------------------------------------------
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict: ``{"a", "b", "delay", "m1", "m2", "c1", "c2"}``."""

@@ -48,6 +48,10 @@ class Simulation:
     noise_std: float
     snr: float | None
 
+    def __repr__(self) -> str:
+        noise = f"noise std {self.noise_std:.4g}" + (f" (SNR {self.snr:g})" if self.snr is not None else "")
+        return f"Simulation({self.u.size} samples, {noise if self.noise_std > 0 else 'noise-free'}; {self.model!r})"
+
     @property
     def zone_shares(self) -> dict[str, float]:
         """Share of samples on the up line, the down line and in the memory zone."""

@@ -86,6 +86,13 @@ class Refinement:
     jacobian: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), repr=False)
     sse: float = 0.0
 
+    def __repr__(self) -> str:
+        how = "converged" if self.success else f"did not converge: {self.message}"
+        return (
+            f"Refinement(NRMSE {self.nrmse:.4g} from {self.initial_nrmse:.4g}, {self.nfev} simulations, {how}; "
+            f"{self.model!r})"
+        )
+
     def stderr_dict(self) -> dict[str, float]:
         """``{name: standard error}`` for every parameter."""
         return dict(zip(self.model.names, self.stderr))

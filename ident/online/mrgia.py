@@ -583,6 +583,11 @@ class MRGIAResult:
     coverage: tuple[float, float]
     settled: bool
 
+    def __repr__(self) -> str:
+        values = ", ".join(f"{n}={v:.4g}" for n, v in zip(self.names, self.values()))
+        state = "settled" if self.settled else "NOT settled"
+        return f"MRGIAResult({self.samples} samples, {state}, {len(self.recoveries)} recoveries; {values})"
+
     @property
     def history_samples(self) -> np.ndarray:
         """Sample index (0-based) of each row of :attr:`theta_history`."""

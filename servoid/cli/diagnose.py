@@ -114,8 +114,10 @@ def check_pair(train: Recording, validate: Recording) -> None:
         a, b = train.metadata.get(key), validate.metadata.get(key)
         if a is not None and b is not None and a != b:
             raise DataError(f"the recordings differ in '{key}': {train.path} has {a!r}, {validate.path} has {b!r}")
+    from servoid.recording import periods_differ
+
     ta, tb = train.sample_period, validate.sample_period
-    if ta is not None and tb is not None and abs(ta - tb) > 0.02 * max(ta, tb):
+    if periods_differ(ta, tb):
         raise DataError(
             f"the recordings differ in sample period: {train.path} {ta:.6g} s, {validate.path} {tb:.6g} s "
             f"(a model in samples cannot carry over; resample one of them)"

@@ -8,6 +8,7 @@ session's backend stays what it was.
 """
 
 from servoid.plots._base import figure, save
+from servoid.plots.compare import plot_compare, plot_linear_block, plot_resid
 from servoid.plots.compensation import plot_robustness, plot_tracking
 from servoid.plots.diagnose import plot_candidates, plot_diagnosis_fit, plot_regimes, plot_residual_tests
 from servoid.plots.identify import plot_backlash, plot_convergence, plot_fit
@@ -18,6 +19,9 @@ __all__ = [
     "plot_convergence",
     "plot_fit",
     "plot_backlash",
+    "plot_compare",
+    "plot_resid",
+    "plot_linear_block",
     "plot_diagnosis_fit",
     "plot_regimes",
     "plot_residual_tests",

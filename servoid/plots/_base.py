@@ -9,6 +9,8 @@ figure shows as the cell's value; :func:`save` (or ``fig.savefig``) writes it.
 
 from __future__ import annotations
 
+import functools
+import io
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,17 +21,36 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["figure", "save"]
 
 
+@functools.cache
+def _figure_class() -> type[Figure]:
+    from matplotlib.figure import Figure
+
+    class ShownFigure(Figure):
+        """A figure that shows itself as a notebook cell's value.
+
+        IPython draws a matplotlib figure through a formatter that the inline
+        backend registers when pyplot is imported; a figure made without
+        pyplot would otherwise show as ``<Figure size ...>``. When that
+        formatter is registered it still wins (IPython asks it first).
+        """
+
+        def _repr_png_(self) -> bytes:
+            buffer = io.BytesIO()
+            self.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
+            return buffer.getvalue()
+
+    return ShownFigure
+
+
 def figure(**kwargs: Any) -> Figure:
-    """A new figure, not managed by pyplot (matplotlib imported on first use).
+    """A new figure, not managed by pyplot (matplotlib imported on first use); a notebook shows it as PNG.
 
     Parameters
     ----------
     **kwargs
         Passed to :class:`matplotlib.figure.Figure` (``figsize=(8, 6)``).
     """
-    from matplotlib.figure import Figure
-
-    return Figure(**kwargs)
+    return _figure_class()(**kwargs)
 
 
 def save(fig: Figure, path: str | os.PathLike[str]) -> Path:
