@@ -11,7 +11,16 @@ import numpy as np
 
 from servoid.ident._jit import jit
 
-__all__ = ["backlash_step", "simulate_kernel", "extended_kernel", "schur_stable", "ZONE_UP", "ZONE_DOWN", "ZONE_MEMORY"]
+__all__ = [
+    "backlash_step",
+    "simulate_kernel",
+    "extended_kernel",
+    "schur_stable",
+    "schur_stable_in",
+    "ZONE_UP",
+    "ZONE_DOWN",
+    "ZONE_MEMORY",
+]
 
 #: Zone codes returned per sample by :func:`simulate_kernel`.
 ZONE_UP = 1
@@ -166,8 +175,16 @@ def schur_stable(a: np.ndarray) -> bool:
     The Schur-Cohn step-down recursion: O(na^2), no root finding, so it is
     cheap enough to run on every estimator update.
     """
+    return schur_stable_in(a, np.empty(a.shape[0] + 1))
+
+
+@jit
+def schur_stable_in(a: np.ndarray, poly: np.ndarray) -> bool:
+    """:func:`schur_stable` in the caller's scratch ``poly`` (length ``na + 1``): no allocation per call.
+
+    The estimator checks every update with it; an allocation costs as much as the check.
+    """
     na = a.shape[0]
-    poly = np.empty(na + 1)
     poly[0] = 1.0
     for i in range(na):
         poly[i + 1] = a[i]
@@ -176,9 +193,14 @@ def schur_stable(a: np.ndarray) -> bool:
         if not abs(k) < 1.0:
             return False
         denom = 1.0 - k * k
-        low = np.empty(m)
-        for i in range(m):
-            low[i] = (poly[i] - k * poly[m - i]) / denom
-        for i in range(m):
-            poly[i] = low[i]
+        # the step-down poly[i] <- (poly[i] - k poly[m - i]) / denom, in place pair by pair
+        for i in range(m // 2 + 1):
+            j = m - i
+            if i > j:
+                break
+            pi = poly[i]
+            pj = poly[j]
+            poly[i] = (pi - k * pj) / denom
+            if j != i:
+                poly[j] = (pj - k * pi) / denom
     return True

@@ -10,8 +10,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Iterable
-from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -51,9 +50,8 @@ STATUSES = (OK, LATE, MISSED, TIMEOUT)
 COLUMNS = ("k", "t", "t_actual", "reference", "u", "y", "status", "device_time", "exchange_s", "clamped")
 
 
-@dataclass(frozen=True, slots=True)
-class Sample:
-    """One slot of a session.
+class Sample(NamedTuple):
+    """One slot of a session (immutable: a named tuple, which the sampling loop builds in a third of a frozen dataclass's time).
 
     Attributes
     ----------
