@@ -75,9 +75,10 @@ def direct_call(kernel: Callable[..., Any], *example: Any) -> Callable[..., Any]
     from numba import typeof
 
     try:
-        signature = tuple(typeof(a) for a in example)
-        kernel.compile(signature)  # type: ignore[attr-defined]
-        entry = kernel.overloads[signature].entry_point  # type: ignore[attr-defined]
+        signature = tuple(typeof(a) for a in example)  # type: ignore[no-untyped-call]
+        dispatcher: Any = kernel
+        dispatcher.compile(signature)
+        entry = dispatcher.overloads[signature].entry_point
     except (AttributeError, KeyError, TypeError):  # a numba that keeps its entry points elsewhere
         return kernel
     return entry if callable(entry) else kernel

@@ -28,7 +28,7 @@ from servoid.ident.online.mrgia import MRGIAResult
 from servoid.modelfile import ModelFile, save_model
 from servoid.recording import write_recording
 
-__all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FILES"]
+__all__ = ["Record", "model_content", "write_outputs", "summary_rows", "result_json", "OUTPUT_FILES"]
 
 #: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
 OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
@@ -96,6 +96,31 @@ class Record:
         return float(np.median(np.diff(self.t)))
 
 
+def model_content(record: Record, result: Identification) -> ModelFile:
+    """The ``model.json`` of an identification of ``record`` (``servoid identify`` and ``servoid batch`` write it).
+
+    Parameters
+    ----------
+    record : Record
+        What was identified, with its units and source.
+    result : Identification
+        The identification.
+    """
+    return ModelFile(
+        model=result.model,
+        stderr=result.stderr,
+        input_unit=record.input_unit,
+        output_unit=record.output_unit,
+        sample_period_s=record.sample_period_s,
+        method=result.method,
+        fit_nrmse=result.fit_nrmse,
+        source=record.source,
+        samples=result.samples,
+        servo=record.servo,
+        noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
+    )
+
+
 def write_outputs(out_dir: Path, record: Record, result: Identification, *, plots: bool = True) -> dict[str, str]:
     """Write the recording, ``model.json`` and the plots; return ``{name: path}``."""
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -112,20 +137,7 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         paths["recording"] = str(write_recording(out_dir / OUTPUT_FILES["recording"], cols, metadata=meta))
     else:
         paths["recording"] = str(record.written_to)
-    content = ModelFile(
-        model=result.model,
-        stderr=result.stderr,
-        input_unit=record.input_unit,
-        output_unit=record.output_unit,
-        sample_period_s=record.sample_period_s,
-        method=result.method,
-        fit_nrmse=result.fit_nrmse,
-        source=record.source,
-        samples=result.samples,
-        servo=record.servo,
-        noise_std=result.fit_nrmse * float(np.std(record.y_used)),  # the residual RMS; the band follows from it
-    )
-    paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], content))
+    paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], model_content(record, result)))
     if plots:
         from servoid import plots as _plots
 
