@@ -27,7 +27,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 #: Whether numba is installed (found without importing it).
 HAVE_NUMBA = importlib.util.find_spec("numba") is not None
 
-__all__ = ["jit", "HAVE_NUMBA", "python_version", "on_first_compile"]
+__all__ = ["jit", "HAVE_NUMBA", "python_version", "on_first_compile", "direct_call"]
 
 #: Called once each, when the first compilation of this process starts.
 _hooks: list[Callable[[], None]] = []
@@ -49,6 +49,39 @@ def jit(func: F) -> F:
 def python_version(kernel: Callable[..., Any]) -> Callable[..., Any]:
     """The uncompiled Python function behind a :func:`jit` kernel."""
     return getattr(kernel, "py_func", kernel)
+
+
+def direct_call(kernel: Callable[..., Any], *example: Any) -> Callable[..., Any]:
+    """``kernel`` compiled for the types of ``example``, called without numba's dispatch; else ``kernel``.
+
+    A dispatcher call first works out the types of its arguments and looks the
+    compiled version up (about half of a small kernel's cost when it is called
+    once per sample from Python). The compiled version's own entry point only
+    converts the arguments, so the caller must pass exactly the types of
+    ``example`` (C-contiguous float64 arrays stay such arrays, floats stay
+    floats); it compiles (or loads from the cache) here if needed. Without
+    numba, or where numba does not expose the entry point, this is
+    ``kernel`` itself.
+
+    Parameters
+    ----------
+    kernel : callable
+        A :func:`jit` kernel.
+    *example : object
+        Arguments of the types every later call will pass.
+    """
+    if not HAVE_NUMBA or not hasattr(kernel, "overloads"):
+        return kernel
+    from numba import typeof
+
+    try:
+        signature = tuple(typeof(a) for a in example)  # type: ignore[no-untyped-call]
+        dispatcher: Any = kernel
+        dispatcher.compile(signature)
+        entry = dispatcher.overloads[signature].entry_point
+    except (AttributeError, KeyError, TypeError):  # a numba that keeps its entry points elsewhere
+        return kernel
+    return entry if callable(entry) else kernel
 
 
 def on_first_compile(hook: Callable[[], None]) -> None:

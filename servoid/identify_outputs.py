@@ -33,7 +33,7 @@ from servoid.ident.online.mrgia import MRGIAResult
 from servoid.modelfile import ModelFile, save_model
 from servoid.recording import write_recording
 
-__all__ = ["Record", "write_outputs", "summary_rows", "result_json", "OUTPUT_FILES"]
+__all__ = ["Record", "model_content", "write_outputs", "summary_rows", "result_json", "OUTPUT_FILES"]
 
 #: What ``write_outputs`` writes into its folder, by name: the CLI checks the places before any work.
 OUTPUT_FILES = {"recording": "recording.csv", "model": "model.json", "convergence_plot": "convergence.png",
@@ -105,23 +105,17 @@ class Record:
         return float(np.median(np.diff(self.t)))
 
 
-def write_outputs(out_dir: Path, record: Record, result: Identification, *, plots: bool = True) -> dict[str, str]:
-    """Write the recording, ``model.json`` and the plots; return ``{name: path}``."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    paths: dict[str, str] = {}
-    if record.written_to is None:
-        cols: dict[str, np.ndarray] = {}
-        if record.t is not None:
-            cols["t"] = record.t
-        cols["u"] = record.u
-        cols["y"] = record.y
-        cols.update(record.extra)
-        meta = {"servoid recording": "", "source": record.source,
-                "input_unit": record.input_unit, "unit": record.output_unit}  # fmt: skip
-        paths["recording"] = str(write_recording(out_dir / OUTPUT_FILES["recording"], cols, metadata=meta))
-    else:
-        paths["recording"] = str(record.written_to)
-    content = ModelFile(
+def model_content(record: Record, result: Identification) -> ModelFile:
+    """The ``model.json`` of an identification of ``record`` (``servoid identify`` and ``servoid batch`` write it).
+
+    Parameters
+    ----------
+    record : Record
+        What was identified, with its units and source.
+    result : Identification
+        The identification.
+    """
+    return ModelFile(
         model=result.model,
         stderr=result.stderr,
         input_unit=record.input_unit,
@@ -144,7 +138,25 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         delta0=result.delta0,
         loop=None if result.loop is None else dict(result.loop.params),
     )
-    paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], content))
+
+
+def write_outputs(out_dir: Path, record: Record, result: Identification, *, plots: bool = True) -> dict[str, str]:
+    """Write the recording, ``model.json`` and the plots; return ``{name: path}``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    paths: dict[str, str] = {}
+    if record.written_to is None:
+        cols: dict[str, np.ndarray] = {}
+        if record.t is not None:
+            cols["t"] = record.t
+        cols["u"] = record.u
+        cols["y"] = record.y
+        cols.update(record.extra)
+        meta = {"servoid recording": "", "source": record.source,
+                "input_unit": record.input_unit, "unit": record.output_unit}  # fmt: skip
+        paths["recording"] = str(write_recording(out_dir / OUTPUT_FILES["recording"], cols, metadata=meta))
+    else:
+        paths["recording"] = str(record.written_to)
+    paths["model"] = str(save_model(out_dir / OUTPUT_FILES["model"], model_content(record, result)))
     if plots:
         from servoid import plots as _plots
 

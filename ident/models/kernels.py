@@ -17,6 +17,8 @@ __all__ = [
     "rest_kernel",
     "extended_kernel",
     "schur_stable",
+    "schur_stable_in",
+    "normal_equations_kernel",
     "ZONE_UP",
     "ZONE_DOWN",
     "ZONE_MEMORY",
@@ -228,8 +230,16 @@ def schur_stable(a: np.ndarray) -> bool:
     The Schur-Cohn step-down recursion: O(na^2), no root finding, so it is
     cheap enough to run on every estimator update.
     """
+    return schur_stable_in(a, np.empty(a.shape[0] + 1))
+
+
+@jit
+def schur_stable_in(a: np.ndarray, poly: np.ndarray) -> bool:
+    """:func:`schur_stable` in the caller's scratch ``poly`` (length ``na + 1``): no allocation per call.
+
+    The estimator checks every update with it; an allocation costs as much as the check.
+    """
     na = a.shape[0]
-    poly = np.empty(na + 1)
     poly[0] = 1.0
     for i in range(na):
         poly[i + 1] = a[i]
@@ -238,9 +248,98 @@ def schur_stable(a: np.ndarray) -> bool:
         if not abs(k) < 1.0:
             return False
         denom = 1.0 - k * k
-        low = np.empty(m)
-        for i in range(m):
-            low[i] = (poly[i] - k * poly[m - i]) / denom
-        for i in range(m):
-            poly[i] = low[i]
+        # the step-down poly[i] <- (poly[i] - k poly[m - i]) / denom, in place pair by pair
+        for i in range(m // 2 + 1):
+            j = m - i
+            if i > j:
+                break
+            pi = poly[i]
+            pj = poly[j]
+            poly[i] = (pi - k * pj) / denom
+            if j != i:
+                poly[j] = (pj - k * pi) / denom
     return True
+
+
+@jit
+def normal_equations_kernel(
+    a: np.ndarray,
+    b: np.ndarray,
+    m2: np.ndarray,
+    c1: np.ndarray,
+    c2: np.ndarray,
+    h: np.ndarray,
+    delay: int,
+    u: np.ndarray,
+    y: np.ndarray,
+    keep: np.ndarray,
+    y0: float,
+    jtj: np.ndarray,
+    jtr: np.ndarray,
+) -> float:
+    """Free-run simulations of ``K`` parameter sets in step, reduced to least-squares normal equations as they go.
+
+    Row 0 of ``a`` (K x na), ``b`` (K x (nb + 1)), ``m2``, ``c1``, ``c2`` is
+    the model at ``p``; row ``j + 1`` the model at ``p + h[j] e_j``. Per
+    sample the residual ``r = y_hat_0 - y`` and the forward-difference
+    Jacobian row ``J_j = (y_hat_(j+1) - y_hat_0) / h[j]`` are added into
+    ``jtj += J^T J`` and ``jtr += J^T r`` (zeroed here) and never stored, so
+    memory does not grow with the record (each model keeps its last ``na``
+    values of ``x``). ``keep`` (empty: every sample) leaves samples out of
+    the sums while the simulation runs through them. With ``K = 1`` it is
+    the cost of one model. The arithmetic per model is :func:`simulate_kernel`'s.
+
+    Returns
+    -------
+    float
+        ``sum r^2`` over the kept samples; ``inf`` when a simulation is not finite.
+    """
+    k_models = a.shape[0]
+    na = a.shape[1]
+    nb = b.shape[1] - 1
+    n_cols = h.shape[0]
+    n = u.shape[0]
+    use_keep = keep.shape[0] == n
+    for i in range(n_cols):
+        jtr[i] = 0.0
+        for j in range(n_cols):
+            jtj[i, j] = 0.0
+    xh = np.zeros((k_models, na + 1))  # x(k-1) .. x(k-na) per model, newest first
+    y_prev = np.full(k_models, y0)
+    y_now = np.empty(k_models)
+    row = np.empty(n_cols)
+    cost = 0.0
+    for k in range(n):
+        for m in range(k_models):
+            x = 0.0
+            for i in range(na):
+                x -= a[m, i] * xh[m, i]
+            for j in range(nb + 1):
+                idx = k - delay - j
+                if idx >= 0:
+                    x += b[m, j] * u[idx]
+            yk, _ = backlash_step(x, xh[m, 0], y_prev[m], m2[m], c1[m], c2[m])  # xh[m, 0]: x(k-1)
+            y_now[m] = yk
+            y_prev[m] = yk
+            for i in range(na - 1, 0, -1):
+                xh[m, i] = xh[m, i - 1]
+            xh[m, 0] = x
+        if use_keep and not keep[k]:
+            continue
+        r = y_now[0] - y[k]
+        cost += r * r
+        for j in range(n_cols):
+            row[j] = (y_now[j + 1] - y_now[0]) / h[j]
+        for i in range(n_cols):
+            jtr[i] += row[i] * r
+            for j in range(i, n_cols):
+                jtj[i, j] += row[i] * row[j]
+    for i in range(n_cols):
+        for j in range(i):
+            jtj[i, j] = jtj[j, i]
+    if not np.isfinite(cost):
+        return np.inf
+    for i in range(n_cols):
+        if not np.isfinite(jtr[i]):
+            return np.inf
+    return cost

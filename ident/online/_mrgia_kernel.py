@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from servoid.ident._jit import jit
-from servoid.ident.models.kernels import schur_stable
+from servoid.ident.models.kernels import schur_stable_in
 from servoid.ident.models.pseudo_wiener import backlash_offset
 
 _backlash_at = jit(backlash_offset)
@@ -40,6 +40,8 @@ __all__ = [
     "STEP_HELD",
     "STEP_UPDATED",
     "STEP_DIVERGED",
+    "STEP_NOT_FINITE",
+    "work_size",
     "mrgia_step",
     "mrgia_skip",
     "line_coverage",
@@ -78,7 +80,11 @@ SC_MOVE_DOWN = 10
 SC_LINE_UP = 11
 SC_LINE_DOWN = 12
 SC_SINCE_RESET = 13  # samples since the start or the last recovery
-N_SCALARS = 14
+# rho(t) of eq. (30) without the floor, and its t: the next update's rho(t-1) is usually this one,
+# which saves one of its two powers (the costliest operations of an update)
+SC_RHO = 14
+SC_RHO_AT = 15
+N_SCALARS = 16
 
 #: Below this share of samples moving one way, that side is not judged.
 MIN_MOVE_SHARE = 0.02
@@ -92,6 +98,7 @@ STEP_HELD = 1  # Phi = 0: memory zone, nothing updated (eq. 42)
 STEP_UPDATED = 2  # Phi = 1: theta, P, S, K, Sigma updated
 STEP_DIVERGED = 3  # theta or P became non-finite; the state is left as it was before the step
 STEP_REFUSED = 4  # Phi = 1 but the update would leave the feasible set: nothing updated
+STEP_NOT_FINITE = 5  # u or y is not finite: nothing changed
 STEP_STUCK = 8  # flag added to the code: past the warm-up, a line coverage is below CFG_STUCK_BELOW
 
 
@@ -175,8 +182,21 @@ def offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
 _offsets = jit(offsets)
 
 
+def work_size(na: int, nb: int) -> int:
+    """Length of the scratch vector :func:`mrgia_step` needs for these orders.
+
+    ``h``, ``P h``, ``K``, the candidate theta (``n`` each), the candidate ``P``
+    (``n^2``) and the stability test's polynomial (``na + 1``): kept by the
+    caller, so that an update allocates nothing (an allocation costs as much
+    as the arithmetic of a small model's update). Its contents between calls
+    mean nothing.
+    """
+    n = na + nb + 4
+    return 4 * n + n * n + na + 1
+
+
 @jit
-def _feasible(theta: np.ndarray, na: int, nb: int) -> bool:
+def _feasible(theta: np.ndarray, na: int, nb: int, poly: np.ndarray) -> bool:
     """The model's own assumptions: stable linear block, ``m2 > 0``, ``c1 >= 0``, ``c2 >= 0``.
 
     Zero dead zones are admitted because the paper starts from them (Section 4).
@@ -191,7 +211,7 @@ def _feasible(theta: np.ndarray, na: int, nb: int) -> bool:
     im2 = _backlash_at(na, nb)
     if not (1.0 + theta[im2] > 0.0 and theta[im2 + 1] >= 0.0 and theta[im2 + 2] >= 0.0):
         return False
-    return schur_stable(theta[:na])
+    return schur_stable_in(theta[:na], poly)
 
 
 @jit
@@ -280,8 +300,13 @@ def line_coverage(state: np.ndarray, na: int, nb: int, d: int) -> tuple[float, f
 
 
 @jit
-def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: float, y: float) -> int:
+def mrgia_step(
+    state: np.ndarray, cfg: np.ndarray, work: np.ndarray, na: int, nb: int, d: int, u: float, y: float
+) -> int:
     """Process one sample ``(u(k), y(k))``; return a ``STEP_*`` code.
+
+    ``work`` is scratch of length :func:`work_size` (nothing is allocated here);
+    a non-finite ``u`` or ``y`` returns ``STEP_NOT_FINITE`` and changes nothing.
 
     Notes
     -----
@@ -308,9 +333,17 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
     * eq. (30): ``mu(k) = rho(t-1)/rho(t) (1 - rho(t))`` with
       ``rho(t) = (t + 1)^-r``, ``t = k + 1`` for the k-th sample, ``rho(0) = 1``.
     """
+    if not (math.isfinite(u) and math.isfinite(y)):
+        return STEP_NOT_FINITE
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
     r = cfg[CFG_RHO_EXPONENT]
     eps = cfg[CFG_EPSILON]
+    h = work[:n]
+    ph = work[n : 2 * n]
+    kg = work[2 * n : 3 * n]
+    theta_new = work[3 * n : 4 * n]
+    p_new = work[4 * n : 4 * n + n * n]
+    poly = work[4 * n + n * n : 4 * n + n * n + na + 1]
 
     xk = _predict_x(state, na, nb, d, oxh, ouh)  # eq. (27)
 
@@ -323,7 +356,6 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
         code = STEP_HELD
 
         if phi == 1.0:
-            h = np.empty(n)
             regressor(state, na, nb, d, oxh, ouh, xk, up, down, h)  # eq. (25)
 
             e = y  # eq. (41): y_c-hat(k) = y(k) when Phi = 1
@@ -331,12 +363,13 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
                 e -= h[i] * state[i]  # eq. (17)
 
             floor = cfg[CFG_RHO_FLOOR]
-            rho = max((t + 1.0) ** (-r), floor)
-            rho_prev = max(t ** (-r), floor)
+            raw = (t + 1.0) ** (-r)
+            raw_prev = state[osc + SC_RHO] if state[osc + SC_RHO_AT] == t else t ** (-r)
+            rho = max(raw, floor)
+            rho_prev = max(raw_prev, floor)
             mu = rho_prev / rho * (1.0 - rho)  # eq. (30); constant 1 - floor once at the floor
             sigma = state[osc + SC_SIGMA] + rho * (e * e - state[osc + SC_SIGMA])  # eq. (22)
 
-            ph = np.zeros(n)
             for i in range(n):
                 acc = 0.0
                 for j in range(n):
@@ -348,11 +381,11 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
             s = hph + mu * sigma  # eq. (19)
             if not (s > 0.0) or not math.isfinite(s):
                 return STEP_DIVERGED
-            kg = ph / s  # eq. (20)
+            for i in range(n):
+                kg[i] = ph[i] / s  # eq. (20)
 
             # eq. (21), Joseph form, upper triangle then mirrored
             q = cfg[CFG_PROCESS_NOISE]
-            p_new = np.empty(n * n)
             for i in range(n):
                 for j in range(i, n):
                     v = (state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]) / mu + sigma * kg[
@@ -377,14 +410,15 @@ def mrgia_step(state: np.ndarray, cfg: np.ndarray, na: int, nb: int, d: int, u: 
             for i in range(n):
                 if not math.isfinite(p_new[i * n + i]) or p_new[i * n + i] <= 0.0:
                     ok_flag = False
-            theta_new = np.empty(n)
             for i in range(n):
                 theta_new[i] = state[i] + kg[i] * e  # eq. (18) as in (50)
                 if not math.isfinite(theta_new[i]):
                     ok_flag = False
             if not ok_flag:
                 return STEP_DIVERGED
-            if cfg[CFG_PROJECT] != 0.0 and not _feasible(theta_new, na, nb):
+            state[osc + SC_RHO] = raw  # after the divergence checks: a diverging sample changes nothing
+            state[osc + SC_RHO_AT] = t + 1.0
+            if cfg[CFG_PROJECT] != 0.0 and not _feasible(theta_new, na, nb, poly):
                 code = STEP_REFUSED
             else:
                 for i in range(n):
@@ -485,6 +519,7 @@ def mrgia_run(
     coverage_out: np.ndarray,
     record_every: int,
     row0: int,
+    work: np.ndarray,
 ) -> tuple[int, int]:
     """Run :func:`mrgia_step` over whole arrays.
 
@@ -510,7 +545,7 @@ def mrgia_run(
     code = 0
     for k in range(n_samples):
         if valid[k]:
-            code = mrgia_step(state, cfg, na, nb, d, u[k], y[k])
+            code = mrgia_step(state, cfg, work, na, nb, d, u[k], y[k])
             if code == STEP_DIVERGED:
                 return 2, k
         else:

@@ -29,9 +29,9 @@ with the sample index; a run that is still stuck at the end is reported by
 from __future__ import annotations
 
 import enum
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -39,6 +39,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, EstimatorDiverged, ModelError
 from servoid.ident import defaults
+from servoid.ident._jit import direct_call
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
 from servoid.ident.online import _mrgia_kernel as _k
 from servoid.ident.paper import PAPER_P0, PAPER_RHO_EXPONENT, PAPER_SIGMA0, paper_theta0
@@ -78,6 +79,20 @@ class Step(enum.IntEnum):
 
 #: The members by code: a dict lookup costs a fraction of ``Step(code)``, which runs once per sample.
 _STEPS: dict[int, Step] = {int(s): s for s in Step}
+
+#: The kernel's return codes, the plain steps by position and None for those that need handling.
+_STEP_OF: tuple[Step | None, ...] = tuple(_STEPS.get(code) for code in range(2 * _k.STEP_STUCK))
+
+
+def _first_step(*args: Any) -> int:
+    """The step compiled for these argument types, called past numba's dispatch from now on (ident/_jit.py)."""
+    global _fast_step
+    if _fast_step is None:
+        _fast_step = direct_call(_k.mrgia_step, *args)
+    return _fast_step(*args)  # type: ignore[no-any-return]
+
+
+_fast_step: Callable[..., Any] | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -360,6 +375,15 @@ class MRGIA:
         self._na, self._nb, self._d = self.config.na, self.config.nb, self.config.delay
         self._recoveries: list[RecoveryEvent] = []
         self.state = self.config.initial_state()
+        self._work = np.zeros(_k.work_size(self._na, self._nb))
+        self._bind()
+
+    def _bind(self) -> None:
+        """Fix the step's arguments but ``(u, y)``: an update then costs one C-level call (rebound on reset)."""
+        step = _fast_step if _fast_step is not None else _first_step
+        self._step: Callable[[float, float], int] = partial(
+            step, self.state, self._cfg, self._work, self._na, self._nb, self._d
+        )
 
     # -- stepping -----------------------------------------------------------------
     def update(self, u: float, y: float) -> Step:
@@ -378,18 +402,19 @@ class MRGIA:
             If this sample would make ``theta`` or ``P`` non-finite; the state
             is left as it was before the sample.
         """
-        u, y = float(u), float(y)
-        if not (math.isfinite(u) and math.isfinite(y)):
+        # float() gives a clear error for a non-number; the kernel checks finiteness
+        code = self._step(float(u), float(y))
+        step = _STEP_OF[code]
+        if step is not None:
+            return step
+        if code == _k.STEP_DIVERGED:
+            raise EstimatorDiverged(_diverged_message(self.samples), sample=self.samples)
+        if code == _k.STEP_NOT_FINITE:
             raise ConfigError(
                 f"sample {self.samples}: u (={u!r}) and y (={y!r}) must be finite; use skip(u) for a lost measurement"
             )
-        code = _k.mrgia_step(self.state, self._cfg, self._na, self._nb, self._d, u, y)
-        if code == _k.STEP_DIVERGED:
-            raise EstimatorDiverged(_diverged_message(self.samples), sample=self.samples)
-        if code >= _k.STEP_STUCK:
-            code -= _k.STEP_STUCK
-            self._recover(self.samples - 1)
-        return _STEPS[code]
+        self._recover(self.samples - 1)  # flagged STEP_STUCK
+        return _STEPS[code - _k.STEP_STUCK]
 
     def skip(self, u: float) -> None:
         """Advance over a sample whose measurement was lost (late, missed, timed out).
@@ -409,6 +434,7 @@ class MRGIA:
         self.state = self.config.initial_state()
         self._cfg = self.config.kernel_config()
         self._recoveries.clear()
+        self._bind()
 
     def warm_up(self) -> None:
         """Compile the kernels now, on a scratch estimator: a first compile inside a sampling loop stalls it for seconds."""
@@ -710,7 +736,7 @@ def run_mrgia(
         status, k = _k.mrgia_run(
             est.state, est._cfg, cfg.na, cfg.nb, cfg.delay,
             u_arr[start:stop], y_arr[start:stop], valid_arr[start:stop],
-            theta_hist, cov_hist, every, start,
+            theta_hist, cov_hist, every, start, est._work,
         )  # fmt: skip
         if status == 2:
             at = start + int(k)

@@ -9,9 +9,10 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover
     from pathlib import Path
 
+    from servoid.readers import ReadOptions
     from servoid.recording import Recording
 
-__all__ = ["add_options", "read", "formats_help", "FORMATS_HELP", "EXAMPLES"]
+__all__ = ["add_options", "options", "read", "formats_help", "FORMATS_HELP", "EXAMPLES"]
 
 #: What a recording may be, for a command's description.
 FORMATS_HELP = (
@@ -50,6 +51,26 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                             "y=/joint_states:wrist,u=/cmd (SEL: a joint, an index, or a field path)")  # fmt: skip
 
 
+def options(args: argparse.Namespace) -> ReadOptions:
+    """The reading options in ``args`` (``servoid batch`` ships them to its workers).
+
+    Raises
+    ------
+    ConfigError
+        Options that do not parse or disagree.
+    """
+    from servoid.errors import ConfigError
+    from servoid.readers import ReadOptions, parse_columns, parse_topics
+
+    columns = parse_columns(args.columns) if args.columns is not None else {}
+    if args.time_column is not None:
+        if "t" in columns and columns["t"] != args.time_column:
+            raise ConfigError(f"--time-column {args.time_column!r} and --columns t={columns['t']!r} disagree; give one")
+        columns["t"] = args.time_column
+    topics = parse_topics(args.topics) if args.topics is not None else {}
+    return ReadOptions(columns=columns, time_unit=args.time_unit, topics=topics)
+
+
 def read(path: Path, args: argparse.Namespace) -> Recording:
     """Read the recording at ``path`` as the options in ``args`` say; warn of what the reader noted.
 
@@ -61,17 +82,9 @@ def read(path: Path, args: argparse.Namespace) -> Recording:
         What the reader raises.
     """
     from servoid.cli import _term
-    from servoid.errors import ConfigError
-    from servoid.readers import ReadOptions, parse_columns, parse_topics
     from servoid.readers import read as read_any
 
-    columns = parse_columns(args.columns) if args.columns is not None else {}
-    if args.time_column is not None:
-        if "t" in columns and columns["t"] != args.time_column:
-            raise ConfigError(f"--time-column {args.time_column!r} and --columns t={columns['t']!r} disagree; give one")
-        columns["t"] = args.time_column
-    topics = parse_topics(args.topics) if args.topics is not None else {}
-    rec = read_any(path, ReadOptions(columns=columns, time_unit=args.time_unit, topics=topics))
+    rec = read_any(path, options(args))
     for note in rec.notes:
         _term.warn(f"{path}: {note}")
     return rec

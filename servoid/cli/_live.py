@@ -121,22 +121,10 @@ def excitation(
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
-    """The samples of a recording to identify from: all, or for a live recording those its session used."""
-    import numpy as np
+    """The samples of a recording to identify from (:func:`servoid.session.samples.recording_usable`)."""
+    from servoid.session.samples import recording_usable
 
-    from servoid.session import usable
-    from servoid.session.samples import GUARD_AFTER_ANY, STATUSES
-
-    if rec.status is None:
-        return None
-    guard = rec.metadata.get("guard_samples", "0")
-    guard_samples = int(guard) if guard.isdigit() else 0  # recordings from before the guard have none
-    # recordings from before guard_after had the window after every unusable sample
-    after = [s for s in rec.metadata.get("guard_after", ",".join(GUARD_AFTER_ANY)).split(",") if s in STATUSES]
-    used: np.ndarray = usable(rec.status, use_late=rec.metadata.get("use_late") == "True", guard=guard_samples,
-                              after=after)  # fmt: skip
-    used &= np.isfinite(rec.y)
-    return used
+    return recording_usable(rec)
 
 
 def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -> tuple[Record, MRGIAConfig]:
