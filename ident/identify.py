@@ -39,6 +39,7 @@ from servoid.ident.offline.intervals import (
     quantum,
     residual_white,
     reversals,
+    streamed_stderr,
     verdict,
 )
 from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
@@ -499,7 +500,10 @@ def identify(
     white = False
     lines_cross = False
     if refinement is not None:
-        stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
+        if refinement.jacobian.shape[0] == refinement.residual.size:
+            stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
+        else:  # a long record's fit streamed without a Jacobian
+            stderr = streamed_stderr(refinement.covariance, refinement.residual, refinement.play_gradient())
         # an exact fit (noise-free record) leaves rounding, whose colour means nothing
         white = fit < 1e-6 or residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)

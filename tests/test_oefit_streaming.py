@@ -49,3 +49,17 @@ def test_streamed_refinement_finds_scipys_optimum_and_errors(monkeypatch, masked
     assert np.all(np.abs(streamed.model.values() - scipy_fit.model.values()) < 0.05 * se)
     np.testing.assert_allclose(streamed.stderr, scipy_fit.stderr, rtol=1e-3)
     assert streamed.nrmse == pytest.approx(scipy_fit.nrmse, rel=1e-6)
+
+
+def test_a_streamed_identification_gives_the_same_play_and_interval_without_a_jacobian(monkeypatch):
+    from servoid.ident import MRGIAConfig, identify
+
+    sim = paper_record(10_000, seed=7, snr=40.0)
+    monkeypatch.setattr(_oefit, "STREAM_FROM_ROWS", 10**12)
+    held = identify(sim.u, sim.y, MRGIAConfig())
+    monkeypatch.setattr(_oefit, "STREAM_FROM_ROWS", 1)
+    streamed = identify(sim.u, sim.y, MRGIAConfig())
+    width = held.play_interval[1] - held.play_interval[0]
+    assert np.isfinite(width) and streamed.identifiable == held.identifiable
+    assert streamed.play == pytest.approx(held.play, abs=0.05 * width)
+    assert streamed.play_interval[1] - streamed.play_interval[0] == pytest.approx(width, rel=0.25)

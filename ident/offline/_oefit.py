@@ -301,4 +301,7 @@ def _fit_streaming(
     res = problem(p)
     cov, stderr = covariance_from_normal(cost, s.jtj, _rows(problem)) if math.isfinite(cost) else (
         np.full((n, n), np.nan), np.full(n, np.nan))  # fmt: skip
-    return OEFit(x=p, residual=res, covariance=cov, stderr=stderr, nfev=s.nfev, success=success, message=message)
+    # no Jacobian is held (that is the point): an empty one says so, and the play's interval comes from the
+    # covariance and the residual (:func:`servoid.ident.offline.intervals.streamed_stderr`)
+    return OEFit(x=p, residual=res, covariance=cov, stderr=stderr, jacobian=np.zeros((0, n)), nfev=s.nfev,
+                 success=success, message=message)  # fmt: skip

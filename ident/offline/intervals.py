@@ -17,6 +17,7 @@ that fails gives a reason text for the report, the plots' titles and the JSON.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +31,7 @@ __all__ = [
     "reversals",
     "integrated_time",
     "hac_stderr",
+    "streamed_stderr",
     "play_interval",
     "residual_white",
     "quantum",
@@ -154,6 +156,39 @@ def hac_stderr(jacobian: np.ndarray, residual: np.ndarray, gradient: np.ndarray)
     inv = np.linalg.inv(jtj)
     var = float(gradient @ inv @ omega @ inv @ gradient)
     return float(np.sqrt(var)) if var >= 0.0 else float("nan")
+
+
+def streamed_stderr(covariance: np.ndarray, residual: np.ndarray, gradient: np.ndarray) -> float:
+    """Standard error of ``gradient . p`` from the white covariance, inflated by the residuals' integrated time.
+
+    For fits streamed without a Jacobian (long records): ``s^2 (J^T J)^-1``
+    assumes white residuals; scaling its variance by the integrated
+    autocorrelation time (:func:`integrated_time`) is the sandwich's answer
+    when the Jacobian's rows carry the residual's correlation only through
+    the residual itself (an approximation of :func:`hac_stderr`).
+
+    Parameters
+    ----------
+    covariance : ndarray
+        ``s^2 (J^T J)^-1`` over the fitted vector.
+    residual : ndarray
+        The residual at the optimum.
+    gradient : ndarray
+        The gradient of the quantity in ``p``.
+
+    Returns
+    -------
+    float
+        NaN when the covariance does not determine the quantity.
+    """
+    cov = np.asarray(covariance, dtype=np.float64)
+    g = np.asarray(gradient, dtype=np.float64)
+    if cov.shape != (g.size, g.size):
+        return float("nan")
+    var = float(g @ cov @ g)
+    if not (math.isfinite(var) and var >= 0.0):
+        return float("nan")
+    return float(np.sqrt(var * integrated_time(residual)))
 
 
 def play_interval(play: float, stderr: float) -> tuple[float, float]:
