@@ -31,7 +31,10 @@ def test_two_joints_of_one_bus_give_two_models_near_the_plant(tmp_path, capsys):
     rec = read_recording(tmp_path / "recording.csv", u_column="u_5", y_column="y_5")
     assert rec.metadata["joints"] == "3,5" and len(rec) == 1000
     for servo_id in (3, 5):
-        model = load_model(tmp_path / f"joint_{servo_id}" / "model.json").model
-        # the estimator's own plant behind the protocol: its play within 25 % (whole-count encoder, missed slots)
-        assert model.dead_zone == pytest.approx(MODEL_PLANT.dead_zone, rel=0.25), servo_id
+        content = load_model(tmp_path / f"joint_{servo_id}" / "model.json")
+        # the estimator's own plant behind the protocol: its play within 25 % (whole-count encoder, missed slots),
+        # or withheld by the verdict (a missed slot leaves the plant still while the record moves on, which
+        # colours the residual): never a confident wrong play
+        if content.identifiable is not False:
+            assert content.model.dead_zone == pytest.approx(MODEL_PLANT.dead_zone, rel=0.25), servo_id
     assert np.isfinite(rec.y).sum() > 500
