@@ -538,10 +538,13 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         judged = Verdict(False, (*judged.reasons, *loop.reasons))
-    if form == PSEUDO_WIENER:  # the toolbox's resid view of the black box (compare's band rule), as a warning
-        coloured = compare({"the identified model": model}, u_arr, y_arr, valid=keep).fits[0].coloured_warning()
-        if coloured is not None:
-            warnings.append(coloured)
+    # the toolbox's resid view of the black box (compare's band rule), as a warning; when the servo-loop
+    # model answers, it says why the black box was not the answer
+    name = "the identified model" if form == PSEUDO_WIENER else "the black-box (pseudo-Wiener) model"
+    start = {name: (delta0, (point.u, point.y))}
+    coloured = compare({name: model}, u_arr, y_arr, valid=keep, starts=start).fits[0].coloured_warning()
+    if coloured is not None:
+        warnings.append(coloured)
     return Identification(
         model=model,
         method=method,

@@ -182,7 +182,9 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         )
         loop.suptitle(_wrapped(result.headline()), fontsize=8)
         paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
-        comparison = compare({f"identified ({result.method})": result.model}, record.u, record.y, valid=record.valid)
+        name = f"identified ({result.method})"
+        start = (result.delta0, (result.operating_point.u, result.operating_point.y))
+        comparison = compare({name: result.model}, record.u, record.y, valid=record.valid, starts={name: start})
         paths.update(write_compare_plots(out_dir, comparison, t=record.t, sample_period_s=record.sample_period_s,
                                          input_unit=record.input_unit, output_unit=record.output_unit))  # fmt: skip
     return paths

@@ -229,6 +229,7 @@ def compare(
     valid: Sequence[bool] | np.ndarray | None = None,
     max_lag: int = 25,
     confidence: float = 0.99,
+    starts: Mapping[str, tuple[float, tuple[float, float]]] | None = None,
 ) -> Comparison:
     """Simulate each model on the record's input and score it against the measured output.
 
@@ -246,6 +247,13 @@ def compare(
         the valid samples on a short record).
     confidence : float
         Level of the correlations' band, in (0, 1).
+    starts : mapping of str to (float, (float, float)), optional
+        Per model name, where its record starts and the coordinates it was
+        fitted in: ``(delta0, (u0, y0))`` as a model file keeps them (the
+        initial state inside the play, the operating point), so that a
+        model's fit on its own record is the fit ``identify`` reported. A
+        model not named starts from rest with the backlash holding the first
+        measured output, in the record's coordinates.
 
     Returns
     -------
@@ -283,7 +291,11 @@ def compare(
     resolution = output_resolution(y_used)
     fits = []
     for name, model in named.items():
-        y_hat = free_run(model, u_arr, y0=y0)
+        if starts is not None and name in starts:
+            delta0, (u_op, y_op) = starts[name]
+            y_hat = free_run(model, u_arr - u_op, y0=y0 - y_op, delta0=delta0) + y_op
+        else:
+            y_hat = free_run(model, u_arr, y0=y0)
         residual = y_arr - y_hat
         part = residual if keep is None else residual[keep]
         fits.append(ModelFit(

@@ -134,7 +134,8 @@ def judge_online(
     if hist.shape[0] >= 4:
         gaps = hist[:, lay.c1] + hist[:, lay.c2]
         last = gaps[int(math.floor((1.0 - tail) * gaps.size)) :]
-        scale = max(abs(gap), 1e-300)
+        # relative to the play, or to the largest play of the tail when the estimate sits near 0 (a bounded ratio)
+        scale = max(abs(gap), float(np.max(np.abs(last))), 1e-300)
         drift = float(np.ptp(last) / scale)
         if not drift <= drift_tol:
             reasons.append(f"the play still moved {100 * drift:.0f} % over the last {100 * tail:.0f} % of the run")

@@ -151,8 +151,11 @@ def run(args: argparse.Namespace) -> int:
     results: list[dict[str, Any]] = []
     paths: dict[str, str] = {}
     for i, (data_path, rec) in enumerate(zip(data_paths, records)):
+        # each model starts as its file says (its own record's initial state: a guess on another record, which
+        # shapes only the first samples) in its own coordinates (the operating point)
+        starts = {n: (c.delta0, c.operating_point) for n, c in zip(names, contents)}
         comparison = compare({n: c.model for n, c in zip(names, contents)}, rec.u, rec.y, valid=recording_valid(rec),
-                             max_lag=args.max_lag)  # fmt: skip
+                             max_lag=args.max_lag, starts=starts)  # fmt: skip
         for w in coloured_warnings(comparison):
             _term.warn(f"{data_path}: {w}")
         output_unit = rec.metadata.get("unit", first.output_unit)
