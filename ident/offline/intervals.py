@@ -350,7 +350,9 @@ def verdict(e: Evidence) -> Verdict:
             "and the play may be absorbing it"
         )
     low, high = e.interval
-    if not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
+    if np.isnan(low) or np.isnan(high):
+        why.append("there is no 95 % interval: the data do not determine the play's standard error")
+    elif not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
         why.append(f"the 95 % interval [{low:.3g}, {high:.3g}] reaches zero or has no finite ends")
     elif 0.5 * (high - low) > MAX_REL_HALF_WIDTH * play:
         why.append(
