@@ -59,8 +59,19 @@ def reversal_indices(signal: np.ndarray, threshold: float) -> np.ndarray:
     """Samples where ``signal`` turned, counting a turn once it has come back by more than ``threshold``.
 
     A hysteresis count: wiggles smaller than ``threshold`` (noise,
-    quantisation, a play not crossed) are not reversals. Returns the index
-    of each confirmed turn (where the signal came back past the threshold).
+    quantisation, a play not crossed) are not reversals.
+
+    Parameters
+    ----------
+    signal : ndarray
+        The output.
+    threshold : float
+        How far it must come back from an extreme.
+
+    Returns
+    -------
+    ndarray of int
+        The index of each confirmed turn (where the signal came back past the threshold).
     """
     s = np.asarray(signal, dtype=np.float64)
     out: list[int] = []
