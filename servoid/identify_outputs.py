@@ -166,7 +166,10 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
         y0 = float(record.y[0 if record.valid is None else int(np.argmax(record.valid))])
         op = result.operating_point
         u_m, y0_m = record.u - op.u, y0 - op.y  # the model's own coordinates
-        simulated = {f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, u_m, y0=y0_m) + op.y}
+        d0 = result.delta0 if result.refinement is not None else None  # the refined model starts at rest
+        simulated = {
+            f"{result.method} (NRMSE {result.fit_nrmse:.3g})": free_run(result.model, u_m, y0=y0_m, delta0=d0) + op.y
+        }
         if result.refinement is not None and result.mrgia_model is not None and result.mrgia_nrmse is not None:
             simulated[f"mrgia (NRMSE {result.mrgia_nrmse:.3g})"] = free_run(result.mrgia_model, record.u, y0=y0)
         if result.loop is not None:
@@ -174,13 +177,13 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
                 np.asarray(result.loop.simulated) + result.centred_point.y
             )
         fit = _plots.plot_fit(record.y, simulated, u=record.u, t=record.t, output_unit=record.output_unit)
-        fit.suptitle(_wrapped(result.headline()), fontsize=8)
+        _headline(fit, result)
         paths["fit_plot"] = str(_plots.save(fit, out_dir / OUTPUT_FILES["fit_plot"]))
-        x_hat = simulate(result.model, u_m, y0=y0_m).x
+        x_hat = simulate(result.model, u_m, y0=y0_m, delta0=d0).x
         loop = _plots.plot_backlash(
             result.model, x_hat, record.y - op.y, output_unit=record.output_unit, truth=record.truth
         )
-        loop.suptitle(_wrapped(result.headline()), fontsize=8)
+        _headline(loop, result)
         paths["backlash_plot"] = str(_plots.save(loop, out_dir / OUTPUT_FILES["backlash_plot"]))
         name = f"identified ({result.method})"
         start = (result.delta0, (result.operating_point.u, result.operating_point.y))
@@ -190,10 +193,14 @@ def write_outputs(out_dir: Path, record: Record, result: Identification, *, plot
     return paths
 
 
-def _wrapped(text: str, width: int = 110) -> str:
+def _headline(fig: Any, result: Identification) -> None:
+    """The structure and the verdict above a figure's own titles (the issue: named in the plots' titles)."""
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, width))
+    lines = textwrap.wrap(result.headline(), 110)
+    fig.set_layout_engine(None)
+    fig.subplots_adjust(top=1.0 - 0.03 * (len(lines) + 2))
+    fig.suptitle("\n".join(lines), fontsize=8, y=0.995, color="black" if result.identifiable else "firebrick")
 
 
 def summary_rows(result: Identification, truth: BacklashModel | None) -> tuple[list[str], list[list[str]]]:

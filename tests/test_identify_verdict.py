@@ -51,6 +51,7 @@ def test_each_rule_gives_its_reason():
         "structure undetermined": dataclasses.replace(good, margin=0.01),
         "times the floor": dataclasses.replace(good, fit_nrmse=0.2),
         "reaches zero": dataclasses.replace(good, interval=(-0.1, 2.0)),
+        "no 95 % interval": dataclasses.replace(good, interval=(float("nan"), float("nan"))),
         "wider than": dataclasses.replace(good, interval=(0.3, 1.7)),
         "sampled too slowly": dataclasses.replace(good, dead_time_samples=0.4),
         "stall band": dataclasses.replace(good, stall_band=1.5),

@@ -39,11 +39,27 @@ def matters(nrmse_with: float, nrmse_without: float, stall_ratio: float) -> bool
 
 
 def stall_band(fs: float, kv: float, kp: float) -> float:
-    """The static stall band ``fs / (kv kp)`` of a P loop (unit of y), what the verdict compares with the play."""
+    """The static stall band ``fs / (kv kp)`` of a P loop (unit of y), what the verdict compares with the play.
+
+    Parameters
+    ----------
+    fs : float
+        Break-away friction as an acceleration (unit of y per s^2).
+    kv, kp : float
+        The velocity and position loop gains (1/s); infinity when either is not positive.
+    """
     return fs / (kv * kp) if kv > 0.0 and kp > 0.0 else float("inf")
 
 
 def describe(band: float, play: float, unit: str = "") -> str:
-    """One line for the report."""
+    """One line for the report.
+
+    Parameters
+    ----------
+    band, play : float
+        The stall band and the play (unit of y).
+    unit : str
+        The unit's name, or "".
+    """
     return (f"{FRICTION_STALL}: the drive stalls after reversals; its stall band {band:.3g}{unit and ' ' + unit} "
             f"against a play of {play:.3g}{unit and ' ' + unit}")  # fmt: skip

@@ -115,6 +115,7 @@ def simulate(
     noise_std: float | None = None,
     rng: np.random.Generator | int | None = None,
     y0: float = 0.0,
+    delta0: float | None = None,
 ) -> Simulation:
     """Simulate ``model`` from rest on the input ``u``.
 
@@ -134,6 +135,9 @@ def simulate(
         Source of the noise (or its seed); required when noise is requested.
     y0 : float
         Backlash output before the first sample (``x`` starts at 0).
+    delta0 : float, optional
+        Start at rest with the linear block at ``x = y0 + delta0`` instead
+        (:func:`free_run`).
 
     Returns
     -------
@@ -141,9 +145,10 @@ def simulate(
     """
     u_arr = validation.signal("u", u)
     y0 = validation.real("y0", y0)
+    d0 = None if delta0 is None else validation.real("delta0", delta0)
     if snr is not None and noise_std is not None:
         raise ConfigError("give snr or noise_std, not both")
-    x, y_clean, zone = _run(model, u_arr, y0)
+    x, y_clean, zone = _run(model, u_arr, y0, d0)
     std = 0.0
     if snr is not None:
         std = noise_std_for_snr(y_clean, snr)

@@ -61,8 +61,19 @@ def reversal_indices(signal: np.ndarray, threshold: float) -> np.ndarray:
     """Samples where ``signal`` turned, counting a turn once it has come back by more than ``threshold``.
 
     A hysteresis count: wiggles smaller than ``threshold`` (noise,
-    quantisation, a play not crossed) are not reversals. Returns the index
-    of each confirmed turn (where the signal came back past the threshold).
+    quantisation, a play not crossed) are not reversals.
+
+    Parameters
+    ----------
+    signal : ndarray
+        The output.
+    threshold : float
+        How far it must come back from an extreme.
+
+    Returns
+    -------
+    ndarray of int
+        The index of each confirmed turn (where the signal came back past the threshold).
     """
     s = np.asarray(signal, dtype=np.float64)
     out: list[int] = []
@@ -385,7 +396,9 @@ def verdict(e: Evidence) -> Verdict:
             "and the play may be absorbing it"
         )
     low, high = e.interval
-    if not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
+    if np.isnan(low) or np.isnan(high):
+        why.append("there is no 95 % interval: the data do not determine the play's standard error")
+    elif not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
         why.append(f"the 95 % interval [{low:.3g}, {high:.3g}] reaches zero or has no finite ends")
     elif 0.5 * (high - low) > MAX_REL_HALF_WIDTH * play:
         why.append(

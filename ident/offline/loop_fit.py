@@ -279,8 +279,10 @@ class _Problem:
     def __call__(self, z: np.ndarray) -> np.ndarray:
         y_hat = self.simulate(self.vector(z))
         r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
-        if not np.all(np.isfinite(r)):
-            r = np.full(r.size, 10.0 * (float(np.ptp(self.y)) + 1.0))
+        # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
+        limit = 10.0 * (float(np.ptp(self.y)) + 1.0)
+        if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * limit):
+            r = np.full(r.size, limit)
         self._last = (z.copy(), r.copy())
         return r
 
@@ -314,7 +316,10 @@ def _linear_start(u: np.ndarray, y: np.ndarray, period: float) -> tuple[float, f
     s = np.log(poles) / period
     kv = float(max(-np.sum(s).real, 0.05 / period))
     kp = float(max((s[0] * s[1]).real / kv, 0.02 * kv))
-    return kp, kv
+    if not (math.isfinite(kp) and math.isfinite(kv)):
+        return 0.1 / period, 1.0 / period
+    # a position loop is not faster than the velocity loop inside it
+    return min(kp, kv), kv
 
 
 def _start(kp: float, kv: float, v_typ: float, play: float, *, integrator: bool, friction: float) -> dict[str, float]:
@@ -380,7 +385,10 @@ def _fit(
     lo, hi = prob.bounds()
     z0 = np.array([start[n] if n == "asym" else 0.0 for n in free])
     with single_threaded_blas():
-        sol = least_squares(prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev)
+        try:
+            sol = least_squares(prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev)
+        except ValueError:  # the search met a non-finite Jacobian: keep the start, no interval
+            return prob.values(z0), prob, None
     return prob.values(sol.x), prob, sol
 
 
@@ -496,7 +504,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     )
     simulated = final.simulate(uc, y0=float(yc[0]))
     fit_nrmse = nrmse(yc, simulated)
-    interval = _play_interval(sol.jac, sol.fun, prob.free, d["play"])
+    interval = (math.nan, math.nan) if sol is None else _play_interval(sol.jac, sol.fun, prob.free, d["play"])
     reasons = _noticed(final, q)
     return LoopChoice(
         structure=best.structure,
