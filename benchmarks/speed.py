@@ -23,8 +23,8 @@ the session's own work
 identify()
     At 10^3 ... 10^6 samples (10^7 with ``--full``), each size in a fresh
     process, the MRGIA's history kept as ``servoid identify`` keeps it: CPU
-    time, peak memory added (``ru_maxrss`` after identify minus before it,
-    the record already in memory), bytes per sample and the slope of time
+    time, peak memory added (traced in a second run: NumPy's arrays, the
+    record already in memory), bytes per sample and the slope of time
     against length (log-log, from the size before).
 """
 
@@ -164,7 +164,7 @@ def session_rows(samples: int, repeat: int) -> dict[str, float]:
 
 # ---- identify at growing lengths (one process per size) -------------------------------------------
 def identify_child(samples: int) -> dict[str, float]:
-    import resource
+    import tracemalloc
 
     from servoid.cli._live import history_every
     from servoid.ident.identify import identify
@@ -173,12 +173,17 @@ def identify_child(samples: int) -> dict[str, float]:
     su, sy, _ = _paper_record(2000, seed=2)
     identify(su, sy, config)  # compiled and warm
     every = history_every(samples)  # the MRGIA's history as `servoid identify` keeps it (every sample: 64 B/sample)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     t0 = time.process_time()
     identify(u, y, config, record_every=every)
     elapsed = time.process_time() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    return {"time": elapsed, "peak": max(0.0, float(peak - before))}
+    # memory in a second run, traced (NumPy reports its arrays to tracemalloc): the peak above what was
+    # allocated when it started; the process's ru_maxrss cannot tell, generating the record peaked higher
+    tracemalloc.start()
+    start = tracemalloc.get_traced_memory()[0]
+    identify(u, y, config, record_every=every)
+    peak = tracemalloc.get_traced_memory()[1] - start
+    tracemalloc.stop()
+    return {"time": elapsed, "peak": float(peak)}
 
 
 def identify_rows(sizes: list[int], repeat: int) -> dict[int, dict[str, float]]:
@@ -203,11 +208,22 @@ def main() -> int:
     parser.add_argument("--session-samples", type=int, default=5_000)
     parser.add_argument("--full", action="store_true", help="identify() up to 10^7 samples (minutes, GBs)")
     parser.add_argument("--no-identify", action="store_true", help="skip the identify() table")
+    parser.add_argument("--only-identify", action="store_true", help="only the identify() table")
     parser.add_argument("--identify-child", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.identify_child:
         print(json.dumps(identify_child(args.identify_child)))
         return 0
+    if not args.only_identify:
+        hot_paths(args)
+    if args.no_identify:
+        return 0
+    identify_table(args)
+    return 0
+
+
+def hot_paths(args: argparse.Namespace) -> None:
+    """Measure and print the hot paths' table."""
     rows: dict[str, float] = {}
     for _ in range(max(1, args.rounds)):
         for part in (update_rows(args.update_samples, args.repeat), session_rows(args.session_samples, args.repeat)):
@@ -231,8 +247,10 @@ def main() -> int:
     table(f"hot paths against their floors, best of {args.rounds} x {args.repeat} runs (load average {load:.2f} "
           f"on {os.cpu_count()} cores, a machine shared with others' runs; ratio: the slower over the faster)",
           ["path", "this", "floor", "floor is", "ratio", "target"], hot)  # fmt: skip
-    if args.no_identify:
-        return 0
+
+
+def identify_table(args: argparse.Namespace) -> None:
+    """Measure and print identify() at growing lengths."""
     sizes = [1_000, 10_000, 100_000, 1_000_000] + ([10_000_000] if args.full else [])
     ident = identify_rows(sizes, args.repeat)
     out, prev = [], None
@@ -243,7 +261,6 @@ def main() -> int:
         prev = n
     table(f"identify() on the paper's plant at SNR 43, one fresh process per size (load average {os.getloadavg()[0]:.2f})",
           ["samples", "time s", "peak MB added", "bytes/sample", "slope", "M samples/s"], out)  # fmt: skip
-    return 0
 
 
 if __name__ == "__main__":
