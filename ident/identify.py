@@ -541,8 +541,8 @@ def identify(
     # the toolbox's resid view of the black box (compare's band rule), as a warning; when the servo-loop
     # model answers, it says why the black box was not the answer
     name = "the identified model" if form == PSEUDO_WIENER else "the black-box (pseudo-Wiener) model"
-    start = {name: (delta0, (point.u, point.y))}
-    coloured = compare({name: model}, u_arr, y_arr, valid=keep, starts=start).fits[0].coloured_warning()
+    black_box_start = {name: (delta0, (point.u, point.y))}
+    coloured = compare({name: model}, u_arr, y_arr, valid=keep, starts=black_box_start).fits[0].coloured_warning()
     if coloured is not None:
         warnings.append(coloured)
     return Identification(
