@@ -227,6 +227,58 @@ class SdkTransactions:
     _shared: Any = None  # the joint whose port this one uses, on a bus of several
     _group: Any = None  # (ids, writer, reader) of the group transaction, on the joint that owns the port
 
+    port: str
+    baud: int
+    latency_ms: float | None
+    _configure: Callable[[], None]  # the vendor's: read the servo's facts, set it up for sampling
+    #: The vendor's port class (:class:`SelectPort` mixed in front of the SDK's ``PortHandler``).
+    _port_class: Any
+
+    def _packet_handler(self) -> Any:
+        """The SDK's packet handler for this vendor's protocol."""
+        raise NotImplementedError
+
+    # ---- the URL, opening and closing (the same on both SDKs) -------------------------------
+    @classmethod
+    def from_url(cls, url: Any) -> Any:
+        """``SCHEME:///dev/ttyUSB0?id=1&baud=1000000`` (the port is the URL's path; ``SCHEME://COM3?...`` on Windows)."""
+        vendor: Any = cls  # a Driver: its scheme and options
+        port = url.path or url.host
+        if not port or port == "/":
+            raise ConfigError(
+                f"{url.raw}: the URL must name the serial port, e.g. {vendor.scheme}:///dev/ttyUSB0?id=1&baud=1000000"
+            )
+        driver = vendor(port, **vendor.parse_options(url))
+        driver.url = url.raw
+        return driver
+
+    def _open(self) -> None:
+        if self._open_on_shared_port(self._configure):  # a joint on a bus another joint opened
+            return
+        latency = self.latency_ms if self.latency_ms is not None else default_latency_ms(self.port)
+        port = self._port_class(self.port, latency_ms=latency)
+        try:
+            port.openPort()
+        except Exception as exc:  # noqa: BLE001 - pyserial raises SerialException, OSError, ValueError
+            raise DriverError(f"{self.describe()}: cannot open the serial port {self.port}: {exc}") from exc
+        if not port.setBaudRate(self.baud):
+            port.closePort()
+            raise ConfigError(f"{self.describe()}: the port refused baud (={self.baud})")
+        self._port, self._ph = port, self._packet_handler()
+        self._owner = threading.get_ident()
+        try:
+            with self._setup():
+                self._configure()
+        except BaseException:
+            port.closePort()
+            self._port = None
+            raise
+
+    def _close(self) -> None:
+        if self._port is not None and self._shared is None:
+            self._port.closePort()
+        self._port = None
+
     # ---- several servos on one bus (servoid.drivers.bus) ------------------------------------
     def share_port(self, owner: Any) -> None:
         """Use ``owner``'s port and SDK handles (opened by it) instead of opening one: a joint of the same bus.

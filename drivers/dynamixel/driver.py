@@ -82,7 +82,6 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-import threading
 import time
 from typing import Any, TypeVar
 
@@ -100,11 +99,10 @@ from servoid.drivers._sdk_port import (
     SdkTransactions,
     SelectPort,
     checked,
-    default_latency_ms,
     parse_latency,
     parse_return_delay,
 )
-from servoid.drivers.base import Driver, DriverURL, Limits, Option, Reading, UnitConversion
+from servoid.drivers.base import Driver, Limits, Option, Reading, UnitConversion
 from servoid.drivers.dynamixel import control_table as ct
 from servoid.drivers.dynamixel.control_table import HardwareError, OperatingMode
 from servoid.drivers.dynamixel.protocol import ALERT, MAX_ID, ErrorNumber, Instruction, describe_error
@@ -282,46 +280,12 @@ class DynamixelDriver(SdkTransactions, Driver):
         self._position_range = (0, ct.POSITION_COUNTS_PER_TURN - 1)
         self.watchdog_s = watchdog_s or None
 
-    @classmethod
-    def from_url(cls, url: DriverURL) -> DynamixelDriver:
-        """``dxl:///dev/ttyUSB0?id=1&baud=1000000`` (the port is the URL's path; ``dxl://COM3?...`` on Windows)."""
-        port = url.path or url.host
-        if not port or port == "/":
-            raise ConfigError(
-                f"{url.raw}: the URL must name the serial port, e.g. dxl:///dev/ttyUSB0?id=1&baud=1000000"
-            )
-        driver = cls(port, **cls.parse_options(url))
-        driver.url = url.raw
-        return driver
+    _port_class = _Port
 
-    # ---- primitives ---------------------------------------------------------------------
-    def _open(self) -> None:
-        if self._open_on_shared_port(self._configure):  # a joint on a bus another joint opened
-            return
-        latency = self.latency_ms if self.latency_ms is not None else default_latency_ms(self.port)
-        port = _Port(self.port, latency_ms=latency)
-        try:
-            port.openPort()
-        except Exception as exc:  # noqa: BLE001 - pyserial raises SerialException, OSError, ValueError
-            raise DriverError(f"{self.describe()}: cannot open the serial port {self.port}: {exc}") from exc
-        if not port.setBaudRate(self.baud):
-            port.closePort()
-            raise ConfigError(f"{self.describe()}: the port refused baud (={self.baud})")
-        self._port, self._ph = port, PacketHandler(2.0)
-        self._owner = threading.get_ident()
-        try:
-            with self._setup():
-                self._configure()
-        except BaseException:
-            port.closePort()
-            self._port = None
-            raise
+    def _packet_handler(self) -> Any:
+        return PacketHandler(2.0)
 
-    def _close(self) -> None:
-        if self._port is not None and self._shared is None:
-            self._port.closePort()
-        self._port = None
-
+    # ---- primitives (opening and closing: SdkTransactions) ------------------------------
     def _set_torque(self, enabled: bool) -> None:
         with self._setup():
             if enabled:
