@@ -81,7 +81,7 @@ def _static_csv(path):
 
 
 def test_a_record_that_cannot_determine_the_play(tmp_path, capsys):
-    """Held steps: two reversals. Not identifiable, --strict exits 1, strict JSON, export refuses unless --force."""
+    """Held steps: two reversals. Not identifiable, --strict exits 1, strict JSON, export refuses unless --not-identifiable (--force only overwrites)."""
     data = _static_csv(tmp_path / "steps.csv")
     argv = ["identify", "--data", str(data), "--na", "2", "--nb", "0", "--delay", "1", "--no-plots", "--json"]
     assert main([*argv, "--out", str(tmp_path / "a")]) == 0
@@ -95,7 +95,9 @@ def test_a_record_that_cannot_determine_the_play(tmp_path, capsys):
     assert load_model(model).identifiable is False
     assert main(["export", str(model), "--format", "json"]) == 2
     assert "not identifiable" in capsys.readouterr().err
-    assert main(["export", str(model), "--format", "json", "--force"]) == 0
+    assert main(["export", str(model), "--format", "json", "--force"]) == 2  # --force only replaces an output
+    capsys.readouterr()
+    assert main(["export", str(model), "--format", "json", "--not-identifiable"]) == 0
 
 
 def test_the_seam_carries_a_loop_result(monkeypatch):

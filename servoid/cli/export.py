@@ -75,9 +75,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p.add_argument("model", type=Path, metavar="MODEL", help="a model.json written by servoid identify")
     p.add_argument("--format", "-f", required=True, choices=sorted(FORMATS), help="output format (see above)")
     p.add_argument("--out", "-o", type=Path, metavar="FILE", help="write here (default: stdout)")
-    p.add_argument("--force", action="store_true",
-                   help="replace --out if it exists, and export a model whose play servoid found not identifiable "
-                        "(default: refuse both)")  # fmt: skip
+    p.add_argument("--force", action="store_true", help="replace --out if it exists (default: refuse)")
+    p.add_argument("--not-identifiable", action="store_true",
+                   help="export a model whose play servoid found not identifiable, with a warning (default: refuse; "
+                        "its play may be absorbing dynamics the model misses)")  # fmt: skip
     p.add_argument("--band", type=float, metavar="B",
                    help="smoothing band of the inverse, output unit (default: the model file's)")  # fmt: skip
     p.add_argument("--name", metavar="NAME",
@@ -93,13 +94,13 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         output_file(args.out, option="--out", force=args.force)
     content = load_model(args.model)
-    if content.identifiable is False and not args.force:
+    if content.identifiable is False and not args.not_identifiable:
         raise ConfigError(
             f"{args.model}: the play is not identifiable ({content.reason or 'no reason stored'}); "
-            "export refuses such a model (--force exports it anyway)"
+            "export refuses such a model (--not-identifiable exports it anyway)"
         )
     if content.identifiable is False:
-        _term.warn(f"exporting a model whose play is not identifiable (--force): {content.reason}")
+        _term.warn(f"exporting a model whose play is not identifiable (--not-identifiable): {content.reason}")
     if content.structure != OUTPUT_BACKLASH:
         from servoid.loop_compensation import has_loop
 
