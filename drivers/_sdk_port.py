@@ -15,15 +15,19 @@ reset after a failure, the owner thread checked. The URL options both take
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import select
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.drivers.base import Limits
 
 __all__ = ["SelectPort", "SdkTransactions", "default_latency_ms", "parse_return_delay", "parse_latency", "checked",
            "PTY_LATENCY_MS", "SETUP_LATENCY_MS", "SETUP_ATTEMPTS"]  # fmt: skip
@@ -278,6 +282,25 @@ class SdkTransactions:
         if self._port is not None and self._shared is None:
             self._port.closePort()
         self._port = None
+
+    def _narrowed_limits(self, low: float, high: float) -> Limits:
+        """The limits set on the driver, narrowed to the servo's own range ``low .. high`` (native unit).
+
+        The servo ignores or clips goals beyond its own range; limits that do
+        not overlap it are a one-line error naming both.
+        """
+        driver: Any = self  # a Driver: its command unit and limits
+        unit = driver.command_unit
+        servo_low, servo_high = unit.to_user(low), unit.to_user(high)
+        asked = driver.limits
+        minimum, maximum = max(asked.minimum, servo_low), min(asked.maximum, servo_high)
+        if not minimum < maximum:
+            raise ConfigError(
+                f"{self.describe()}: the limits min={asked.minimum}, max={asked.maximum} {unit.unit} do not overlap "
+                f"the servo's own range {servo_low:.4g} .. {servo_high:.4g} {unit.unit}"
+            )
+        limits: Limits = dataclasses.replace(asked, minimum=minimum, maximum=maximum)
+        return limits
 
     # ---- several servos on one bus (servoid.drivers.bus) ------------------------------------
     def share_port(self, owner: Any) -> None:

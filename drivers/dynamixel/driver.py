@@ -79,7 +79,6 @@ Pitfalls of the SDK handled here
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
@@ -480,16 +479,7 @@ class DynamixelDriver(SdkTransactions, Driver):
             limit_field = ct.CURRENT_LIMIT if self._goal is ct.GOAL_CURRENT else ct.PWM_LIMIT
             high = ct.decode_value(limit_field, state, limit_field.address)
             low = -high
-        unit = self.command_unit
-        servo_low, servo_high = unit.to_user(low), unit.to_user(high)
-        asked = self.limits
-        minimum, maximum = max(asked.minimum, servo_low), min(asked.maximum, servo_high)
-        if not minimum < maximum:
-            raise ConfigError(
-                f"{self.describe()}: the limits min={asked.minimum}, max={asked.maximum} {unit.unit} do not overlap "
-                f"the servo's own range {servo_low:.4g} .. {servo_high:.4g} {unit.unit}"
-            )
-        return dataclasses.replace(asked, minimum=minimum, maximum=maximum)
+        return self._narrowed_limits(low, high)
 
     def _reboot(self) -> None:
         result, error = self._sdk(self._ph.reboot, self._port, self.servo_id)

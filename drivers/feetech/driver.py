@@ -64,7 +64,6 @@ READ's length is checked (the SDK slices whatever arrived). Not thread-safe.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import math
 import time
@@ -401,16 +400,7 @@ class FeetechDriver(SdkTransactions, Driver):
     def _servo_limits(self) -> Limits:
         """The limits set on the driver, narrowed to the servo's own (it clips goals beyond them)."""
         low, high = self._position_range
-        unit = self.command_unit
-        servo_low, servo_high = unit.to_user(low), unit.to_user(high)
-        asked = self.limits
-        minimum, maximum = max(asked.minimum, servo_low), min(asked.maximum, servo_high)
-        if not minimum < maximum:
-            raise ConfigError(
-                f"{self.describe()}: the limits min={asked.minimum}, max={asked.maximum} rad do not overlap "
-                f"the servo's own range {servo_low:.4g} .. {servo_high:.4g} rad"
-            )
-        return dataclasses.replace(asked, minimum=minimum, maximum=maximum)
+        return self._narrowed_limits(low, high)
 
     # ---- transactions ----------------------------------------------------------------------------
     def _read_block(self, address: int, length: int, what: str) -> bytes:
