@@ -153,6 +153,11 @@ class LinkFaults:
         Answer this many of the next READs with an empty status packet, as a
         late answer to an earlier WRITE would look to the SDK (success, but no
         data).
+    late_replies : int
+        Send this many of the servo's next answers to READs twice: the copy
+        stays in the host's input, as an answer that came after its request
+        had timed out would, and passes for the answer to the next READ unless
+        the host drops what waits in its input before a request.
     mute_after : int, optional
         Set ``mute`` after the servo sent this many more status packets (counts down).
     drop : float
@@ -173,6 +178,7 @@ class LinkFaults:
     corrupt_goals: int = 0
     corrupt_lengths: int = 0
     stale_replies: int = 0
+    late_replies: int = 0
     mute_after: int | None = None
     drop: float = 0.0
 
@@ -487,11 +493,16 @@ class PtyBusEmulator(abc.ABC, Generic[S]):
                 reply = self._cut_length(reply)
             # each servo waits its Return Delay Time after the bus went quiet
             self.clock.sleep_until_ns(last + round(servo.return_delay_s * NS_PER_S))
-            try:
-                os.write(self._master, self._flipped(reply, self.flip_tx))
-                self.stats.replies += 1
-            except BlockingIOError:
-                self.stats.dropped_replies += 1
+            copies = 1
+            if faults.late_replies > 0 and self._is_read(frame):
+                faults.late_replies -= 1
+                copies = 2
+            for _ in range(copies):
+                try:
+                    os.write(self._master, self._flipped(reply, self.flip_tx))
+                    self.stats.replies += 1
+                except BlockingIOError:
+                    self.stats.dropped_replies += 1
             last = self.clock.now_ns()
 
 

@@ -7,10 +7,13 @@ URL forms::
     can://virtual/ch0?protocol=cia402&node=1        a CAN drive (python-can interface / channel)
     dxl:///dev/ttyUSB0?id=1&baud=1000000            a ROBOTIS Dynamixel
     feetech:///dev/ttyUSB0?id=1&baud=1000000        a Feetech STS servo
+    feetech:///dev/ttyUSB0?id=1,2,3&min=-1,-0.5,-1  three servos on one bus, a limit per joint
 
-Every driver also accepts the safety limits ``min``, ``max`` and
-``max_step`` (user unit). Unknown schemes and unknown options are rejected
-by name, with the valid ones listed.
+Every driver also accepts the safety limits ``min``, ``max``,
+``max_step``, ``amplitude``, ``centre`` and ``guard`` (user unit). On a bus
+(``id=1,2,3``) each limit takes one value for every joint or one value per
+joint, comma-separated in the order of the IDs. Unknown schemes and unknown
+options are rejected by name, with the valid ones listed.
 """
 
 from __future__ import annotations
@@ -138,7 +141,8 @@ def driver_from_url(url: str) -> Driver:
 
     A URL that names several servos of one bus (``id=1,2,3``, for ``dxl`` and
     ``feetech``) gives a :class:`~servoid.drivers.bus.BusDriver`, which the
-    sampling session runs as one multi-joint measurement.
+    sampling session runs as one multi-joint measurement; its limits take
+    one value per joint (``min=-1,-0.5,-1``) or one for all.
 
     Parameters
     ----------
@@ -160,12 +164,28 @@ def driver_from_url(url: str) -> Driver:
         raise ConfigError(f"{url}: id={ids} names several servos; only dxl:// and feetech:// run several on one bus")
     import dataclasses
 
+    from servoid.drivers.base import COMMON_OPTIONS
     from servoid.drivers.bus import BusDriver, bus_ids
 
-    joints = []
-    for servo_id in bus_ids(ids):
-        one = dataclasses.replace(parsed, options={**parsed.options, "id": str(servo_id)})
-        joints.append(cls.from_url(one))
+    servo_ids = bus_ids(ids)
+    per_joint = [dict(parsed.options, id=str(servo_id)) for servo_id in servo_ids]
+    for name, text in parsed.options.items():
+        if name == "id" or "," not in text:
+            continue  # one value for every joint
+        if name not in COMMON_OPTIONS:
+            raise ConfigError(
+                f"{url}: {name}={text} has several values; only the limits ({', '.join(COMMON_OPTIONS)}) "
+                "take one value per joint"
+            )
+        values = text.split(",")
+        if len(values) != len(servo_ids):
+            raise ConfigError(
+                f"{url}: {name}={text} has {len(values)} values for {len(servo_ids)} joints (ids {ids}); "
+                "give one value for all joints or one per joint, in the order of the ids"
+            )
+        for options, value in zip(per_joint, values):
+            options[name] = value.strip()
+    joints = [cls.from_url(dataclasses.replace(parsed, options=options)) for options in per_joint]
     for joint in joints:
         joint.url = url
     return BusDriver(joints, url=url)  # type: ignore[return-value]

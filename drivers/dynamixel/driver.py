@@ -313,6 +313,7 @@ class DynamixelDriver(SdkTransactions, Driver):
             # a Dynamixel stores a goal written with the torque off and does nothing: refuse it here
             raise DriverError(f"{self.describe()}: the torque is off; call enable() first")
         value = int(round(command))  # whole already (command_step)
+        self.drop_stale()
         writer = self._goal_writer
         writer.changeParam(self.servo_id, list(ct.encode_value(self._goal, value)))
         self._check(self._sdk(writer.txPacket), 0, "SYNC_WRITE of the goal")

@@ -174,6 +174,18 @@ def test_a_stray_reply_is_caught_by_its_length(emulator):  # noqa: F811
         assert d.exchange(0.1).position is not None  # and the next sample is fine
 
 
+def test_an_answer_left_in_the_input_is_dropped_not_taken_for_the_next_one(emulator):  # noqa: F811
+    with driver_from_url(url(emulator)) as d:
+        d.enable()
+        emulator.faults(1).late_replies = 1
+        d.exchange(0.1)  # answered twice: the copy waits in the input like an answer that came too late
+        time.sleep(0.05)
+        for goal in (0.2, 0.3):  # taken for the answer, the copy would read back the goal 0.1: unconfirmed
+            m = d.exchange(goal)
+            assert m.position is not None
+        assert d.stats.stale == 1 and d.stats.unconfirmed == 0
+
+
 def test_a_goal_lost_on_its_way_is_seen_in_the_read_back_and_never_taken_as_applied(emulator):  # noqa: F811
     with driver_from_url(url(emulator)) as d:
         d.enable()

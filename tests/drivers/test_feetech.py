@@ -135,10 +135,11 @@ def test_a_protection_is_named_and_the_torque_ends_off(emulator):
 
 
 def test_a_bus_commands_and_reads_every_joint_in_one_transaction_with_its_own_limits(emulator, tmp_path):
-    bus = driver_from_url(url(emulator, [1, 2, 3]))
+    bus = driver_from_url(url(emulator, [1, 2, 3], min="-0.5,-0.02,-0.5", max="0.5,0.02,0.5", guard=0.6))
     assert isinstance(bus, BusDriver) and bus.ids == (1, 2, 3)
+    assert [(j.limits.minimum, j.limits.maximum, j.limits.guard) for j in bus.joints] == [
+        (-0.5, 0.5, 0.6), (-0.02, 0.02, 0.6), (-0.5, 0.5, 0.6)]  # fmt: skip
     with bus:
-        bus.joints[1].limits = type(bus.joints[1].limits)(minimum=-0.02, maximum=0.02)
         before = emulator.stats.received
         u, blocks = bus_excitation(lambda i, n: np.random.default_rng(i).uniform(-0.1, 0.1, n), 3, 40,
                                    mode="together")  # fmt: skip
@@ -157,6 +158,16 @@ def test_a_bus_commands_and_reads_every_joint_in_one_transaction_with_its_own_li
     np.testing.assert_array_equal(one.y, result.y[:, 2])
     steps = [emulator.servo(i).steps for i in (1, 2, 3)]
     assert steps == [sent] * 3
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [({"min": "-1,-1"}, r"min=-1,-1 has 2 values for 3 joints \(ids 1,2,3\)"),
+     ({"baud": "1000000,500000"}, r"baud=1000000,500000 has several values; only the limits")],
+)  # fmt: skip
+def test_per_joint_options_name_what_is_wrong(emulator, options, message):
+    with pytest.raises(ConfigError, match=message):
+        driver_from_url(url(emulator, [1, 2, 3], **options))
 
 
 def test_a_silent_joint_fails_the_group_read_by_name_and_every_torque_ends_off(emulator):

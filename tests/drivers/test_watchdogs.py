@@ -14,6 +14,9 @@ host is sampling (its recording grows), then
   the CiA 402 heartbeat consumer) or the board has (the ODrive axis
   watchdog), switches it off -- the emulator reports when, on the monotonic
   clock this test reads too, within the watchdog's time of the kill.
+  The Feetech STS has no watchdog (docs/feetech.md): after a SIGKILL it
+  holds its last goal with the torque on, which the test checks too, so
+  that the documentation's warning stays true.
 
 Run with ``-s`` to see the times measured.
 """
@@ -91,6 +94,7 @@ def emulator(kind: str) -> Iterator[tuple[Process, str]]:
     args = {
         "serial": ["emulate", "serial"],
         "dxl": ["emulate", "dxl", "--rate", f"{RATE_HZ:g}"],
+        "feetech": ["emulate", "feetech", "--rate", f"{RATE_HZ:g}"],
         "cia402": ["emulate", "can", "--port", str(port), "--quiet"],
         "odrive": [
             "emulate",
@@ -110,7 +114,7 @@ def emulator(kind: str) -> Iterator[tuple[Process, str]]:
     }[kind]
     emu = _spawn(*args)
     try:
-        url = emu.wait_for(r"((?:serial|dxl|can)://\S+?)'?$").group(1)
+        url = emu.wait_for(r"((?:serial|dxl|feetech|can)://\S+?)'?$").group(1)
         yield emu, url
     finally:
         emu.proc.send_signal(signal.SIGTERM)
@@ -147,8 +151,10 @@ def _event_time(emu: Process, pattern: str, after: int) -> tuple[str, float]:
 
 
 #: What each emulator says when the host's torque-off arrives, and when its watchdog acts.
-OFF = {"serial": r"servoid-bench-fw: torque off", "dxl": r"servo 1: torque off", "cia402": r"node 1: power stage off",
-       "odrive": r"node 3: power stage off"}  # fmt: skip
+OFF = {"serial": r"servoid-bench-fw: torque off", "dxl": r"servo 1: torque off", "feetech": r"servo 1: torque off",
+       "cia402": r"node 1: power stage off", "odrive": r"node 3: power stage off"}  # fmt: skip
+#: The servos with no watchdog of their own: a killed host leaves them holding, torque on.
+NO_WATCHDOG = {"feetech"}
 WATCHDOG = {
     "serial": r"watchdog: no request within the watchdog time, torque off",
     "dxl": r"servo 1: bus watchdog expired",
@@ -178,6 +184,11 @@ def _exercise(kind: str, tmp: Path) -> str:
         seen = len(emu.lines)
         killed = time.monotonic()
         os.kill(host.proc.pid, signal.SIGKILL)
+        if kind in NO_WATCHDOG:
+            host.proc.wait(10)
+            time.sleep(WATCHDOG_S + SLACK_S)
+            assert not any(re.search(OFF[kind], line) for line in emu.lines[seen:]), emu.lines[seen:]
+            return f"{kind}: SIGTERM off after {off * 1e3:.0f} ms; SIGKILL: no watchdog, still holding (as documented)"
         line, at = _event_time(emu, WATCHDOG[kind], seen)
         host.proc.wait(10)
         # the watchdog counts from the last packet (CiA 402: heartbeat), which came up to 125 ms before the kill
@@ -188,7 +199,7 @@ def _exercise(kind: str, tmp: Path) -> str:
 
 @pytest.mark.timeout(240)
 def test_sigterm_and_sigkill_of_the_host_leave_every_emulated_servo_off(tmp_path):
-    kinds = ["serial", "dxl", "cia402", "odrive"]
+    kinds = ["serial", "dxl", "feetech", "cia402", "odrive"]
     # the four emulators side by side: each measures its own servo, and the run takes as long as the slowest
     with ThreadPoolExecutor(len(kinds)) as pool:
         futures = {kind: pool.submit(_exercise, kind, tmp_path / kind) for kind in kinds}
