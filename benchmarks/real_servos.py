@@ -197,15 +197,16 @@ def loop_row(rec: dict[str, object], result: Identification, head: list[str]) ->
 def paper() -> None:
     rows = []
     rng = np.random.default_rng(1)
-    for n, snr in ((2000, None), (5000, 43.0)):
+    # noise-free: 3 seeds show exact recovery; SNR 43: the median needs more (its spread is 0.8e-3 .. 6.6e-3)
+    for n, snr, seeds in ((2000, None, 3), (5000, 43.0, 20)):
         errors = []
-        for seed in range(3):
+        for seed in range(seeds):
             r = np.random.default_rng(seed)
             u = r.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, n)
             sim = simulate(PAPER_PLANT, u, snr=snr, rng=r)
             result, _ = run(sim.u, sim.y, 1.0)
             errors.append(result.model.max_relative_error(PAPER_PLANT) if result.model.na == 2 else np.inf)
-        rows.append([f"{n}", "noise-free" if snr is None else f"SNR {snr:g}", "0-2",
+        rows.append([f"{n}", "noise-free" if snr is None else f"SNR {snr:g}", f"0-{seeds - 1}",
                      f"{np.median(errors):.2e}", f"{max(errors):.2e}", ""])  # fmt: skip
     u = rng.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, 20_000)
     sim = simulate(PAPER_PLANT, u, snr=43.0, rng=rng)

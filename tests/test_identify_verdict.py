@@ -12,7 +12,9 @@ from servoid.ident.identify import identify
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline.intervals import Evidence, reversals, verdict
+from servoid.ident.offline.structure import select_orders
 from servoid.ident.online.mrgia import MRGIAConfig
+from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
 from servoid.modelfile import load_model, save_model
 
 
@@ -41,6 +43,17 @@ def test_bic_chooses_the_paper_orders_and_names_the_runner_up():
     assert result.orders.runner_up is not None and result.orders.bic_difference > 0
     assert result.model.max_relative_error(PAPER_PLANT) < 1e-6
     assert result.identifiable, result.reason
+
+
+def test_bic_compares_candidates_at_their_optima_not_where_a_short_fit_stopped():
+    # seed 13 at SNR 43: from the ARX start the true orders' fit stops at 3x its optimal SSE, and (3, 0, 1)
+    # won by a BIC of 3300 before the nested candidates were scored again from the winner cut down
+    rng = np.random.default_rng(13)
+    sim = simulate(PAPER_PLANT, rng.uniform(-PAPER_INPUT_AMPLITUDE, PAPER_INPUT_AMPLITUDE, 5000), snr=43.0, rng=rng)
+    centre = float(np.mean(sim.u))
+    choice = select_orders(sim.u[:3000] - centre, sim.y[:3000] - centre)
+    assert choice.chosen.orders == (2, 0, 1), choice.describe()
+    assert choice.bic_difference is not None and choice.bic_difference > 2.0
 
 
 def test_each_rule_gives_its_reason():
