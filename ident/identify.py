@@ -29,6 +29,7 @@ from servoid.ident.models.kernels import rest_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PSEUDO_WIENER, SERVO_LOOP, STRUCTURES
+from servoid.ident.offline._oefit import on_one_blas_thread
 from servoid.ident.offline.intervals import (
     MAX_FIT_TO_FLOOR,
     Evidence,
@@ -300,6 +301,7 @@ def check_record(
     return u_arr, y_arr
 
 
+@on_one_blas_thread
 def identify(
     u: Sequence[float] | np.ndarray,
     y: Sequence[float] | np.ndarray,

@@ -29,6 +29,7 @@ from servoid.ident.diagnosis.residuals import ResidualTests, residual_tests
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run
+from servoid.ident.offline._oefit import on_one_blas_thread
 from servoid.ident.reprs import html_table
 
 __all__ = ["ModelFit", "Comparison", "compare", "fit_percent", "output_resolution", "NUMERICAL_NRMSE"]
@@ -221,6 +222,7 @@ class Comparison:
         return html_table(cols, rows, caption=f"free-run fit on {self.samples} samples{left}")
 
 
+@on_one_blas_thread
 def compare(
     models: Mapping[str, BacklashModel] | BacklashModel,
     u: Sequence[float] | np.ndarray,
