@@ -34,6 +34,21 @@ def test_raw_counts_and_centred_records_give_the_same_model():
     assert raw.operating_point.u == pytest.approx(2047.0 + np.mean(u))  # the model exists only about it
 
 
+def test_a_fit_at_the_floor_skips_the_second_start_and_changes_nothing(monkeypatch):
+    # a clean record: the MRGIA's refinement fits at the noise floor with a white residual, so the
+    # ARX start is not refined; without the rule both are, and the answer is the same
+    import importlib
+
+    module = importlib.import_module("servoid.ident.identify")
+    u, y = _paper(2000, 3)
+    skipped = identify(u, y, MRGIAConfig())
+    monkeypatch.setattr(module, "SKIP_AT_FLOOR", 0.0)
+    both = identify(u, y, MRGIAConfig())
+    assert list(skipped.start_nrmse) == ["mrgia"] and len(both.start_nrmse) == 2
+    assert skipped.model.dead_zone == pytest.approx(both.model.dead_zone, rel=1e-5)
+    assert skipped.fit_nrmse == pytest.approx(both.fit_nrmse, rel=1e-5)
+
+
 def test_bic_chooses_the_paper_orders_and_names_the_runner_up():
     u, y = _paper(1200, 5, snr=None)
     result = identify(u, y, MRGIAConfig(na=1, nb=2, delay=3), select=("na", "nb", "delay"))
