@@ -358,8 +358,8 @@ def _arx_least_squares(
             block[:, na + j] = u[k0 + lo - delay - j : k0 + hi - delay - j]
         block[:, p - 1] = 1.0
         block[:, p] = y[k0 + lo : k0 + hi]
-        tri = np.linalg.qr(np.vstack((tri, block[usable[lo:hi]])), mode="r")[: p + 1]
-    theta, *_ = np.linalg.lstsq(tri[:p, :p], tri[:p, p], rcond=None)
+        tri = np.asarray(np.linalg.qr(np.vstack((tri, block[usable[lo:hi]])), mode="r"))[: p + 1]
+    theta: np.ndarray = np.linalg.lstsq(tri[:p, :p], tri[:p, p], rcond=None)[0]
     return theta
 
 
@@ -426,4 +426,4 @@ def arx_start(
     if not np.any(b):
         b = np.r_[max(y_std / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
     dead = max(0.05 * y_std, 1e-9)
-    return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)
+    return BacklashModel(a=tuple(a.tolist()), b=tuple(b.tolist()), delay=delay, m2=1.0, c1=dead, c2=dead)

@@ -192,7 +192,7 @@ class StateLayout:
     @property
     def buffer_size(self) -> int:
         """Length of the estimator's one buffer: state, configuration, scratch, orders."""
-        return self.work.stop + 3
+        return self.size + CFG_SIZE + work_size(self.na, self.nb) + 3
 
 
 def offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
