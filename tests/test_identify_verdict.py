@@ -169,3 +169,17 @@ def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
     config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
     with pytest.raises(ModelError, match="worse than predicting its mean"):
         diagnose(u_t, y_t, u_v, y_v, config)
+
+
+def test_the_blockwise_autocorrelation_is_the_whole_records():
+    # identify()'s whiteness test and integrated time correlate the residual block by block (bounded
+    # memory); across block boundaries the sums must be the direct ones
+    from servoid.ident.offline.intervals import AUTOCORRELATION_BLOCK, _autocorrelation
+
+    rng = np.random.default_rng(7)
+    n = 2 * AUTOCORRELATION_BLOCK + 123
+    r = np.convolve(rng.standard_normal(n), [1.0, 0.6, 0.3], mode="same") + 0.5
+    lags = 40
+    c = r - r.mean()
+    direct = np.array([c[: n - k] @ c[k:] for k in range(lags + 1)])
+    np.testing.assert_allclose(_autocorrelation(r, lags), direct / direct[0], atol=1e-12)
