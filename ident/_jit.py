@@ -27,7 +27,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 #: Whether numba is installed (found without importing it).
 HAVE_NUMBA = importlib.util.find_spec("numba") is not None
 
-__all__ = ["jit", "HAVE_NUMBA", "python_version", "on_first_compile", "direct_call"]
+__all__ = ["jit", "jit_inline", "HAVE_NUMBA", "python_version", "on_first_compile", "direct_call"]
 
 #: Called once each, when the first compilation of this process starts.
 _hooks: list[Callable[[], None]] = []
@@ -36,13 +36,28 @@ _listening = False
 
 def jit(func: F) -> F:
     """Compile ``func`` in nopython mode (cached on disk), or return it unchanged."""
+    return _compiled(func)
+
+
+def jit_inline(func: F) -> F:
+    """:func:`jit`, and inlined into every compiled caller (numba's ``inline="always"``).
+
+    For the small helpers of a hot kernel: inlined, a caller that passes
+    constants (a kernel specialised for common model orders) lets the
+    compiler unroll their loops and fold their offsets, which a call
+    across a function boundary hides.
+    """
+    return _compiled(func, inline="always")
+
+
+def _compiled(func: F, **options: Any) -> F:
     if not HAVE_NUMBA:
         func.py_func = func  # type: ignore[attr-defined]
         return func
     import numba
 
     _listen()
-    compiled: Any = numba.njit(cache=True, nogil=True)(func)  # a Dispatcher: called as func is
+    compiled: Any = numba.njit(cache=True, nogil=True, **options)(func)  # a Dispatcher: called as func is
     return compiled  # type: ignore[no-any-return]
 
 

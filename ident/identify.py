@@ -56,6 +56,16 @@ __all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE", "SELE
 #: even output noise as strong as the signal itself (SNR 1) leaves a good model near 0.7.
 POOR_FIT_NRMSE = 0.9
 
+#: A refinement whose fit NRMSE is within this factor of the record's noise floor
+#: (:func:`~servoid.ident.offline.intervals.floor_nrmse`) and whose residual is white ends the search
+#: over starts: another start cannot fit better than the noise. Both, because the floor's noise
+#: estimate (fourth differences) reads a white input's own roughness as noise: on the paper's
+#: example it says 0.7 where the fit is 0.023, so the floor alone would skip anything there.
+#: Measured (benchmarks/skip_start.py): on the paper's example (SNR 43, 5000 samples, seeds
+#: 0-9) it skips every time, the play moves by at most 1.1e-6 of itself and identify() takes
+#: about half the time; on the twins it never skips (their residuals are coloured).
+SKIP_AT_FLOOR = 1.05
+
 #: What :func:`identify` can choose from the data (``select=``).
 SELECTABLE: tuple[str, ...] = ("na", "nb", "delay")
 
@@ -429,7 +439,9 @@ def identify(
 
     # Refine, about the operating point and from rest, from the MRGIA estimate, from a start that
     # does not depend on it (where the MRGIA's convergence condition fails, its estimate can sit in
-    # another basin of the output error) and from the order selection's fit. Keep the best fit.
+    # another basin of the output error) and from the order selection's fit. Keep the best fit; a
+    # fit at the record's noise floor ends the search (SKIP_AT_FLOOR).
+    floor = floor_nrmse(y_valid)
     refinement: Refinement | None = None
     refined_from: str | None = None
     start_nrmse: dict[str, float] = {}
@@ -451,6 +463,8 @@ def identify(
             start_nrmse[name] = candidate.nrmse
             if refinement is None or candidate.nrmse < refinement.nrmse:
                 refinement, refined_from = candidate, name
+            if candidate.nrmse <= SKIP_AT_FLOOR * floor and residual_white(candidate.residual):  # NaN floor: never
+                break
         if refinement is not None and not refinement.success:
             warnings.append(f"the refinement did not converge: {refinement.message}")
         if refinement is not None and mrgia_nrmse is not None and refinement.nrmse > mrgia_nrmse:
@@ -496,7 +510,6 @@ def identify(
         )
 
     # the honest answer for the black box
-    floor = floor_nrmse(y_valid)
     play = model.dead_zone
     stderr = float("nan")
     white = False

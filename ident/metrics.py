@@ -9,7 +9,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 
-__all__ = ["nrmse"]
+__all__ = ["nrmse", "residual_nrmse"]
 
 
 def nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) -> float:
@@ -30,3 +30,23 @@ def nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) 
     if std == 0.0:
         raise ConfigError("y is constant: an NRMSE against it is undefined")
     return float(np.sqrt(np.mean((y_arr - yh) ** 2)) / std)
+
+
+def residual_nrmse(residual: np.ndarray, y_std: float) -> float:
+    """:func:`nrmse` from the residual ``y_hat - y`` and ``std(y)``: no copy of a long record.
+
+    Parameters
+    ----------
+    residual : ndarray
+        ``y_hat - y``.
+    y_std : float
+        The standard deviation of the measured ``y``.
+
+    Raises
+    ------
+    ConfigError
+        If ``y_std`` is 0 (a constant ``y``).
+    """
+    if y_std == 0.0:
+        raise ConfigError("y is constant: an NRMSE against it is undefined")
+    return float(np.sqrt(float(residual @ residual) / residual.size) / y_std)

@@ -36,6 +36,21 @@ def test_raw_counts_and_centred_records_give_the_same_model():
     assert raw.operating_point.u == pytest.approx(2047.0 + np.mean(u))  # the model exists only about it
 
 
+def test_a_fit_at_the_floor_skips_the_second_start_and_changes_nothing(monkeypatch):
+    # a clean record: the MRGIA's refinement fits at the noise floor with a white residual, so the
+    # ARX start is not refined; without the rule both are, and the answer is the same
+    import importlib
+
+    module = importlib.import_module("servoid.ident.identify")
+    u, y = _paper(2000, 3)
+    skipped = identify(u, y, MRGIAConfig())
+    monkeypatch.setattr(module, "SKIP_AT_FLOOR", 0.0)
+    both = identify(u, y, MRGIAConfig())
+    assert list(skipped.start_nrmse) == ["mrgia"] and len(both.start_nrmse) == 2
+    assert skipped.model.dead_zone == pytest.approx(both.model.dead_zone, rel=1e-5)
+    assert skipped.fit_nrmse == pytest.approx(both.fit_nrmse, rel=1e-5)
+
+
 def test_bic_chooses_the_paper_orders_and_names_the_runner_up():
     u, y = _paper(1200, 5, snr=None)
     result = identify(u, y, MRGIAConfig(na=1, nb=2, delay=3), select=("na", "nb", "delay"))
@@ -167,3 +182,17 @@ def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
     config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
     with pytest.raises(ModelError, match="worse than predicting its mean"):
         diagnose(u_t, y_t, u_v, y_v, config)
+
+
+def test_the_blockwise_autocorrelation_is_the_whole_records():
+    # identify()'s whiteness test and integrated time correlate the residual block by block (bounded
+    # memory); across block boundaries the sums must be the direct ones
+    from servoid.ident.offline.intervals import AUTOCORRELATION_BLOCK, _autocorrelation
+
+    rng = np.random.default_rng(7)
+    n = 2 * AUTOCORRELATION_BLOCK + 123
+    r = np.convolve(rng.standard_normal(n), [1.0, 0.6, 0.3], mode="same") + 0.5
+    lags = 40
+    c = r - r.mean()
+    direct = np.array([c[: n - k] @ c[k:] for k in range(lags + 1)])
+    np.testing.assert_allclose(_autocorrelation(r, lags), direct / direct[0], atol=1e-12)

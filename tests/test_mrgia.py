@@ -318,6 +318,6 @@ def test_the_kernel_regressor_is_the_excitation_reports_regressor():
         phi = up == 1.0 or down == 1.0
         assert phi == ref.phi[i], i
         if phi:
-            k.regressor(state, model.na, model.nb, model.delay, oxh, ouh, xk, up, down, h)
+            k.regressor(state, model.na, model.nb, model.delay, oxh, ouh, xk, up, down, h, 0)
             np.testing.assert_allclose(h, ref.h[i], atol=1e-12, err_msg=f"sample {i}")
     assert ref.phi.sum() > 200  # both lines visited often

@@ -95,3 +95,28 @@ def test_an_online_estimate_that_did_not_converge_is_named_even_when_the_refined
     assert result.mrgia.settled and result.mrgia_model.max_relative_error(PAPER_PLANT) > 0.1
     assert result.refined_from == "arx" and result.model.max_relative_error(PAPER_PLANT) < 1e-9
     assert any("did not converge here" in w and "whiter input" in w for w in result.warnings)
+
+
+def test_the_streamed_arx_start_is_the_whole_least_squares_problem():
+    # the ARX regression is reduced chunk by chunk (a streaming QR); over more than one chunk and with
+    # lost samples it must solve the same least squares as lstsq on the whole regressor matrix
+    from servoid.ident import simulate
+    from servoid.ident.offline.refine import ARX_CHUNK, arx_start
+
+    rng = np.random.default_rng(11)
+    n = ARX_CHUNK + 5000
+    u = rng.uniform(-2.4, 2.4, n)
+    sim = simulate(PAPER_PLANT, u, snr=30.0, rng=rng)
+    valid = rng.random(n) > 0.01
+    y = np.where(valid, sim.y, np.nan)
+    na, nb, d = 2, 1, 1
+    start = arx_start(u, y, na=na, nb=nb, delay=d, valid=valid)
+    yy = np.where(valid, y, 0.0)
+    k0 = max(na, d + nb)
+    usable = valid[k0:].copy()
+    for i in range(1, na + 1):
+        usable &= valid[k0 - i : n - i]
+    cols = [-yy[k0 - i : n - i] for i in range(1, na + 1)]
+    cols += [u[k0 - d - j : n - d - j] for j in range(nb + 1)] + [np.ones(n - k0)]
+    whole = np.linalg.lstsq(np.column_stack(cols)[usable], yy[k0:][usable], rcond=None)[0]
+    np.testing.assert_allclose(np.r_[start.a, start.b], whole[: na + nb + 1], rtol=1e-9, atol=1e-12)

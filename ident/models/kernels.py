@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from servoid.ident._jit import jit
+from servoid.ident._jit import jit, jit_inline
 
 __all__ = [
     "backlash_step",
@@ -230,21 +230,24 @@ def schur_stable(a: np.ndarray) -> bool:
     The Schur-Cohn step-down recursion: O(na^2), no root finding, so it is
     cheap enough to run on every estimator update.
     """
-    return schur_stable_in(a, np.empty(a.shape[0] + 1))
-
-
-@jit
-def schur_stable_in(a: np.ndarray, poly: np.ndarray) -> bool:
-    """:func:`schur_stable` in the caller's scratch ``poly`` (length ``na + 1``): no allocation per call.
-
-    The estimator checks every update with it; an allocation costs as much as the check.
-    """
     na = a.shape[0]
-    poly[0] = 1.0
+    buf = np.empty(2 * na + 1)
+    buf[:na] = a
+    return schur_stable_in(buf, 0, na, na)
+
+
+@jit_inline
+def schur_stable_in(buf: np.ndarray, at: int, na: int, poly: int) -> bool:
+    """:func:`schur_stable` of ``buf[at : at + na]`` with ``buf[poly : poly + na + 1]`` as scratch.
+
+    No allocation and no slice per call: the estimator checks every update
+    with it, in its one buffer, and an allocation costs as much as the check.
+    """
+    buf[poly] = 1.0
     for i in range(na):
-        poly[i + 1] = a[i]
+        buf[poly + i + 1] = buf[at + i]
     for m in range(na, 0, -1):
-        k = poly[m]
+        k = buf[poly + m]
         if not abs(k) < 1.0:
             return False
         denom = 1.0 - k * k
@@ -253,11 +256,11 @@ def schur_stable_in(a: np.ndarray, poly: np.ndarray) -> bool:
             j = m - i
             if i > j:
                 break
-            pi = poly[i]
-            pj = poly[j]
-            poly[i] = (pi - k * pj) / denom
+            pi = buf[poly + i]
+            pj = buf[poly + j]
+            buf[poly + i] = (pi - k * pj) / denom
             if j != i:
-                poly[j] = (pj - k * pi) / denom
+                buf[poly + j] = (pj - k * pi) / denom
     return True
 
 

@@ -33,6 +33,7 @@ __all__ = [
     "fit_output_error",
     "covariance_from_jacobian",
     "failure_residual",
+    "failure_level",
     "single_threaded_blas",
     "on_one_blas_thread",
     "fit_record",
@@ -107,7 +108,12 @@ def failure_residual(y: np.ndarray) -> np.ndarray:
 
     The trust region then steps back instead of failing on ``inf``.
     """
-    return np.full(y.shape, 10.0 * (float(np.max(np.abs(y))) + float(np.std(y)) + 1.0))
+    return np.full(y.shape, failure_level(y))
+
+
+def failure_level(y: np.ndarray) -> float:
+    """The value of :func:`failure_residual`, for a caller that builds the array only when it is needed."""
+    return 10.0 * (float(np.max(np.abs(y))) + float(np.std(y)) + 1.0)
 
 
 def covariance_from_jacobian(residual: np.ndarray, jac: np.ndarray, n_params: int) -> tuple[np.ndarray, np.ndarray]:

@@ -109,11 +109,32 @@ def reversals(signal: np.ndarray, threshold: float) -> int:
 
 
 # -- residual statistics ------------------------------------------------------------------------
+#: Samples per block of :func:`_autocorrelation`.
+AUTOCORRELATION_BLOCK = 1 << 16
+
+
 def _autocorrelation(r: np.ndarray, lags: int) -> np.ndarray:
-    r = np.asarray(r, dtype=np.float64) - float(np.mean(r))
-    n = r.size
-    spec = np.fft.rfft(r, 2 * n)
-    ac = np.fft.irfft(spec * np.conj(spec))[: lags + 1]
+    """The autocorrelation at lags ``0 .. lags`` (normalised to 1 at 0), block by block.
+
+    Each block of the centred ``r`` is correlated by FFT with itself and the
+    next ``lags`` samples, and the sums add up: the same numbers as one FFT
+    over the whole record, in memory independent of its length (the whole
+    record's FFT of length ``2 n`` held ~56 bytes per sample, the peak of
+    identify() at 10^6 samples).
+    """
+    x = np.asarray(r, dtype=np.float64)
+    mean = float(np.mean(x))
+    n = x.size
+    block = max(AUTOCORRELATION_BLOCK, 4 * lags)
+    ac = np.zeros(lags + 1)
+    for lo in range(0, n, block):
+        hi = min(n, lo + block)
+        a = x[lo:hi] - mean
+        b = x[lo : min(n, hi + lags)] - mean
+        size = 1 << int(a.size + b.size - 1).bit_length()
+        corr = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)
+        m = min(lags + 1, b.size)
+        ac[:m] += corr[:m]
     return ac / ac[0] if ac[0] > 0.0 else np.zeros(lags + 1)
 
 

@@ -19,10 +19,10 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
-from servoid.ident.metrics import nrmse
+from servoid.ident.metrics import residual_nrmse
 from servoid.ident.models.kernels import rest_kernel, schur_stable, simulate_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
-from servoid.ident.offline._oefit import covariance_from_jacobian, failure_residual, fit_output_error, fit_record
+from servoid.ident.offline._oefit import covariance_from_jacobian, failure_level, fit_output_error, fit_record
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
 
@@ -145,7 +145,7 @@ class _OutputError:
         self.zone = np.empty(u.shape, dtype=np.int8)
         # Outside the stable region the simulation explodes.
         self.y_used = y if valid is None else y[valid]
-        self.penalty = failure_residual(self.y_used)
+        self.failure = failure_level(self.y_used)  # the residual's value there, built only when needed
 
     def full(self, p: np.ndarray) -> tuple[np.ndarray, float]:
         """The model's values (``c2`` restored) and ``delta0`` from a fitted vector."""
@@ -181,12 +181,12 @@ class _OutputError:
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         if not self.simulate(p):
-            return self.penalty
+            return np.full(self.y_used.shape, self.failure)
         out: np.ndarray = self.y_hat - self.y
         if self.keep is not None:
             out = out[self.keep]
         if not np.all(np.isfinite(out)):
-            return self.penalty
+            return np.full(self.y_used.shape, self.failure)
         return out
 
     def model(self, p: np.ndarray) -> BacklashModel:
@@ -265,7 +265,8 @@ def refine(
     problem = _OutputError(u_arr, y_arr, initial, start_y, valid_arr, initial_state=initial_state, play=play)
     lay = initial.layout
     values0 = initial.values()
-    floor = _LOWER_BOUND_REL * max(float(np.std(problem.y_used)), 1e-12)
+    y_std = float(np.std(problem.y_used))
+    floor = _LOWER_BOUND_REL * max(y_std, 1e-12)
     if play is not None:
         values0[lay.c1] = float(np.clip(values0[lay.c1] * play / initial.dead_zone, 2 * floor, play - 2 * floor))
         values0[lay.c2] = play - values0[lay.c1]
@@ -277,10 +278,11 @@ def refine(
         upper[lay.c1] = play - floor
     p0 = np.clip(p0, lower + floor, upper - floor)  # least_squares needs a strictly feasible start
 
+    # the start's fit before the search: its residual is gone before the search's is made
+    initial_nrmse = residual_nrmse(problem(p0), y_std)
     fit = fit_output_error(problem, p0, lower, upper, max_nfev=max_nfev)
     model = problem.model(fit.x)
     _, delta_hat = problem.full(fit.x)
-    y_used = problem.y_used
     n_model = model.n_params
     stderr = np.full(n_model, np.nan)
     kept = [i for i in range(n_model) if play is None or i != lay.c2]
@@ -290,8 +292,8 @@ def refine(
         initial=initial,
         stderr=tuple(float(s) for s in stderr),
         covariance=fit.covariance,
-        nrmse=nrmse(y_used, fit.residual + y_used),
-        initial_nrmse=nrmse(y_used, problem(p0) + y_used),
+        nrmse=residual_nrmse(fit.residual, y_std),
+        initial_nrmse=initial_nrmse,
         residual_std=float(np.std(fit.residual)),
         nfev=fit.nfev,
         success=fit.success,
@@ -323,6 +325,42 @@ def _masked_record(
         raise ConfigError(f"{used} samples cannot determine {n_params} parameters")
     start_y = float(y_arr[int(np.argmax(valid_arr))]) if y0 is None else validation.real("y0", y0)
     return u_arr, y_arr, start_y, valid_arr
+
+
+#: Rows of the ARX regression per chunk: its memory stays a few MB whatever the record's length.
+ARX_CHUNK = 1 << 16
+
+
+def _arx_least_squares(
+    u: np.ndarray, y: np.ndarray, usable: np.ndarray, *, na: int, nb: int, delay: int, k0: int
+) -> np.ndarray:
+    """The least-squares ARX parameters ``[a, b, offset]``, the regression built and reduced chunk by chunk.
+
+    Each chunk's rows ``[-y(k-1) .. -y(k-na), u(k-d) .. u(k-d-nb), 1 | y(k)]``
+    are stacked under the triangle kept so far and reduced by a QR
+    decomposition to a new triangle ``[R | Q^T y]`` (a streaming QR): the
+    same least-squares problem as the whole regressor matrix, with the
+    conditioning of ``lstsq`` on it (not the squared one of the normal
+    equations), in memory independent of the record's length (the whole
+    matrix cost ~100 bytes per sample at 10^6 and more). ``lstsq`` on the
+    final triangle keeps its rank handling: ``R`` has the singular values of
+    the whole matrix.
+    """
+    p = na + nb + 2
+    tri = np.zeros((0, p + 1))
+    rows = y.size - k0
+    for lo in range(0, rows, ARX_CHUNK):
+        hi = min(rows, lo + ARX_CHUNK)
+        block = np.empty((hi - lo, p + 1))
+        for i in range(1, na + 1):
+            block[:, i - 1] = -y[k0 + lo - i : k0 + hi - i]
+        for j in range(nb + 1):
+            block[:, na + j] = u[k0 + lo - delay - j : k0 + hi - delay - j]
+        block[:, p - 1] = 1.0
+        block[:, p] = y[k0 + lo : k0 + hi]
+        tri = np.asarray(np.linalg.qr(np.vstack((tri, block[usable[lo:hi]])), mode="r"))[: p + 1]
+    theta: np.ndarray = np.linalg.lstsq(tri[:p, :p], tri[:p, p], rcond=None)[0]
+    return theta
 
 
 def arx_start(
@@ -374,16 +412,12 @@ def arx_start(
     if u_arr.size != y_arr.size:
         raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
     k0 = max(na, delay + nb)
-    rows = y_arr.size - k0
     usable = keep[k0:].copy()
     for i in range(1, na + 1):
         usable &= keep[k0 - i : keep.size - i]
     if int(usable.sum()) <= na + nb + 2:
         raise ConfigError(f"{y_arr.size} samples are too few for an ARX start with na={na}, nb={nb}, delay={delay}")
-    cols = [-y_arr[k0 - i : y_arr.size - i] for i in range(1, na + 1)]
-    cols += [u_arr[k0 - delay - j : u_arr.size - delay - j] for j in range(nb + 1)]
-    cols.append(np.ones(rows))
-    theta, *_ = np.linalg.lstsq(np.column_stack(cols)[usable], y_arr[k0:][usable], rcond=None)
+    theta = _arx_least_squares(u_arr, y_arr, usable, na=na, nb=nb, delay=delay, k0=k0)
     a = theta[:na]
     b = theta[na : na + nb + 1]
     while np.max(np.abs(np.roots(np.r_[1.0, a]))) >= 0.995:
@@ -392,4 +426,4 @@ def arx_start(
     if not np.any(b):
         b = np.r_[max(y_std / max(float(np.std(u_arr)), 1e-12), 1e-6), b[1:]]
     dead = max(0.05 * y_std, 1e-9)
-    return BacklashModel(a=a, b=b, delay=delay, m2=1.0, c1=dead, c2=dead)
+    return BacklashModel(a=tuple(a.tolist()), b=tuple(b.tolist()), delay=delay, m2=1.0, c1=dead, c2=dead)

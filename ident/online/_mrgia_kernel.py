@@ -1,8 +1,11 @@
 """One step of the MRGIA, eqs (17)-(42), on a flat state vector.
 
-The estimator's whole state lives in one float64 array so that a compiled
-step costs one call with three arguments (:class:`StateLayout` names the
-slices; :class:`servoid.ident.online.mrgia.MRGIA` exposes them as properties). The
+The estimator's state, configuration, scratch and orders live in one
+float64 buffer, the state at its start, so that an update from Python is one
+call with one array and two floats (:func:`mrgia_update`), the cheapest call
+numba offers, and nothing inside is sliced (:class:`StateLayout` names the
+parts; :class:`servoid.ident.online.mrgia.MRGIA` exposes them as properties).
+The step is compiled a second time for the default orders, as constants. The
 readings of the paper's misprints follow ``shared/PAPER-NOTES.md`` and are
 marked where they are used.
 """
@@ -14,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from servoid.ident._jit import jit
+from servoid.ident import defaults
+from servoid.ident._jit import jit, jit_inline
 from servoid.ident.models.kernels import schur_stable_in
 from servoid.ident.models.pseudo_wiener import backlash_offset
 
-_backlash_at = jit(backlash_offset)
+_backlash_at = jit_inline(backlash_offset)
 
 __all__ = [
     "StateLayout",
@@ -43,6 +47,7 @@ __all__ = [
     "STEP_NOT_FINITE",
     "work_size",
     "mrgia_step",
+    "mrgia_update",
     "mrgia_skip",
     "line_coverage",
     "mrgia_run",
@@ -163,6 +168,32 @@ class StateLayout:
         """Length of the whole state vector."""
         return self.scalars + N_SCALARS
 
+    @property
+    def state(self) -> slice:
+        """The state vector in the estimator's buffer: its start, so that state indices are buffer indices."""
+        return slice(0, self.size)
+
+    @property
+    def cfg(self) -> slice:
+        """The configuration vector (``CFG_*``) in the buffer."""
+        return slice(self.size, self.size + CFG_SIZE)
+
+    @property
+    def work(self) -> slice:
+        """The scratch of :func:`mrgia_step` in the buffer (:func:`work_size`)."""
+        start = self.size + CFG_SIZE
+        return slice(start, start + work_size(self.na, self.nb))
+
+    @property
+    def orders(self) -> slice:
+        """``na, nb, d`` as floats, the buffer's last three entries (read by :func:`mrgia_update`)."""
+        return slice(self.buffer_size - 3, self.buffer_size)
+
+    @property
+    def buffer_size(self) -> int:
+        """Length of the estimator's one buffer: state, configuration, scratch, orders."""
+        return self.size + CFG_SIZE + work_size(self.na, self.nb) + 3
+
 
 def offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
     """``(n, P, K, x history, u history, scalars)``: the length of theta and where each part starts.
@@ -179,7 +210,7 @@ def offsets(na: int, nb: int, d: int) -> tuple[int, int, int, int, int, int]:
     return n, p, kk, xh, uh, sc
 
 
-_offsets = jit(offsets)
+_offsets = jit_inline(offsets)
 
 
 def work_size(na: int, nb: int) -> int:
@@ -195,9 +226,9 @@ def work_size(na: int, nb: int) -> int:
     return 4 * n + n * n + na + 1
 
 
-@jit
-def _feasible(theta: np.ndarray, na: int, nb: int, poly: np.ndarray) -> bool:
-    """The model's own assumptions: stable linear block, ``m2 > 0``, ``c1 >= 0``, ``c2 >= 0``.
+@jit_inline
+def _feasible(buf: np.ndarray, at: int, na: int, nb: int, poly: int) -> bool:
+    """For the candidate theta at ``buf[at:]``, the model's own assumptions: stable linear block, ``m2 > 0``, ``c1 >= 0``, ``c2 >= 0``.
 
     Zero dead zones are admitted because the paper starts from them (Section 4).
 
@@ -208,13 +239,13 @@ def _feasible(theta: np.ndarray, na: int, nb: int, poly: np.ndarray) -> bool:
     Refusing such an update (a projection in the sense of Goodwin and Sin)
     keeps the estimate inside the set the model is defined on.
     """
-    im2 = _backlash_at(na, nb)
-    if not (1.0 + theta[im2] > 0.0 and theta[im2 + 1] >= 0.0 and theta[im2 + 2] >= 0.0):
+    im2 = at + _backlash_at(na, nb)
+    if not (1.0 + buf[im2] > 0.0 and buf[im2 + 1] >= 0.0 and buf[im2 + 2] >= 0.0):
         return False
-    return schur_stable_in(theta[:na], poly)
+    return schur_stable_in(buf, at, na, poly)  # scratch at buf[poly:]
 
 
-@jit
+@jit_inline
 def _predict_x(state: np.ndarray, na: int, nb: int, d: int, oxh: int, ouh: int) -> float:
     """Eq. (27): ``x-hat(k) = -sum a-hat_i x-hat(k-i) + sum b-hat_j u(k-d-j)`` with ``theta-hat(k-1)``."""
     xk = 0.0
@@ -225,7 +256,7 @@ def _predict_x(state: np.ndarray, na: int, nb: int, d: int, oxh: int, ouh: int) 
     return xk
 
 
-@jit
+@jit_inline
 def switching(
     state: np.ndarray, na: int, nb: int, osc: int, xk: float, y: float, eps: float
 ) -> tuple[float, float, float, float, float]:
@@ -248,11 +279,21 @@ def switching(
     return g1 * g4, g2 * g5, g4, g5, dy
 
 
-@jit
+@jit_inline
 def regressor(
-    state: np.ndarray, na: int, nb: int, d: int, oxh: int, ouh: int, xk: float, up: float, down: float, h: np.ndarray
+    state: np.ndarray,
+    na: int,
+    nb: int,
+    d: int,
+    oxh: int,
+    ouh: int,
+    xk: float,
+    up: float,
+    down: float,
+    h: np.ndarray,
+    oh: int,
 ) -> None:
-    """Fill ``h`` with the regressor ``h-hat(k)`` of eq. (25), for a sample with ``Phi(k) = 1``.
+    """Fill ``h[oh : oh + n]`` with the regressor ``h-hat(k)`` of eq. (25), for a sample with ``Phi(k) = 1``.
 
     Read with ``-x-hat(k-i)`` entries as in (14), with ``u(k-d-nb)`` and
     ``g3-hat x-hat(k)`` as two entries, and with the ``g4``/``g5`` products of
@@ -264,15 +305,15 @@ def regressor(
     mk = 1.0 + ((1.0 + state[im2]) - 1.0) * g3  # eq. (26) with m2-hat = 1 + theta (kept as printed: bit for bit)
     sg = 1.0 if dx > 0.0 else (-1.0 if dx < 0.0 else 0.0)
     for i in range(na):
-        h[i] = -state[oxh + i]  # eq. (25), read with the sign of (14)
+        h[oh + i] = -state[oxh + i]  # eq. (25), read with the sign of (14)
     for j in range(nb + 1):
-        h[na + j] = state[ouh + d - 1 + j]
-    h[im2] = g3 * xk
-    h[im2 + 1] = -0.5 * mk * (sg + 1.0) * up  # eqs (25), (39)
-    h[im2 + 2] = 0.5 * mk * (-sg + 1.0) * down
+        h[oh + na + j] = state[ouh + d - 1 + j]
+    h[oh + im2] = g3 * xk
+    h[oh + im2 + 1] = -0.5 * mk * (sg + 1.0) * up  # eqs (25), (39)
+    h[oh + im2 + 2] = 0.5 * mk * (-sg + 1.0) * down
 
 
-@jit
+@jit_inline
 def _shift(hist: np.ndarray, start: int, length: int, value: float) -> None:
     for i in range(length - 1, 0, -1):
         hist[start + i] = hist[start + i - 1]
@@ -280,7 +321,7 @@ def _shift(hist: np.ndarray, start: int, length: int, value: float) -> None:
         hist[start] = value
 
 
-@jit
+@jit_inline
 def line_coverage(state: np.ndarray, na: int, nb: int, d: int) -> tuple[float, float]:
     """Share of measured moves up / down that the model put on the up / down line.
 
@@ -299,14 +340,15 @@ def line_coverage(state: np.ndarray, na: int, nb: int, d: int) -> tuple[float, f
     return up, down
 
 
-@jit
-def mrgia_step(
-    state: np.ndarray, cfg: np.ndarray, work: np.ndarray, na: int, nb: int, d: int, u: float, y: float
-) -> int:
+@jit_inline
+def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u: float, y: float) -> int:
     """Process one sample ``(u(k), y(k))``; return a ``STEP_*`` code.
 
-    ``work`` is scratch of length :func:`work_size` (nothing is allocated here);
-    a non-finite ``u`` or ``y`` returns ``STEP_NOT_FINITE`` and changes nothing.
+    ``state`` is the estimator's buffer (:class:`BufferLayout`): the state
+    from 0, the configuration from ``oc`` and the scratch from ``ow``
+    (nothing is allocated here, and nothing is sliced: a view costs a
+    reference count, as much as a few multiplications). A non-finite ``u`` or
+    ``y`` returns ``STEP_NOT_FINITE`` and changes nothing.
 
     Notes
     -----
@@ -336,14 +378,15 @@ def mrgia_step(
     if not (math.isfinite(u) and math.isfinite(y)):
         return STEP_NOT_FINITE
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
-    r = cfg[CFG_RHO_EXPONENT]
-    eps = cfg[CFG_EPSILON]
-    h = work[:n]
-    ph = work[n : 2 * n]
-    kg = work[2 * n : 3 * n]
-    theta_new = work[3 * n : 4 * n]
-    p_new = work[4 * n : 4 * n + n * n]
-    poly = work[4 * n + n * n : 4 * n + n * n + na + 1]
+    r = state[oc + CFG_RHO_EXPONENT]
+    eps = state[oc + CFG_EPSILON]
+    # the scratch: h, P h, K, the candidate theta and P, the stability test's polynomial
+    oh = ow
+    oph = ow + n
+    okg = ow + 2 * n
+    oth = ow + 3 * n
+    opn = ow + 4 * n
+    opoly = ow + 4 * n + n * n
 
     xk = _predict_x(state, na, nb, d, oxh, ouh)  # eq. (27)
 
@@ -356,13 +399,13 @@ def mrgia_step(
         code = STEP_HELD
 
         if phi == 1.0:
-            regressor(state, na, nb, d, oxh, ouh, xk, up, down, h)  # eq. (25)
+            regressor(state, na, nb, d, oxh, ouh, xk, up, down, state, oh)  # eq. (25)
 
             e = y  # eq. (41): y_c-hat(k) = y(k) when Phi = 1
             for i in range(n):
-                e -= h[i] * state[i]  # eq. (17)
+                e -= state[oh + i] * state[i]  # eq. (17)
 
-            floor = cfg[CFG_RHO_FLOOR]
+            floor = state[oc + CFG_RHO_FLOOR]
             raw = (t + 1.0) ** (-r)
             raw_prev = state[osc + SC_RHO] if state[osc + SC_RHO_AT] == t else t ** (-r)
             rho = max(raw, floor)
@@ -373,59 +416,62 @@ def mrgia_step(
             for i in range(n):
                 acc = 0.0
                 for j in range(n):
-                    acc += state[op + i * n + j] * h[j]
-                ph[i] = acc
+                    acc += state[op + i * n + j] * state[oh + j]
+                state[oph + i] = acc
             hph = 0.0
             for i in range(n):
-                hph += h[i] * ph[i]
+                hph += state[oh + i] * state[oph + i]
             s = hph + mu * sigma  # eq. (19)
             if not (s > 0.0) or not math.isfinite(s):
                 return STEP_DIVERGED
             for i in range(n):
-                kg[i] = ph[i] / s  # eq. (20)
+                state[okg + i] = state[oph + i] / s  # eq. (20)
 
             # eq. (21), Joseph form, upper triangle then mirrored
-            q = cfg[CFG_PROCESS_NOISE]
+            q = state[oc + CFG_PROCESS_NOISE]
             for i in range(n):
+                ki = state[okg + i]
+                phi_i = state[oph + i]
                 for j in range(i, n):
-                    v = (state[op + i * n + j] - kg[i] * ph[j] - ph[i] * kg[j] + hph * kg[i] * kg[j]) / mu + sigma * kg[
-                        i
-                    ] * kg[j]
+                    kj = state[okg + j]
+                    v = (
+                        state[op + i * n + j] - ki * state[oph + j] - phi_i * kj + hph * ki * kj
+                    ) / mu + sigma * ki * kj
                     if i == j:
                         v += q  # tracking: parameters as a random walk of variance q per update
-                    p_new[i * n + j] = v
-                    p_new[j * n + i] = v
+                    state[opn + i * n + j] = v
+                    state[opn + j * n + i] = v
             # tracking: cap P's diagonal by a congruence D P D with D diagonal,
             # which keeps P symmetric positive definite (unexcited directions
             # would otherwise grow without bound under forgetting)
-            p_max = cfg[CFG_P_MAX]
+            p_max = state[oc + CFG_P_MAX]
             for i in range(n):
-                pii = p_new[i * n + i]
+                pii = state[opn + i * n + i]
                 if pii > p_max:
                     sc = math.sqrt(p_max / pii)
                     for j in range(n):
-                        p_new[i * n + j] *= sc
-                        p_new[j * n + i] *= sc
+                        state[opn + i * n + j] *= sc
+                        state[opn + j * n + i] *= sc
             ok_flag = True
             for i in range(n):
-                if not math.isfinite(p_new[i * n + i]) or p_new[i * n + i] <= 0.0:
+                if not math.isfinite(state[opn + i * n + i]) or state[opn + i * n + i] <= 0.0:
                     ok_flag = False
             for i in range(n):
-                theta_new[i] = state[i] + kg[i] * e  # eq. (18) as in (50)
-                if not math.isfinite(theta_new[i]):
+                state[oth + i] = state[i] + state[okg + i] * e  # eq. (18) as in (50)
+                if not math.isfinite(state[oth + i]):
                     ok_flag = False
             if not ok_flag:
                 return STEP_DIVERGED
             state[osc + SC_RHO] = raw  # after the divergence checks: a diverging sample changes nothing
             state[osc + SC_RHO_AT] = t + 1.0
-            if cfg[CFG_PROJECT] != 0.0 and not _feasible(theta_new, na, nb, poly):
+            if state[oc + CFG_PROJECT] != 0.0 and not _feasible(state, oth, na, nb, opoly):
                 code = STEP_REFUSED
             else:
                 for i in range(n):
-                    state[i] = theta_new[i]
-                    state[ok + i] = kg[i]
+                    state[i] = state[oth + i]
+                    state[ok + i] = state[okg + i]
                 for i in range(n * n):
-                    state[op + i] = p_new[i]
+                    state[op + i] = state[opn + i]
                 state[osc + SC_S] = s
                 state[osc + SC_SIGMA] = sigma
                 state[osc + SC_ERROR] = e
@@ -437,7 +483,7 @@ def mrgia_step(
         # with output noise about half the samples in the play cross epsilon
         # itself (9 % cross 3 epsilon) and the model rightly keeps them off the
         # lines; counting them made a long one-sided stretch look stuck.
-        alpha = cfg[CFG_COVERAGE_ALPHA]
+        alpha = state[oc + CFG_COVERAGE_ALPHA]
         clear = COVERAGE_MOVE_FACTOR * eps
         move_up = 1.0 if (g4 == 1.0 and dy >= clear) else 0.0
         move_down = 1.0 if (g5 == 1.0 and -dy >= clear) else 0.0
@@ -455,14 +501,39 @@ def mrgia_step(
     state[osc + SC_PRIMED] = 1.0
     state[osc + SC_T] = t
     state[osc + SC_SINCE_RESET] += 1.0
-    if cfg[CFG_STUCK_BELOW] > 0.0 and state[osc + SC_SINCE_RESET] > cfg[CFG_WARMUP]:
+    if state[oc + CFG_STUCK_BELOW] > 0.0 and state[osc + SC_SINCE_RESET] > state[oc + CFG_WARMUP]:
         cov_up, cov_down = line_coverage(state, na, nb, d)
-        if min(cov_up, cov_down) < cfg[CFG_STUCK_BELOW]:
+        if min(cov_up, cov_down) < state[oc + CFG_STUCK_BELOW]:
             code += STEP_STUCK
     return code
 
 
+# The orders servoid runs by default, for which the step is compiled a second time with the orders
+# and offsets as constants: its loops unroll and its indices fold (2.5 times faster on the
+# paper's plant, the same numbers). Other orders run the general step.
+_NA, _NB, _D = defaults.NA, defaults.NB, defaults.DELAY
+_OC = offsets(_NA, _NB, _D)[5] + N_SCALARS
+
+
 @jit
+def mrgia_update(buf: np.ndarray, u: float, y: float) -> int:
+    """:func:`mrgia_step` on an estimator's whole buffer (:class:`StateLayout`), its orders read from the buffer.
+
+    The online estimator's calling convention: one array and two floats, the
+    cheapest call into compiled code from Python (a call's cost grows with
+    each argument numba has to convert, an array's most).
+    """
+    m = buf.shape[0]
+    na = int(buf[m - 3])
+    nb = int(buf[m - 2])
+    d = int(buf[m - 1])
+    if na == _NA and nb == _NB and d == _D:
+        return mrgia_step(buf, _OC, _OC + CFG_SIZE, _NA, _NB, _D, u, y)  # the common orders, specialised
+    oc = _offsets(na, nb, d)[5] + N_SCALARS
+    return mrgia_step(buf, oc, oc + CFG_SIZE, na, nb, d, u, y)
+
+
+@jit_inline
 def mrgia_skip(state: np.ndarray, na: int, nb: int, d: int, u: float) -> None:
     """Advance over a sample whose measurement was lost.
 
@@ -507,8 +578,7 @@ def mrgia_recover(state: np.ndarray, na: int, nb: int, d: int, theta0: np.ndarra
 
 @jit
 def mrgia_run(
-    state: np.ndarray,
-    cfg: np.ndarray,
+    buf: np.ndarray,
     na: int,
     nb: int,
     d: int,
@@ -519,9 +589,8 @@ def mrgia_run(
     coverage_out: np.ndarray,
     record_every: int,
     row0: int,
-    work: np.ndarray,
 ) -> tuple[int, int]:
-    """Run :func:`mrgia_step` over whole arrays.
+    """Run :func:`mrgia_step` over whole arrays, on an estimator's buffer (:class:`StateLayout`).
 
     Parameters
     ----------
@@ -542,21 +611,29 @@ def mrgia_run(
     """
     n_samples = u.shape[0]
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
+    oc = osc + N_SCALARS
+    ow = oc + CFG_SIZE
     code = 0
+    special = na == _NA and nb == _NB and d == _D
+    left = record_every - row0 % record_every  # samples to the next recorded one: no division per sample
     for k in range(n_samples):
         if valid[k]:
-            code = mrgia_step(state, cfg, work, na, nb, d, u[k], y[k])
+            if special:
+                code = mrgia_step(buf, _OC, _OC + CFG_SIZE, _NA, _NB, _D, u[k], y[k])  # constants: see _NA
+            else:
+                code = mrgia_step(buf, oc, ow, na, nb, d, u[k], y[k])
             if code == STEP_DIVERGED:
                 return 2, k
         else:
-            mrgia_skip(state, na, nb, d, u[k])
+            mrgia_skip(buf, na, nb, d, u[k])
             code = 0
-        done = row0 + k + 1
-        if done % record_every == 0:
-            row = done // record_every - 1
-            cov_up, cov_down = line_coverage(state, na, nb, d)
+        left -= 1
+        if left == 0:
+            left = record_every
+            row = (row0 + k + 1) // record_every - 1
+            cov_up, cov_down = line_coverage(buf, na, nb, d)
             for i in range(n):
-                theta_out[row, i] = state[i]
+                theta_out[row, i] = buf[i]
             coverage_out[row, 0] = cov_up
             coverage_out[row, 1] = cov_down
         if code >= STEP_STUCK:

@@ -84,12 +84,12 @@ _STEPS: dict[int, Step] = {int(s): s for s in Step}
 _STEP_OF: tuple[Step | None, ...] = tuple(_STEPS.get(code) for code in range(2 * _k.STEP_STUCK))
 
 
-def _first_step(*args: Any) -> int:
-    """The step compiled for these argument types, called past numba's dispatch from now on (ident/_jit.py)."""
+def _first_step(buf: np.ndarray, u: float, y: float) -> int:
+    """The step compiled for ``(buffer, float, float)``, called past numba's dispatch from now on (ident/_jit.py)."""
     global _fast_step
     if _fast_step is None:
-        _fast_step = direct_call(_k.mrgia_step, *args)
-    return _fast_step(*args)  # type: ignore[no-any-return]
+        _fast_step = direct_call(_k.mrgia_update, buf, 0.0, 0.0)  # floats, whatever this first call passes
+    return _fast_step(buf, u, y)  # type: ignore[no-any-return]
 
 
 _fast_step: Callable[..., Any] | None = None
@@ -374,16 +374,18 @@ class MRGIA:
         self._cfg = self.config.kernel_config()
         self._na, self._nb, self._d = self.config.na, self.config.nb, self.config.delay
         self._recoveries: list[RecoveryEvent] = []
-        self.state = self.config.initial_state()
-        self._work = np.zeros(_k.work_size(self._na, self._nb))
-        self._bind()
-
-    def _bind(self) -> None:
-        """Fix the step's arguments but ``(u, y)``: an update then costs one C-level call (rebound on reset)."""
+        # one buffer for the kernel (state, configuration, scratch, orders): an update is one call with
+        # one array; state, _cfg and _work are views of it
+        lay = self._lay
+        self._buf = np.zeros(lay.buffer_size)
+        self._buf[lay.orders] = (self._na, self._nb, self._d)
+        self.state = self._buf[lay.state]
+        self._cfg = self._buf[lay.cfg]
+        self._work = self._buf[lay.work]
+        self.state[:] = self.config.initial_state()
+        self._cfg[:] = self.config.kernel_config()
         step = _fast_step if _fast_step is not None else _first_step
-        self._step: Callable[[float, float], int] = partial(
-            step, self.state, self._cfg, self._work, self._na, self._nb, self._d
-        )
+        self._step: Callable[[float, float], int] = partial(step, self._buf)
 
     # -- stepping -----------------------------------------------------------------
     def update(self, u: float, y: float) -> Step:
@@ -402,8 +404,10 @@ class MRGIA:
             If this sample would make ``theta`` or ``P`` non-finite; the state
             is left as it was before the sample.
         """
-        # float() gives a clear error for a non-number; the kernel checks finiteness
-        code = self._step(float(u), float(y))
+        try:
+            code = self._step(u, y)  # the compiled entry converts numbers as float() does; the kernel checks finiteness
+        except TypeError:
+            code = self._step(float(u), float(y))  # float() names what is not a number
         step = _STEP_OF[code]
         if step is not None:
             return step
@@ -431,10 +435,9 @@ class MRGIA:
         ``max_recoveries`` switches recovery off for the rest of a run, not for
         good.
         """
-        self.state = self.config.initial_state()
-        self._cfg = self.config.kernel_config()
+        self.state[:] = self.config.initial_state()
+        self._cfg[:] = self.config.kernel_config()
         self._recoveries.clear()
-        self._bind()
 
     def warm_up(self) -> None:
         """Compile the kernels now, on a scratch estimator: a first compile inside a sampling loop stalls it for seconds."""
@@ -734,9 +737,9 @@ def run_mrgia(
     while start < n:
         stop = min(n, start + PROGRESS_CHUNK) if progress is not None else n
         status, k = _k.mrgia_run(
-            est.state, est._cfg, cfg.na, cfg.nb, cfg.delay,
+            est._buf, cfg.na, cfg.nb, cfg.delay,
             u_arr[start:stop], y_arr[start:stop], valid_arr[start:stop],
-            theta_hist, cov_hist, every, start, est._work,
+            theta_hist, cov_hist, every, start,
         )  # fmt: skip
         if status == 2:
             at = start + int(k)

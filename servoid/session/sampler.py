@@ -497,6 +497,7 @@ class _Sampler:
         self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
         self.keep_samples = keep_samples
         self.slots = 0
+        self._slack_s = config.period_s / 2 + driver.clock_resolution_s
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
@@ -506,27 +507,30 @@ class _Sampler:
         driver.set_sample_period(self.config.period_s)
         driver.enable()
         give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
-        self.t0 = clock.now_ns()
-        last_reply = self.t0
-        self._next_progress = self.t0
+        # bound once: the loop runs per sample, and its own work is what the session adds to the exchange
+        now, sleep_until, half = clock.now_ns, clock.sleep_until_ns, period // 2
+        exchange, measured, command_filter = driver.exchange, self._measured, self.command_filter
+        self.t0 = t0 = now()
+        last_reply = t0
+        self._next_progress = t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
         for k, value in enumerate(excitation):
             reference = self._reference(k, value)
-            scheduled = self.t0 + k * period
-            if k > 0 and clock.now_ns() - scheduled >= period // 2:
+            scheduled = t0 + k * period
+            if k > 0 and now() - scheduled >= half:
                 self._missed(k, scheduled, reference)
                 continue
-            clock.sleep_until_ns(scheduled)
-            if k > 0 and clock.now_ns() - scheduled >= period // 2:
+            sleep_until(scheduled)
+            if k > 0 and now() - scheduled >= half:
                 # the sleep overshot (a loaded host): sent now, the command would reach a servo that runs
                 # on its own clock in another sample than its slot, and the record would say otherwise
                 self._missed(k, scheduled, reference)
                 continue
-            command = self.command_filter(reference) if self.command_filter is not None else reference
-            start = clock.now_ns()  # after the filter: a slow filter makes the exchange late, and that shows
+            command = command_filter(reference) if command_filter is not None else reference
+            start = now()  # after the filter: a slow filter makes the exchange late, and that shows
             try:
-                m = driver.exchange(command, slot=k)
+                m = exchange(command, slot=k)
             except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
-                end = clock.now_ns()
+                end = now()
                 self._timeout(k, scheduled, start, end, reference, command)
                 if end - last_reply > give_up_ns:
                     raise DriverTimeout(
@@ -534,10 +538,11 @@ class _Sampler:
                         f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})"
                     ) from exc
             else:
-                end = clock.now_ns()
+                end = now()
                 last_reply = end
-                self._measured(k, scheduled, start, end, reference, m)
-            self._maybe_progress(end)
+                measured(k, scheduled, start, end, reference, m)
+            if end >= self._next_progress:
+                self._maybe_progress(end)
         self._progress(clock.now_ns())
 
     def _reference(self, k: int, value: Any) -> Any:
@@ -563,8 +568,9 @@ class _Sampler:
 
     def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
         status, device_time = self._status_of(k, scheduled, start, end, m.device_time)
-        self._add(Sample(k, self._s(scheduled), self._s(start), reference, m.command, m.position, status,
-                         device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+        t0 = self.t0
+        self._add(Sample(k, (scheduled - t0) / NS_PER_S, (start - t0) / NS_PER_S, reference, m.command, m.position,
+                         status, device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
 
     def _status_of(self, k: int, scheduled: int, start: int, end: int, device: float | None) -> tuple[str, float]:
         """Whether an answered exchange was on time (``ok``) or ``late``; and its device time (NaN: none)."""
@@ -577,9 +583,8 @@ class _Sampler:
                 prev_k, prev_t = self._last_device
                 expected = (k - prev_k) * self.config.period_s
                 # the request reached the device in another sample than its slot (a device clock
-                # that counts whole milliseconds may be off by one count without that)
-                slack = self.config.period_s / 2 + self.driver.clock_resolution_s
-                late = late or abs((device_time - prev_t) - expected) >= slack
+                # that counts whole milliseconds may be off by one count without that): _slack_s
+                late = late or abs((device_time - prev_t) - expected) >= self._slack_s
             self._last_device = (k, device_time)
         return (LATE if late else OK), device_time
 
