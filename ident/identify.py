@@ -333,7 +333,7 @@ def identify(
         ``False`` marks samples whose measurement was lost or is not to be
         trusted (a live session's late, missed and timed-out samples): their
         ``y`` may be NaN; the MRGIA skips them (:meth:`MRGIA.skip`) and the
-        refinement and the fit leave them out, simulating through them.
+        refinement, the servo-loop model and the fit leave them out, simulating through them.
     online : MRGIAResult, optional
         The MRGIA's result over this record, already computed (a live
         session ran it sample by sample: :meth:`servoid.session.listeners.EstimatorFeed.mrgia_result`);
@@ -525,8 +525,8 @@ def identify(
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None
-    if servo_loop and refinement is not None and keep is None and needed(at_floor, white):
-        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit))
+    if servo_loop and refinement is not None and needed(at_floor, white):
+        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit), keep=keep)
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))

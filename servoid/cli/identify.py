@@ -282,6 +282,10 @@ def run(args: argparse.Namespace) -> int:
     if result.loop is None and not result.identifiable:
         out.print("  the servo-loop model (the play inside the loop) was not fitted: the output backlash is the only "
                   "structure tried")  # fmt: skip
+    factor = (record.live or {}).get("decimation", {}).get("factor", 1)
+    if result.loop is not None and factor > 1 and record.written_to is not None:
+        out.print(f"  the servo-loop model ran on the online estimator's record (1 in {factor} samples); "
+                  f"servoid identify --data {record.written_to} fits it at the session's rate")  # fmt: skip
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
     if status:
