@@ -52,6 +52,7 @@ __all__ = [
     "LoopChoice",
     "LoopCandidate",
     "fit_loop",
+    "refit",
     "block_mask",
     "MIN_SAMPLES",
 ]
@@ -432,12 +433,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any
         constant output, or a non-positive period.
     """
     t0 = time.perf_counter()
-    u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
-    kept = _kept(keep, u_arr.size)
-    y_arr = validation.signal("y", _bridged(y, kept), min_length=MIN_SAMPLES)
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    period = validation.positive("sample_period_s", sample_period_s)
+    u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
     seed = validation.integer("seed", seed, minimum=0)
     if float(np.ptp(y_arr[kept])) <= 0.0:
         raise ConfigError("y is constant: the servo never moved, there is no loop to fit")
@@ -530,6 +526,60 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any
         seconds=time.perf_counter() - t0,
         evaluations=evaluations,
     )
+
+
+def refit(
+    u: Any, y: Any, sample_period_s: float, start: ServoLoopModel, *, hold: tuple[str, ...] = (), keep: Any = None
+) -> ServoLoopModel:
+    """Refit a servo-loop model on a record with some of its parameters held at the start's values.
+
+    A nested model for a comparison: ``diagnose`` fits the chosen structure without its friction
+    terms (``start`` with ``fc = fs = 0``, ``hold=("fc", "fs", "vs", "veps")``) to see what they
+    buy. The fit is :func:`fit_loop`'s candidate fit (same scaling and steps) on every kept sample.
+
+    Parameters
+    ----------
+    u, y : array_like
+        The record, as for :func:`fit_loop`.
+    sample_period_s : float
+        The host period, s.
+    start : ServoLoopModel
+        Where the fit starts; its structure and whether it has an integrator (``ki > 0``) stay.
+    hold : tuple of str
+        Names of :data:`~servoid.ident.models.servo_loop.PARAM_NAMES` (or ``play``, ``asym``)
+        held at ``start``'s values.
+    keep : array_like of bool, optional
+        Readings to score, as for :func:`fit_loop`.
+
+    Returns
+    -------
+    ServoLoopModel
+    """
+    u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
+    centre = float(np.mean(u_arr))
+    uc = np.ascontiguousarray(u_arr - centre)
+    yc = np.ascontiguousarray(y_arr - centre)
+    v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
+    d = start.params()
+    d["play"] = start.play
+    d["asym"] = (start.c1 - start.c2) / (2.0 * start.play) if start.play > 0.0 else 0.0
+    integrator = start.ki > 0.0
+    free = tuple(n for n in _free(start.structure, integrator) if n not in hold)
+    fitted, _, _ = _fit(
+        uc, yc, period, start.structure, d, kept, 0.1 * start.kv * v_typ,
+        integrator=integrator, max_nfev=CANDIDATE_NFEV, free=free,
+    )  # fmt: skip
+    return _model(start.structure, period, fitted)
+
+
+def _checked(u: Any, y: Any, sample_period_s: float, keep: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The record checked (``y`` bridged across the readings not kept), the mask of kept readings and the period."""
+    u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
+    kept = _kept(keep, u_arr.size)
+    y_arr = validation.signal("y", _bridged(y, kept), min_length=MIN_SAMPLES)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    return u_arr, y_arr, kept, validation.positive("sample_period_s", sample_period_s)
 
 
 def _kept(keep: Any, n: int) -> np.ndarray:
