@@ -37,7 +37,6 @@ from servoid.ident.offline.intervals import (
     hac_stderr,
     play_interval,
     quantum,
-    residual_white,
     reversals,
     streamed_stderr,
     verdict,
@@ -119,7 +118,8 @@ class Identification:
     reversals : int
         Output reversals larger than twice the play.
     residual_white : bool
-        Whether the black box's residual passed the whiteness test.
+        Whether the black box's free-run residual passed the whiteness test (compare's Ljung-Box test,
+        :attr:`servoid.ident.diagnosis.residuals.ResidualTests.white`).
     loop : LoopResult or None
         The servo-loop model's result, when it was fitted.
     verdict : Verdict
@@ -497,15 +497,16 @@ def identify(
     floor = floor_nrmse(y_valid)
     play = model.dead_zone
     stderr = float("nan")
-    white = False
     lines_cross = False
+    # whiteness has one owner: compare's residual tests (Ljung-Box, Ljung sec. 16.6) on the black box's
+    # free run, the residual the warning and resid.png show; an exact fit's rounding is not tested
+    black_box_fit = compare({"model": model}, u_arr, y_arr, valid=keep, starts={"model": (delta0, (point.u, point.y))})
+    white = not black_box_fit.fits[0].coloured
     if refinement is not None:
         if refinement.jacobian.shape[0] == refinement.residual.size:
             stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
         else:  # a long record's fit streamed without a Jacobian
             stderr = streamed_stderr(refinement.covariance, refinement.residual, refinement.play_gradient())
-        # an exact fit (noise-free record) leaves rounding, whose colour means nothing
-        white = fit < 1e-6 or residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
     interval = play_interval(play, stderr)
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
@@ -538,11 +539,9 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         judged = Verdict(False, (*judged.reasons, *loop.reasons))
-    # the toolbox's resid view of the black box (compare's band rule), as a warning; when the servo-loop
-    # model answers, it says why the black box was not the answer
+    # the same test as a warning, naming the black box when the servo-loop model answers
     name = "the identified model" if form == PSEUDO_WIENER else "the black-box (pseudo-Wiener) model"
-    black_box_start = {name: (delta0, (point.u, point.y))}
-    coloured = compare({name: model}, u_arr, y_arr, valid=keep, starts=black_box_start).fits[0].coloured_warning()
+    coloured = replace(black_box_fit.fits[0], name=name).coloured_warning()
     if coloured is not None:
         warnings.append(coloured)
     return Identification(

@@ -121,7 +121,9 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
         stall_band: float = 0.1
 
     seen = []
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or FakeLoop())
+    monkeypatch.setattr(
+        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or FakeLoop()
+    )
     u, y = _paper(800, 6, snr=5.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
     result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)

@@ -33,7 +33,6 @@ __all__ = [
     "hac_stderr",
     "streamed_stderr",
     "play_interval",
-    "residual_white",
     "quantum",
     "noise_std",
     "floor_nrmse",
@@ -209,19 +208,6 @@ def play_interval(play: float, stderr: float) -> tuple[float, float]:
     return play - Z95 * stderr, play + Z95 * stderr
 
 
-def residual_white(r: np.ndarray, lags: int = 20) -> bool:
-    """Whether the residuals pass a Ljung-Box test of whiteness at the 1 % level over ``lags`` lags."""
-    from scipy import stats
-
-    r = np.asarray(r, dtype=np.float64)
-    n = r.size
-    if n <= 2 * lags or float(np.std(r)) == 0.0:
-        return True
-    ac = _autocorrelation(r, lags)[1:]
-    q = n * (n + 2) * float(np.sum(ac**2 / (n - np.arange(1, lags + 1))))
-    return q <= float(stats.chi2.ppf(0.99, lags))
-
-
 # -- the floor ----------------------------------------------------------------------------------
 def quantum(y: np.ndarray) -> float:
     """The record's resolution: the step of which every change of ``y`` is a whole multiple (0 when none).
@@ -299,7 +285,8 @@ class Evidence:
         The friction stall band (unit of y; None: not modelled).
     residual_white : bool, optional
         For the black box as the final answer: whether its residual passed
-        the whiteness test (None: not applied, e.g. a servo-loop answer).
+        the whiteness test (:attr:`servoid.ident.diagnosis.residuals.ResidualTests.white`,
+        the one owner; None: not applied, e.g. a servo-loop answer).
     """
 
     play: float
@@ -412,7 +399,7 @@ def verdict(e: Evidence) -> Verdict:
         )
     if e.residual_white is False:
         why.append(
-            "the black box's residual is not white (a Ljung-Box test at 1 %) and no second structure explains "
+            "the black box's residual is not white (it fails the Ljung-Box test at 1 %) and no second structure explains "
             "the record: the model misses dynamics, and the play may be absorbing them"
         )
     if e.stall_band is not None and e.stall_band >= play:

@@ -51,8 +51,8 @@ Outputs in --out: recording.csv, model.json, convergence.png (each parameter
 against samples, true values dashed when known), fit.png (measured against
 simulated output), backlash.png (the identified loop), and what servoid
 compare draws on this record: compare.png (free-run fit %), resid.png (the
-residual's correlations and their 99 % band: a residual outside it is
-coloured, said on stderr) and bode.png (Bode and step of the linear block).
+residual's correlations and their 99 % band; a residual that fails the
+Ljung-Box test at 1 % is coloured, said on stderr and in the verdict) and bode.png (Bode and step of the linear block).
 
 Noise: with output noise, set --epsilon to about 0.8 x the noise standard
 deviation of y (E|v| for Gaussian noise); for the simulated servo it is set
