@@ -494,7 +494,7 @@ def identify(
         )
 
     # the honest answer for the black box
-    floor = floor_nrmse(y_valid)
+    floor = floor_nrmse(y_arr, keep)
     play = model.dead_zone
     stderr = float("nan")
     lines_cross = False

@@ -11,7 +11,7 @@ from servoid.ident import PAPER_PLANT
 from servoid.ident.identify import identify
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
-from servoid.ident.offline.intervals import Evidence, reversals, verdict
+from servoid.ident.offline.intervals import Evidence, floor_nrmse, reversals, verdict
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.modelfile import load_model, save_model
 
@@ -156,3 +156,18 @@ def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
     config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
     with pytest.raises(ModelError, match="worse than predicting its mean"):
         diagnose(u_t, y_t, u_v, y_v, config)
+
+
+def test_the_floor_of_a_record_with_lost_samples_is_its_noise_not_its_gaps():
+    # a slow quantised motion with 0.01 noise: fourth differences across a gap measure motion, not noise
+    rng = np.random.default_rng(5)
+    t = np.arange(4000)
+    y = np.round((np.sin(t / 15.0) + rng.normal(0.0, 0.01, t.size)) / 1e-3) * 1e-3
+    keep = rng.random(t.size) > 0.3
+    whole = floor_nrmse(y)
+    assert floor_nrmse(y, keep) == pytest.approx(whole, rel=0.15)
+    assert floor_nrmse(y[keep]) > 1.5 * whole  # closing the gaps up, as identify did, inflates it
+    # too few runs of five kept samples to estimate the noise: the resolution's floor (the strict side)
+    slow = np.round(np.sin(t / 400.0) / 1e-3) * 1e-3
+    sparse = rng.random(t.size) > 0.9
+    assert floor_nrmse(slow, sparse) == pytest.approx(1e-3 / np.sqrt(12.0) / np.std(slow[sparse]))

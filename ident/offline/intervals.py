@@ -40,6 +40,7 @@ __all__ = [
     "MAX_FIT_TO_FLOOR",
     "MIN_STRUCTURE_MARGIN",
     "MAX_REL_HALF_WIDTH",
+    "MIN_NOISE_WINDOWS",
     "Z95",
 ]
 
@@ -51,6 +52,8 @@ MAX_FIT_TO_FLOOR = 1.2
 MIN_STRUCTURE_MARGIN = 0.05
 #: The largest half-width of the 95 % interval, relative to the play.
 MAX_REL_HALF_WIDTH = 0.5
+#: Fewest fourth differences :func:`noise_std` estimates the noise from.
+MIN_NOISE_WINDOWS = 50
 #: Two-sided 95 % normal quantile.
 Z95 = 1.959963984540054
 
@@ -226,7 +229,7 @@ def quantum(y: np.ndarray) -> float:
     return q if float(np.mean(off)) <= 0.01 else 0.0
 
 
-def noise_std(y: np.ndarray) -> float:
+def noise_std(y: np.ndarray, valid: np.ndarray | None = None) -> float:
     """Output noise (and the rounding of a moving quantised signal) estimated from fourth differences.
 
     White noise of standard deviation s gives fourth differences of standard
@@ -236,26 +239,55 @@ def noise_std(y: np.ndarray) -> float:
     the set point jerks it. On twins driven by gentle sines it came out
     1.0-1.35 times the true noise; on a fast, white set point it is several
     times too large, and the rule on the fit then errs on the lenient side.
+
+    Parameters
+    ----------
+    y : ndarray
+        The output.
+    valid : ndarray of bool, optional
+        Samples to use (a live record's mask): only fourth differences of five
+        consecutive valid samples count, since one across a gap measures motion,
+        not noise (a record with most samples lost otherwise gets a floor many
+        times its noise, and a poor fit passes as "at the floor"). Default: all.
+
+    Returns
+    -------
+    float
+        0 when fewer than :data:`MIN_NOISE_WINDOWS` fourth differences are
+        available: a median of a few says little, and the floor is then the
+        resolution's alone (the strict side).
     """
     d4 = np.diff(np.asarray(y, dtype=np.float64), 4)
-    if d4.size == 0:
+    if valid is not None:
+        ok = np.asarray(valid, dtype=np.bool_)
+        whole = ok[:-4] & ok[1:-3] & ok[2:-2] & ok[3:-1] & ok[4:] if ok.size > 4 else np.zeros(0, dtype=np.bool_)
+        d4 = d4[whole]
+    if d4.size < MIN_NOISE_WINDOWS:
         return 0.0
     mad = float(np.median(np.abs(d4 - np.median(d4))))
     return 1.4826 * mad / float(np.sqrt(70.0))
 
 
-def floor_nrmse(y: np.ndarray) -> float:
+def floor_nrmse(y: np.ndarray, valid: np.ndarray | None = None) -> float:
     """The fit NRMSE the record's resolution and noise alone leave: ``max(s, q / sqrt(12)) / std(y)``.
 
     ``s`` (:func:`noise_std`) already holds the rounding of a moving
     quantised signal; ``q / sqrt(12)`` is what rounding alone leaves
     (a noise-free encoder).
+
+    Parameters
+    ----------
+    y : ndarray
+        The output.
+    valid : ndarray of bool, optional
+        Samples to use (a live record's mask; see :func:`noise_std`). Default: all.
     """
     y = np.asarray(y, dtype=np.float64)
-    std = float(np.std(y))
+    used = y if valid is None else y[np.asarray(valid, dtype=np.bool_)]
+    std = float(np.std(used))
     if std == 0.0:
         return float("nan")
-    return max(noise_std(y), quantum(y) / float(np.sqrt(12.0))) / std
+    return max(noise_std(y, valid), quantum(used) / float(np.sqrt(12.0))) / std
 
 
 # -- the verdict --------------------------------------------------------------------------------
