@@ -410,7 +410,7 @@ def verdict(e: Evidence) -> Verdict:
         )
     if np.isfinite(e.floor) and e.floor > 0.0 and e.fit_nrmse > MAX_FIT_TO_FLOOR * e.floor:
         why.append(
-            f"the fit (NRMSE {e.fit_nrmse:.3g}) is {e.fit_nrmse / e.floor:.2g} times the floor {e.floor:.3g} "
+            f"the fit (NRMSE {e.fit_nrmse:.3g}) is {e.fit_nrmse / e.floor:.3g} times the floor {e.floor:.3g} "
             f"the record's resolution and noise leave (at most {MAX_FIT_TO_FLOOR:g}): the model misses something "
             "and the play may be absorbing it"
         )
