@@ -108,7 +108,7 @@ def test_lost_readings_are_simulated_through_and_never_read() -> None:
     # a live record's mask: the set point is known everywhere, 3 % of the readings are lost (NaN)
     period = 0.01
     truth = _loop(PLAY_IN_LOOP, period)
-    u = _gentle(0.1, period, 800, seed=5)
+    u = _gentle(0.1, period, 500, seed=5)
     y = truth.simulate(u, y0=0.0)
     keep = np.random.default_rng(2).random(u.size) > 0.03
     keep[0] = True
