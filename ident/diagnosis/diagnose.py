@@ -13,8 +13,8 @@
 4. accepts the best candidate only if it pays (see *Selection* below), and
    repeats from the extended model for a further effect, up to
    ``max_effects``;
-5. when the sample period is known, fits the servo-loop model with and
-   without its friction terms and names ``friction_stall`` when they pay
+5. when the sample period is known and the final model's validation residual
+   is coloured, fits the servo-loop model with and without its friction terms and names ``friction_stall`` when they pay
    (:mod:`servoid.ident.diagnosis.loop_effects`): a drive that stalls after
    each reversal is an effect inside the loop, which the black box books as play.
 
@@ -201,7 +201,8 @@ class Diagnosis:
     config : DiagnoseConfig
         The settings used.
     loop : LoopEffect or None
-        The servo-loop model with and without friction (None when the sample period was not given).
+        The servo-loop model with and without friction (None when it was not looked for: no sample
+        period, a white validation residual, or a record too short).
     """
 
     identification: Identification
@@ -474,7 +475,8 @@ def diagnose(
     sample_period_s : float, optional
         The records' sample period, s: the servo-loop model needs it to look for
         ``friction_stall`` (:func:`~servoid.ident.diagnosis.loop_effects.loop_effects`);
-        without it that effect is not looked for.
+        without it, or when the black box with its effects leaves a white validation
+        residual (nothing for the loop model to explain), that effect is not looked for.
 
     Returns
     -------
@@ -515,15 +517,17 @@ def diagnose(
             f"{final_fit:.3g} >= 1, base model {records.gap(base):.3g}) even with the effects tried: there is "
             "nothing to name a missing effect against; check the records, the orders and the delay"
         )
+    before = records.validation(base)
+    after = records.validation(current)
+    resid_after = residual_tests(records.y_v - after.y, records.u_v)
     loop: LoopEffect | None = None
-    if sample_period_s is not None:
+    # identify's skip rule: a black box whose residual is white leaves the servo-loop model nothing to explain
+    if sample_period_s is not None and not resid_after.white:
         period = validation.positive("sample_period_s", sample_period_s)
         try:
             loop = loop_effects(train, val, period)
         except ConfigError:  # too short for the servo-loop model: the effect is not looked for
             loop = None
-    before = records.validation(base)
-    after = records.validation(current)
     motion = before.x
     window, lag = config.reversal_window, config.identification.delay
     breakdown_before = regime_breakdown(
@@ -541,7 +545,7 @@ def diagnose(
         breakdown_before=breakdown_before,
         breakdown_after=breakdown_after,
         resid_before=residual_tests(records.y_v - before.y, records.u_v),
-        resid_after=residual_tests(records.y_v - after.y, records.u_v),
+        resid_after=resid_after,
         validation_before=before,
         validation_after=after,
         config=config,

@@ -185,8 +185,8 @@ def run(args: argparse.Namespace) -> int:
     out.print(f"validation gap (free-run NRMSE): before {result.gap_before:.4g}, after {result.gap_after:.4g} "
               f"({result.gap_after / result.gap_before:.2f} x)")  # fmt: skip
     out.print(result.loop.line(output_unit) if result.loop is not None else
-              f"{FRICTION_STALL}: not looked for (the servo-loop model needs the recordings' sample period "
-              "and at least 200 samples)")  # fmt: skip
+              f"{FRICTION_STALL}: not looked for (the servo-loop model needs the recordings' sample period, "
+              "at least 200 samples and a coloured residual to explain)")  # fmt: skip
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
     return 0
