@@ -1,6 +1,7 @@
 # servoid: everything a fresh clone needs is behind these targets.
 #   make demo    create .venv, install servoid, identify the simulated servo (plots + model.json)
-#                and export its compensation parameters as a C header
+#                and export its compensation parameters as a C header; then identify a physical
+#                twin (the XM430, the play inside its loop) live through sim://
 #   make test    create .venv, install servoid with test tools, run the tests
 #   make bench   run the benchmarks (tables on stdout)
 #   make lint    install ruff and mypy into .venv, then lint, check the format and check the types
@@ -25,6 +26,10 @@ install: $(STAMP)
 demo: $(STAMP)
 	$(VENV)/bin/servoid identify --snr 43 --samples 5000 --out $(DEMO_OUT)
 	$(VENV)/bin/servoid export $(DEMO_OUT)/model.json --format c --force --out $(DEMO_OUT)/backlash.h
+	@echo "== a physical twin: the XM430 (encoder on the horn, the play inside the position loop), live through"
+	@echo "   sim:// in simulated time, gentle sines at 40x its loop bandwidth"
+	$(VENV)/bin/servoid identify --driver "sim://xm430?clock=virtual" --rate 140 --samples 5600 --no-probe \
+		--excitation "gentle:amplitude=0.1,accel=0.000408,spread=8" --out $(DEMO_OUT)/xm430
 
 test: $(STAMP)
 	$(PY) -m pytest

@@ -24,6 +24,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.diagnosis.compare import compare
+from servoid.ident.diagnosis.residuals import is_white
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.kernels import rest_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel
@@ -38,7 +39,6 @@ from servoid.ident.offline.intervals import (
     hac_stderr,
     play_interval,
     quantum,
-    residual_white,
     reversals,
     streamed_stderr,
     verdict,
@@ -130,7 +130,8 @@ class Identification:
     reversals : int
         Output reversals larger than twice the play.
     residual_white : bool
-        Whether the black box's residual passed the whiteness test.
+        Whether the black box's free-run residual passed the whiteness test (compare's Ljung-Box test,
+        :attr:`servoid.ident.diagnosis.residuals.ResidualTests.white`).
     loop : LoopResult or None
         The servo-loop model's result, when it was fitted.
     verdict : Verdict
@@ -345,7 +346,7 @@ def identify(
         ``False`` marks samples whose measurement was lost or is not to be
         trusted (a live session's late, missed and timed-out samples): their
         ``y`` may be NaN; the MRGIA skips them (:meth:`MRGIA.skip`) and the
-        refinement and the fit leave them out, simulating through them.
+        refinement, the servo-loop model and the fit leave them out, simulating through them.
     online : MRGIAResult, optional
         The MRGIA's result over this record, already computed (a live
         session ran it sample by sample: :meth:`servoid.session.listeners.EstimatorFeed.mrgia_result`);
@@ -441,7 +442,7 @@ def identify(
     # does not depend on it (where the MRGIA's convergence condition fails, its estimate can sit in
     # another basin of the output error) and from the order selection's fit. Keep the best fit; a
     # fit at the record's noise floor ends the search (SKIP_AT_FLOOR).
-    floor = floor_nrmse(y_valid)
+    floor = floor_nrmse(y_arr, keep)
     refinement: Refinement | None = None
     refined_from: str | None = None
     start_nrmse: dict[str, float] = {}
@@ -463,7 +464,7 @@ def identify(
             start_nrmse[name] = candidate.nrmse
             if refinement is None or candidate.nrmse < refinement.nrmse:
                 refinement, refined_from = candidate, name
-            if candidate.nrmse <= SKIP_AT_FLOOR * floor and residual_white(candidate.residual):  # NaN floor: never
+            if candidate.nrmse <= SKIP_AT_FLOOR * floor and is_white(candidate.residual):  # NaN floor: never
                 break
         if refinement is not None and not refinement.success:
             warnings.append(f"the refinement did not converge: {refinement.message}")
@@ -512,15 +513,16 @@ def identify(
     # the honest answer for the black box
     play = model.dead_zone
     stderr = float("nan")
-    white = False
     lines_cross = False
+    # whiteness has one owner: compare's residual tests (Ljung-Box, Ljung sec. 16.6) on the black box's
+    # free run, the residual the warning and resid.png show; an exact fit's rounding is not tested
+    black_box_fit = compare({"model": model}, u_arr, y_arr, valid=keep, starts={"model": (delta0, (point.u, point.y))})
+    white = not black_box_fit.fits[0].coloured
     if refinement is not None:
         if refinement.jacobian.shape[0] == refinement.residual.size:
             stderr = hac_stderr(refinement.jacobian, refinement.residual, refinement.play_gradient())
         else:  # a long record's fit streamed without a Jacobian
             stderr = streamed_stderr(refinement.covariance, refinement.residual, refinement.play_gradient())
-        # an exact fit (noise-free record) leaves rounding, whose colour means nothing
-        white = fit < 1e-6 or residual_white(refinement.residual)
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
     interval = play_interval(play, stderr)
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
@@ -540,8 +542,8 @@ def identify(
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None
-    if servo_loop and refinement is not None and keep is None and needed(at_floor, white):
-        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit))
+    if servo_loop and refinement is not None and needed(at_floor, white):
+        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit), keep=keep)
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))
@@ -553,11 +555,9 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         judged = Verdict(False, (*judged.reasons, *loop.reasons))
-    # the toolbox's resid view of the black box (compare's band rule), as a warning; when the servo-loop
-    # model answers, it says why the black box was not the answer
+    # the same test as a warning, naming the black box when the servo-loop model answers
     name = "the identified model" if form == PSEUDO_WIENER else "the black-box (pseudo-Wiener) model"
-    black_box_start = {name: (delta0, (point.u, point.y))}
-    coloured = compare({name: model}, u_arr, y_arr, valid=keep, starts=black_box_start).fits[0].coloured_warning()
+    coloured = replace(black_box_fit.fits[0], name=name).coloured_warning()
     if coloured is not None:
         warnings.append(coloured)
     return Identification(

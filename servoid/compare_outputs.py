@@ -74,5 +74,5 @@ def write_compare_plots(
 
 
 def coloured_warnings(comparison: Comparison) -> list[str]:
-    """One line for each model whose residual is coloured (outside the band more than chance allows)."""
+    """One line for each model whose residual is coloured (it fails the Ljung-Box test: ``ModelFit.coloured``)."""
     return [w for w in (fit.coloured_warning() for fit in comparison.fits) if w is not None]

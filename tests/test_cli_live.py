@@ -124,3 +124,18 @@ def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
     finally:
         emulator.terminate()
         emulator.wait(timeout=10)
+
+
+def test_a_live_twin_with_lost_samples_gets_the_servo_loop_model(tmp_path, capsys):
+    # the live record's mask (lost readings, their guard windows) no longer skips the second structure
+    code, obj, err = run_json(capsys, "--driver", "sim://xm430?clock=virtual&drop=0.005&seed=3", "--rate", "200",
+                              "--samples", "1500", "--no-probe", "--no-plots", "--out", str(tmp_path))  # fmt: skip
+    assert code == 0, err
+    assert obj["lost"]["not_measured"] > 0 and obj["lost"]["usable"] < 1500
+    loop = obj["second_structure"]
+    assert loop is not None and set(loop["validation_nrmse"]) == {"output_backlash", "play_in_loop"}
+    if obj["form"] == "servo_loop":  # the answer is the loop model's, named as offline
+        assert obj["structure"] == loop["structure"] and obj["play"] == loop["play"]
+    assert isinstance(obj["identifiable"], bool) and "not fitted" not in (obj["reason"] or "")
+    saved = json.loads((tmp_path / "model.json").read_text(), parse_constant=lambda c: pytest.fail(c))
+    assert (saved["structure"]["name"], saved["structure"]["form"]) == (obj["structure"], obj["form"])

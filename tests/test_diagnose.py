@@ -232,3 +232,42 @@ def test_xl330_reads_and_diagnoses():
         assert "worse than predicting its mean" in str(exc)
         return
     assert result.effect in EFFECT_NAMES and result.gap_after <= result.gap_before and result.gap_after < 1.0
+
+
+def _twin_pair(friction: float) -> tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray], float]:
+    """Training and validation records (12 s of gentle sines each) of the XM430 twin, its motor friction scaled."""
+    from servoid.drivers.twin import Twin, preset
+    from servoid.excitation.generate import sample
+    from servoid.excitation.specs import GentleSpec
+
+    base = preset("xm430")
+    params = preset("xm430", load_encoder_cpr=4096, encoder_noise_counts=0.3,
+                    motor_coulomb_nm=base.motor_coulomb_nm * friction,
+                    motor_breakaway_nm=base.motor_breakaway_nm * friction)  # fmt: skip
+    period = 1.0 / 70.0  # 20x the twin's loop bandwidth
+    records = []
+    for seed in (1, 2):
+        twin = Twin(params, seed=seed)
+        twin.enable()
+        u = sample(GentleSpec(amplitude=0.1, accel=8.0 * period**2, spread=8.0), int(12.0 / period), seed=seed)
+        rec = twin.sample(u, period)
+        records.append((np.asarray(rec.u, dtype=float), np.asarray(rec.y, dtype=float)))
+    return records[0], records[1], period
+
+
+def test_a_drive_that_stalls_after_reversals_is_named_friction_stall_and_the_gap_shrinks():
+    # the twin's motor friction x4: the velocity loop must overcome break-away after each reversal
+    train, val, period = _twin_pair(4.0)
+    result = diagnose(*train, *val, CONFIG, sample_period_s=period)
+    loop = result.loop
+    assert loop is not None and loop.named and result.effect == "friction_stall"
+    assert loop.gap_with < 0.5 * loop.gap_without  # the servo-loop model's gap shrinks when friction is added
+    assert loop.gap_with < result.gap_after  # and explains the record better than the black box with its effects
+    assert result.effect_parameters["stall_band"] == loop.stall_band > 0.0
+    assert json.loads(json.dumps(result.to_dict()))["loop_effect"]["effect"] == "friction_stall"
+
+
+def test_a_drive_without_friction_is_not_named_friction_stall():
+    train, val, period = _twin_pair(0.0)
+    result = diagnose(*train, *val, CONFIG, sample_period_s=period)
+    assert result.loop is not None and not result.loop.named and "friction_stall" not in result.effects

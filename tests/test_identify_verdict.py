@@ -11,7 +11,7 @@ from servoid.ident import PAPER_PLANT
 from servoid.ident.identify import identify
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
-from servoid.ident.offline.intervals import Evidence, reversals, verdict
+from servoid.ident.offline.intervals import Evidence, floor_nrmse, reversals, verdict
 from servoid.ident.offline.structure import select_orders
 from servoid.ident.online.mrgia import MRGIAConfig
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE
@@ -149,7 +149,9 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
         stall_band: float = 0.1
 
     seen = []
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or FakeLoop())
+    monkeypatch.setattr(
+        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or FakeLoop()
+    )
     u, y = _paper(800, 6, snr=5.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
     result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
@@ -196,3 +198,18 @@ def test_the_blockwise_autocorrelation_is_the_whole_records():
     c = r - r.mean()
     direct = np.array([c[: n - k] @ c[k:] for k in range(lags + 1)])
     np.testing.assert_allclose(_autocorrelation(r, lags), direct / direct[0], atol=1e-12)
+
+
+def test_the_floor_of_a_record_with_lost_samples_is_its_noise_not_its_gaps():
+    # a slow quantised motion with 0.01 noise: fourth differences across a gap measure motion, not noise
+    rng = np.random.default_rng(5)
+    t = np.arange(4000)
+    y = np.round((np.sin(t / 15.0) + rng.normal(0.0, 0.01, t.size)) / 1e-3) * 1e-3
+    keep = rng.random(t.size) > 0.3
+    whole = floor_nrmse(y)
+    assert floor_nrmse(y, keep) == pytest.approx(whole, rel=0.15)
+    assert floor_nrmse(y[keep]) > 1.5 * whole  # closing the gaps up, as identify did, inflates it
+    # too few runs of five kept samples to estimate the noise: the resolution's floor (the strict side)
+    slow = np.round(np.sin(t / 400.0) / 1e-3) * 1e-3
+    sparse = rng.random(t.size) > 0.9
+    assert floor_nrmse(slow, sparse) == pytest.approx(1e-3 / np.sqrt(12.0) / np.std(slow[sparse]))

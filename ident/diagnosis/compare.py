@@ -119,9 +119,10 @@ class ModelFit:
 
     @property
     def coloured(self) -> bool:
-        """The residual's autocorrelation leaves the band more than chance allows: the model misses dynamics.
+        """The residual fails the whiteness test (:attr:`ResidualTests.white`, Ljung-Box): the model misses dynamics.
 
         Never for a residual below the floor the output can show (:attr:`below_floor`).
+        Identification's verdict reads this too (its rule on the black box's residual).
         """
         return not self.resid.white and not self.below_floor
 
@@ -130,10 +131,8 @@ class ModelFit:
         if not self.coloured:
             return None
         return (
-            f"the residual of {self.name} is coloured: its autocorrelation leaves the "
-            f"{100 * self.resid.confidence:.0f} % band at {self.resid.autocorrelation_outside}/"
-            f"{self.resid.lags.size - 1} lags, so the model misses some dynamics "
-            "(try other orders or delay, or servoid diagnose)"
+            f"the residual of {self.name} is coloured: it {self.resid.whiteness_text()}, so the model "
+            "misses some dynamics (try other orders or delay, or servoid diagnose)"
         )
 
     def verdict(self) -> str:
@@ -144,7 +143,8 @@ class ModelFit:
             return f"within the output's resolution ({self.resolution:.3g})"
         problems = []
         if self.coloured:
-            problems.append(f"coloured (autocorrelation outside the band at {self.resid.autocorrelation_outside} lags)")
+            problems.append(f"coloured (Ljung-Box Q {self.resid.ljung_box_q:.3g} > {self.resid.ljung_box_limit:.3g}; "
+                            f"outside the band at {self.resid.autocorrelation_outside} lags)")  # fmt: skip
         if not self.resid.independent_of_input:
             problems.append(f"correlated with the input ({self.resid.cross_correlation_outside} lags)")
         return "; ".join(problems) if problems else "white and independent of the input"

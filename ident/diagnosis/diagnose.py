@@ -12,7 +12,11 @@
    the validation record;
 4. accepts the best candidate only if it pays (see *Selection* below), and
    repeats from the extended model for a further effect, up to
-   ``max_effects``.
+   ``max_effects``;
+5. when the sample period is known and the final model's validation residual
+   is coloured, fits the servo-loop model with and without its friction terms and names ``friction_stall`` when they pay
+   (:mod:`servoid.ident.diagnosis.loop_effects`): a drive that stalls after
+   each reversal is an effect inside the loop, which the black box books as play.
 
 Selection
 ---------
@@ -42,6 +46,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.defaults import DEFAULT_PENALTY, MAX_EFFECTS, REVERSAL_WINDOW
+from servoid.ident.diagnosis.loop_effects import FRICTION_TERMS, LoopEffect, loop_effects
 from servoid.ident.diagnosis.residuals import (
     RegimeBreakdown,
     ResidualTests,
@@ -51,6 +56,7 @@ from servoid.ident.diagnosis.residuals import (
 )
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.effect_names import FRICTION_STALL
 from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
 from servoid.ident.models.extended import (
     AppliedEffect,
@@ -194,6 +200,9 @@ class Diagnosis:
         Free runs on the validation input (for plots).
     config : DiagnoseConfig
         The settings used.
+    loop : LoopEffect or None
+        The servo-loop model with and without friction (None when it was not looked for: no sample
+        period, a white validation residual, or a record too short).
     """
 
     identification: Identification
@@ -210,6 +219,7 @@ class Diagnosis:
     validation_before: ExtendedSimulation
     validation_after: ExtendedSimulation
     config: DiagnoseConfig
+    loop: LoopEffect | None = None
 
     def __repr__(self) -> str:
         return (
@@ -219,8 +229,16 @@ class Diagnosis:
 
     @property
     def effects(self) -> tuple[str, ...]:
-        """Names of the accepted effects, in the order found (empty when nothing is missing)."""
-        return self.model.effect_names
+        """Names of the missing effects (empty when nothing is missing).
+
+        The black box's accepted effects in the order found, and ``friction_stall`` when the
+        servo-loop model names it: first when the loop model with friction validates better
+        than the black box with its effects (the stall is then what they were standing in for).
+        """
+        found = self.model.effect_names
+        if self.loop is None or not self.loop.named:
+            return found
+        return (FRICTION_STALL, *found) if self.loop.gap_with < self.gap_after else (*found, FRICTION_STALL)
 
     @property
     def effect(self) -> str:
@@ -229,7 +247,11 @@ class Diagnosis:
 
     @property
     def effect_parameters(self) -> dict[str, float]:
-        """Parameters of :attr:`effect` in the final model (empty for ``"none"``)."""
+        """Parameters of :attr:`effect` in the final model (empty for ``"none"``; the servo loop's friction
+        and stall band for ``friction_stall``)."""
+        if self.effect == FRICTION_STALL and self.loop is not None:
+            params = self.loop.model.params()
+            return {**{name: params[name] for name in FRICTION_TERMS}, "stall_band": self.loop.stall_band}
         applied = self.model.effect(self.effect)
         return {} if applied is None else applied.parameters
 
@@ -262,6 +284,7 @@ class Diagnosis:
             "residual_tests_before": self.resid_before.to_dict(),
             "residual_tests_after": self.resid_after.to_dict(),
             "warnings": list(self.identification.warnings),
+            "loop_effect": None if self.loop is None else self.loop.to_dict(),
         }
 
 
@@ -435,6 +458,7 @@ def diagnose(
     config: DiagnoseConfig,
     *,
     progress: Callable[[str], None] | None = None,
+    sample_period_s: float | None = None,
 ) -> Diagnosis:
     """Find where the identified model and the measurement disagree and which effect is missing.
 
@@ -448,6 +472,11 @@ def diagnose(
         Orders, delay, candidates and the selection penalty.
     progress : callable, optional
         Called with each candidate's name before it is fitted.
+    sample_period_s : float, optional
+        The records' sample period, s: the servo-loop model needs it to look for
+        ``friction_stall`` (:func:`~servoid.ident.diagnosis.loop_effects.loop_effects`);
+        without it, or when the black box with its effects leaves a white validation
+        residual (nothing for the loop model to explain), that effect is not looked for.
 
     Returns
     -------
@@ -490,6 +519,15 @@ def diagnose(
         )
     before = records.validation(base)
     after = records.validation(current)
+    resid_after = residual_tests(records.y_v - after.y, records.u_v)
+    loop: LoopEffect | None = None
+    # identify's skip rule: a black box whose residual is white leaves the servo-loop model nothing to explain
+    if sample_period_s is not None and not resid_after.white:
+        period = validation.positive("sample_period_s", sample_period_s)
+        try:
+            loop = loop_effects(train, val, period)
+        except ConfigError:  # too short for the servo-loop model: the effect is not looked for
+            loop = None
     motion = before.x
     window, lag = config.reversal_window, config.identification.delay
     breakdown_before = regime_breakdown(
@@ -507,8 +545,9 @@ def diagnose(
         breakdown_before=breakdown_before,
         breakdown_after=breakdown_after,
         resid_before=residual_tests(records.y_v - before.y, records.u_v),
-        resid_after=residual_tests(records.y_v - after.y, records.u_v),
+        resid_after=resid_after,
         validation_before=before,
         validation_after=after,
         config=config,
+        loop=loop,
     )

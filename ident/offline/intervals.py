@@ -23,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from servoid.ident.diagnosis.residuals import autocorrelation as _autocorrelation
+
 __all__ = [
     "Evidence",
     "Verdict",
@@ -33,7 +35,6 @@ __all__ = [
     "hac_stderr",
     "streamed_stderr",
     "play_interval",
-    "residual_white",
     "quantum",
     "noise_std",
     "floor_nrmse",
@@ -41,6 +42,7 @@ __all__ = [
     "MAX_FIT_TO_FLOOR",
     "MIN_STRUCTURE_MARGIN",
     "MAX_REL_HALF_WIDTH",
+    "MIN_NOISE_WINDOWS",
     "Z95",
 ]
 
@@ -52,6 +54,8 @@ MAX_FIT_TO_FLOOR = 1.2
 MIN_STRUCTURE_MARGIN = 0.05
 #: The largest half-width of the 95 % interval, relative to the play.
 MAX_REL_HALF_WIDTH = 0.5
+#: Fewest fourth differences :func:`noise_std` estimates the noise from.
+MIN_NOISE_WINDOWS = 50
 #: Two-sided 95 % normal quantile.
 Z95 = 1.959963984540054
 
@@ -109,33 +113,6 @@ def reversals(signal: np.ndarray, threshold: float) -> int:
 
 
 # -- residual statistics ------------------------------------------------------------------------
-#: Samples per block of :func:`_autocorrelation`.
-AUTOCORRELATION_BLOCK = 1 << 16
-
-
-def _autocorrelation(r: np.ndarray, lags: int) -> np.ndarray:
-    """The autocorrelation at lags ``0 .. lags`` (normalised to 1 at 0), block by block.
-
-    Each block of the centred ``r`` is correlated by FFT with itself and the
-    next ``lags`` samples, and the sums add up: the same numbers as one FFT
-    over the whole record, in memory independent of its length (the whole
-    record's FFT of length ``2 n`` held ~56 bytes per sample, the peak of
-    identify() at 10^6 samples).
-    """
-    x = np.asarray(r, dtype=np.float64)
-    mean = float(np.mean(x))
-    n = x.size
-    block = max(AUTOCORRELATION_BLOCK, 4 * lags)
-    ac = np.zeros(lags + 1)
-    for lo in range(0, n, block):
-        hi = min(n, lo + block)
-        a = x[lo:hi] - mean
-        b = x[lo : min(n, hi + lags)] - mean
-        size = 1 << int(a.size + b.size - 1).bit_length()
-        corr = np.fft.irfft(np.conj(np.fft.rfft(a, size)) * np.fft.rfft(b, size), size)
-        m = min(lags + 1, b.size)
-        ac[:m] += corr[:m]
-    return ac / ac[0] if ac[0] > 0.0 else np.zeros(lags + 1)
 
 
 def _first_small_lag(ac: np.ndarray) -> int:
@@ -230,19 +207,6 @@ def play_interval(play: float, stderr: float) -> tuple[float, float]:
     return play - Z95 * stderr, play + Z95 * stderr
 
 
-def residual_white(r: np.ndarray, lags: int = 20) -> bool:
-    """Whether the residuals pass a Ljung-Box test of whiteness at the 1 % level over ``lags`` lags."""
-    from scipy import stats
-
-    r = np.asarray(r, dtype=np.float64)
-    n = r.size
-    if n <= 2 * lags or float(np.std(r)) == 0.0:
-        return True
-    ac = _autocorrelation(r, lags)[1:]
-    q = n * (n + 2) * float(np.sum(ac**2 / (n - np.arange(1, lags + 1))))
-    return q <= float(stats.chi2.ppf(0.99, lags))
-
-
 # -- the floor ----------------------------------------------------------------------------------
 def quantum(y: np.ndarray) -> float:
     """The record's resolution: the step of which every change of ``y`` is a whole multiple (0 when none).
@@ -261,7 +225,7 @@ def quantum(y: np.ndarray) -> float:
     return q if float(np.mean(off)) <= 0.01 else 0.0
 
 
-def noise_std(y: np.ndarray) -> float:
+def noise_std(y: np.ndarray, valid: np.ndarray | None = None) -> float:
     """Output noise (and the rounding of a moving quantised signal) estimated from fourth differences.
 
     White noise of standard deviation s gives fourth differences of standard
@@ -271,26 +235,55 @@ def noise_std(y: np.ndarray) -> float:
     the set point jerks it. On twins driven by gentle sines it came out
     1.0-1.35 times the true noise; on a fast, white set point it is several
     times too large, and the rule on the fit then errs on the lenient side.
+
+    Parameters
+    ----------
+    y : ndarray
+        The output.
+    valid : ndarray of bool, optional
+        Samples to use (a live record's mask): only fourth differences of five
+        consecutive valid samples count, since one across a gap measures motion,
+        not noise (a record with most samples lost otherwise gets a floor many
+        times its noise, and a poor fit passes as "at the floor"). Default: all.
+
+    Returns
+    -------
+    float
+        0 when fewer than :data:`MIN_NOISE_WINDOWS` fourth differences are
+        available: a median of a few says little, and the floor is then the
+        resolution's alone (the strict side).
     """
     d4 = np.diff(np.asarray(y, dtype=np.float64), 4)
-    if d4.size == 0:
+    if valid is not None:
+        ok = np.asarray(valid, dtype=np.bool_)
+        whole = ok[:-4] & ok[1:-3] & ok[2:-2] & ok[3:-1] & ok[4:] if ok.size > 4 else np.zeros(0, dtype=np.bool_)
+        d4 = d4[whole]
+    if d4.size < MIN_NOISE_WINDOWS:
         return 0.0
     mad = float(np.median(np.abs(d4 - np.median(d4))))
     return 1.4826 * mad / float(np.sqrt(70.0))
 
 
-def floor_nrmse(y: np.ndarray) -> float:
+def floor_nrmse(y: np.ndarray, valid: np.ndarray | None = None) -> float:
     """The fit NRMSE the record's resolution and noise alone leave: ``max(s, q / sqrt(12)) / std(y)``.
 
     ``s`` (:func:`noise_std`) already holds the rounding of a moving
     quantised signal; ``q / sqrt(12)`` is what rounding alone leaves
     (a noise-free encoder).
+
+    Parameters
+    ----------
+    y : ndarray
+        The output.
+    valid : ndarray of bool, optional
+        Samples to use (a live record's mask; see :func:`noise_std`). Default: all.
     """
     y = np.asarray(y, dtype=np.float64)
-    std = float(np.std(y))
+    used = y if valid is None else y[np.asarray(valid, dtype=np.bool_)]
+    std = float(np.std(used))
     if std == 0.0:
         return float("nan")
-    return max(noise_std(y), quantum(y) / float(np.sqrt(12.0))) / std
+    return max(noise_std(y, valid), quantum(used) / float(np.sqrt(12.0))) / std
 
 
 # -- the verdict --------------------------------------------------------------------------------
@@ -320,7 +313,8 @@ class Evidence:
         The friction stall band (unit of y; None: not modelled).
     residual_white : bool, optional
         For the black box as the final answer: whether its residual passed
-        the whiteness test (None: not applied, e.g. a servo-loop answer).
+        the whiteness test (:attr:`servoid.ident.diagnosis.residuals.ResidualTests.white`,
+        the one owner; None: not applied, e.g. a servo-loop answer).
     """
 
     play: float
@@ -412,7 +406,7 @@ def verdict(e: Evidence) -> Verdict:
         )
     if np.isfinite(e.floor) and e.floor > 0.0 and e.fit_nrmse > MAX_FIT_TO_FLOOR * e.floor:
         why.append(
-            f"the fit (NRMSE {e.fit_nrmse:.3g}) is {e.fit_nrmse / e.floor:.2g} times the floor {e.floor:.3g} "
+            f"the fit (NRMSE {e.fit_nrmse:.3g}) is {e.fit_nrmse / e.floor:.3g} times the floor {e.floor:.3g} "
             f"the record's resolution and noise leave (at most {MAX_FIT_TO_FLOOR:g}): the model misses something "
             "and the play may be absorbing it"
         )
@@ -433,7 +427,7 @@ def verdict(e: Evidence) -> Verdict:
         )
     if e.residual_white is False:
         why.append(
-            "the black box's residual is not white (a Ljung-Box test at 1 %) and no second structure explains "
+            "the black box's residual is not white (it fails the Ljung-Box test at 1 %) and no second structure explains "
             "the record: the model misses dynamics, and the play may be absorbing them"
         )
     if e.stall_band is not None and e.stall_band >= play:

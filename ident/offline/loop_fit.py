@@ -52,6 +52,7 @@ __all__ = [
     "LoopChoice",
     "LoopCandidate",
     "fit_loop",
+    "refit",
     "block_mask",
     "MIN_SAMPLES",
 ]
@@ -399,7 +400,7 @@ def _model(structure: str, period: float, d: dict[str, float]) -> ServoLoopModel
     return ServoLoopModel(structure=structure, sample_period_s=period, **{n: float(p[n]) for n in PARAM_NAMES})
 
 
-def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopChoice:
+def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any = None) -> LoopChoice:
     """Fit the servo-loop model with the play outside and inside the loop; choose by validation.
 
     Parameters
@@ -413,6 +414,11 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     seed : int
         Seeds the jitter of the play grid scanned for starts (each grid value moves within its
         own geometric cell), so that a second seed is a second look from other starts.
+    keep : array_like of bool, optional
+        ``False`` marks readings that were lost or late (a live session's validity mask); their
+        ``y`` may be NaN. The simulation runs through every sample (the set point is known
+        there); the fit, the validation, the NRMSE and the interval score kept samples only.
+        The starts read ``y`` linearly interpolated across the gaps. Default: all kept.
 
     Returns
     -------
@@ -423,17 +429,13 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     Raises
     ------
     ConfigError
-        Non-finite or mismatched signals, fewer than :data:`MIN_SAMPLES` samples, a constant
-        output, or a non-positive period.
+        Non-finite or mismatched signals, fewer than :data:`MIN_SAMPLES` samples (kept ones), a
+        constant output, or a non-positive period.
     """
     t0 = time.perf_counter()
-    u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
-    y_arr = validation.signal("y", y, min_length=MIN_SAMPLES)
-    if u_arr.size != y_arr.size:
-        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
-    period = validation.positive("sample_period_s", sample_period_s)
+    u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
     seed = validation.integer("seed", seed, minimum=0)
-    if float(np.ptp(y_arr)) <= 0.0:
+    if float(np.ptp(y_arr[kept])) <= 0.0:
         raise ConfigError("y is constant: the servo never moved, there is no loop to fit")
     # the operating point: one constant off both (they share a unit); the model sees differences only
     centre = float(np.mean(u_arr))
@@ -444,7 +446,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     kp, kv = _linear_start(uc, yc, period)
     v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
     a_scale = 0.1 * kv * v_typ
-    q = quantum(yc)
+    q = quantum(yc[kept])
     low = q / 2 if q > 0.0 else 1e-3 * float(np.std(yc))
     high = max(float(np.ptp(yc)) / 4, 2 * low)
     grid = np.geomspace(low, high, 10)
@@ -453,8 +455,8 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         cell = (high / low) ** (1 / 9)
         grid = grid * cell ** rng.uniform(-0.5, 0.5, grid.size)
 
-    est = block_mask(n)
-    val = ~est
+    est = block_mask(n) & kept
+    val = ~block_mask(n) & kept
     candidates: list[tuple[LoopCandidate, dict[str, float]]] = []
     evaluations = 0
     for structure in (OUTPUT_BACKLASH, PLAY_IN_LOOP):
@@ -492,9 +494,8 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
     margin = per_structure[other] / best.validation_nrmse - 1.0 if best.validation_nrmse > 0.0 else math.inf
 
     # the final refit of the winner on every sample
-    everything = np.ones(n, dtype=bool)
     d, prob, sol = _fit(
-        uc, yc, period, best.structure, best_d, everything, a_scale, integrator=best.integrator, max_nfev=FINAL_NFEV
+        uc, yc, period, best.structure, best_d, kept, a_scale, integrator=best.integrator, max_nfev=FINAL_NFEV
     )
     evaluations += prob.evaluations
     final = _model(best.structure, period, d)
@@ -503,8 +504,10 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         final if best.structure == PLAY_IN_LOOP else next(c.model for c, _ in candidates if c.structure == PLAY_IN_LOOP)
     )
     simulated = final.simulate(uc, y0=float(yc[0]))
-    fit_nrmse = nrmse(yc, simulated)
-    interval = (math.nan, math.nan) if sol is None else _play_interval(sol.jac, sol.fun, prob.free, d["play"])
+    fit_nrmse = nrmse(yc[kept], simulated[kept])
+    interval = (
+        (math.nan, math.nan) if sol is None else _play_interval(*_spaced(sol.jac, sol.fun, kept), prob.free, d["play"])
+    )
     reasons = _noticed(final, q)
     return LoopChoice(
         structure=best.structure,
@@ -516,13 +519,106 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         params=final.params(),
         simulated=simulated + centre,
         reasons=reasons,
-        dead_time_samples=_dead_time_samples(inside, uc, yc),
+        dead_time_samples=_dead_time_samples(inside, uc[kept], yc[kept]),
         stall_band=stall_band(final.fs, final.kv, final.kp),
         model=final,
         candidates=tuple(c for c, _ in candidates),
         seconds=time.perf_counter() - t0,
         evaluations=evaluations,
     )
+
+
+def refit(
+    u: Any, y: Any, sample_period_s: float, start: ServoLoopModel, *, hold: tuple[str, ...] = (), keep: Any = None
+) -> ServoLoopModel:
+    """Refit a servo-loop model on a record with some of its parameters held at the start's values.
+
+    A nested model for a comparison: ``diagnose`` fits the chosen structure without its friction
+    terms (``start`` with ``fc = fs = 0``, ``hold=("fc", "fs", "vs", "veps")``) to see what they
+    buy. The fit is :func:`fit_loop`'s candidate fit (same scaling and steps) on every kept sample.
+
+    Parameters
+    ----------
+    u, y : array_like
+        The record, as for :func:`fit_loop`.
+    sample_period_s : float
+        The host period, s.
+    start : ServoLoopModel
+        Where the fit starts; its structure and whether it has an integrator (``ki > 0``) stay.
+    hold : tuple of str
+        Names of :data:`~servoid.ident.models.servo_loop.PARAM_NAMES` (or ``play``, ``asym``)
+        held at ``start``'s values.
+    keep : array_like of bool, optional
+        Readings to score, as for :func:`fit_loop`.
+
+    Returns
+    -------
+    ServoLoopModel
+    """
+    u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
+    centre = float(np.mean(u_arr))
+    uc = np.ascontiguousarray(u_arr - centre)
+    yc = np.ascontiguousarray(y_arr - centre)
+    v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
+    d = start.params()
+    d["play"] = start.play
+    d["asym"] = (start.c1 - start.c2) / (2.0 * start.play) if start.play > 0.0 else 0.0
+    integrator = start.ki > 0.0
+    free = tuple(n for n in _free(start.structure, integrator) if n not in hold)
+    fitted, _, _ = _fit(
+        uc, yc, period, start.structure, d, kept, 0.1 * start.kv * v_typ,
+        integrator=integrator, max_nfev=CANDIDATE_NFEV, free=free,
+    )  # fmt: skip
+    return _model(start.structure, period, fitted)
+
+
+def _checked(u: Any, y: Any, sample_period_s: float, keep: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """The record checked (``y`` bridged across the readings not kept), the mask of kept readings and the period."""
+    u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
+    kept = _kept(keep, u_arr.size)
+    y_arr = validation.signal("y", _bridged(y, kept), min_length=MIN_SAMPLES)
+    if u_arr.size != y_arr.size:
+        raise ConfigError(f"u and y differ in length: {u_arr.size} against {y_arr.size}")
+    return u_arr, y_arr, kept, validation.positive("sample_period_s", sample_period_s)
+
+
+def _kept(keep: Any, n: int) -> np.ndarray:
+    """The mask of kept readings (all when None), checked: its length, and enough kept samples to fit."""
+    if keep is None:
+        return np.ones(n, dtype=bool)
+    kept = np.asarray(keep, dtype=np.bool_)
+    if kept.shape != (n,):
+        raise ConfigError(f"keep has shape {kept.shape}; expected ({n},), one flag per sample of u")
+    if int(kept.sum()) < MIN_SAMPLES:
+        raise ConfigError(f"keep leaves {int(kept.sum())} samples; the servo-loop fit needs at least {MIN_SAMPLES}")
+    return kept
+
+
+def _bridged(y: Any, kept: np.ndarray) -> np.ndarray:
+    """``y`` with the readings not kept interpolated from their kept neighbours (for the starts; never scored)."""
+    y_arr = np.asarray(y, dtype=np.float64)
+    if kept.all() or y_arr.shape != kept.shape:
+        return y_arr  # the length is checked by the caller
+    at = np.flatnonzero(kept)
+    return np.interp(np.arange(y_arr.size), at, y_arr[at])
+
+
+def _spaced(jac: np.ndarray, residual: np.ndarray, kept: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The final fit's Jacobian rows and residuals at their own samples, zeros where a reading was not kept.
+
+    The HAC sandwich then sees each lag at its true distance in time: the amplitude-modulated
+    series of Parzen (1963), the estimator Datta & Du (2012, "Nonparametric HAC estimation
+    for time series data with missing observations") show consistent with gaps. Closing the
+    gaps up instead would count a lag across a lost sample as one sample shorter.
+    """
+    if kept.all():
+        return jac, residual
+    stop = int(np.flatnonzero(kept)[-1]) + 1
+    rows = np.zeros((stop, jac.shape[1]))
+    rows[kept[:stop]] = jac
+    r = np.zeros(stop)
+    r[kept[:stop]] = residual
+    return rows, r
 
 
 def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...], play: float) -> tuple[float, float]:

@@ -101,17 +101,22 @@ def needed(at_floor: bool, white: bool) -> bool:
     return not (at_floor and white)
 
 
-def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black_box: BlackBox) -> LoopResult | None:
+def second_structure(
+    u: np.ndarray, y: np.ndarray, sample_period_s: float, black_box: BlackBox, keep: np.ndarray | None = None
+) -> LoopResult | None:
     """Fit the servo-loop model with both places of the play and choose by validation (:func:`fit_loop`).
 
     Parameters
     ----------
     u, y : ndarray
-        The record, centred on its operating point, without lost samples.
+        The record, centred on its operating point (``y`` is not read where ``keep`` is False).
     sample_period_s : float
         The sample period in seconds (1.0 when the record has no time).
     black_box : BlackBox
         The pseudo-Wiener result (the comparison; the loop model starts from its own scan).
+    keep : ndarray of bool, optional
+        The readings to score (a live record's validity mask: lost and late samples False); the
+        servo-loop model is simulated through the others (:func:`fit_loop`'s ``keep``). Default: all.
 
     Returns
     -------
@@ -126,9 +131,9 @@ def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black
     from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
     from servoid.ident.offline.loop_fit import MIN_SAMPLES, fit_loop
 
-    if np.asarray(u).size < MIN_SAMPLES:
+    if (np.asarray(u).size if keep is None else int(np.count_nonzero(keep))) < MIN_SAMPLES:
         return None
-    choice = fit_loop(u, y, sample_period_s)
+    choice = fit_loop(u, y, sample_period_s, keep=keep)
     if choice.fit_nrmse > (1.0 + MIN_STRUCTURE_MARGIN) * black_box.fit_nrmse:
         return None
     return choice

@@ -26,7 +26,8 @@ is never fed back) and report the fit as MATLAB's compare does,
 100 (1 - ||y - y_hat|| / ||y - mean(y)||) %: 100 % is perfect, 0 % no better
 than y's mean. Then the resid checks: the residual's autocorrelation and its
 cross-correlation with the input, with a 99 % band; a coloured residual (one
-outside the band more than chance allows) means the model misses dynamics.
+that fails the Ljung-Box test at 1 % over those lags; the band shows where)
+means the model misses dynamics.
 
 FILES: model files (a .json whose schema is servoid.model, as written by
 servoid identify) and recordings, in any order; each model is compared on

@@ -51,8 +51,8 @@ Outputs in --out: recording.csv, model.json, convergence.png (each parameter
 against samples, true values dashed when known), fit.png (measured against
 simulated output), backlash.png (the identified loop), and what servoid
 compare draws on this record: compare.png (free-run fit %), resid.png (the
-residual's correlations and their 99 % band: a residual outside it is
-coloured, said on stderr) and bode.png (Bode and step of the linear block).
+residual's correlations and their 99 % band; a residual that fails the
+Ljung-Box test at 1 % is coloured, said on stderr and in the verdict) and bode.png (Bode and step of the linear block).
 
 Noise: with output noise, set --epsilon to about 0.8 x the noise standard
 deviation of y (E|v| for Gaussian noise); for the simulated servo it is set
@@ -282,6 +282,10 @@ def run(args: argparse.Namespace) -> int:
     if result.loop is None and not result.identifiable:
         out.print("  the servo-loop model (the play inside the loop) was not fitted: the output backlash is the only "
                   "structure tried")  # fmt: skip
+    factor = (record.live or {}).get("decimation", {}).get("factor", 1)
+    if result.loop is not None and factor > 1 and record.written_to is not None:
+        out.print(f"  the servo-loop model ran on the online estimator's record (1 in {factor} samples); "
+                  f"servoid identify --data {record.written_to} fits it at the session's rate")  # fmt: skip
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
     if status:
