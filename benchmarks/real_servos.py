@@ -1,6 +1,8 @@
 """Identification that holds on real servos (issue 12): the twins, the paper's example, the real recordings.
 
-Run: ``.venv/bin/python benchmarks/real_servos.py [--full] [--seeds 1,2,3]``.
+Run: ``.venv/bin/python benchmarks/real_servos.py [--full] [--seeds 1,2,3]``; one preset and
+rate at a time (the full grid is expensive): ``--presets cia402 --rates 20 --kinds sines
+--no-paper --no-real``.
 
 Every row is ``servoid.ident.identify`` as a user runs it with no structure
 flags (orders and delay chosen by BIC, the operating point and the initial
@@ -129,17 +131,26 @@ def run(u: np.ndarray, y: np.ndarray, period: float) -> tuple[Identification, fl
     return result, time.perf_counter() - started
 
 
-def twins(full: bool, seeds: list[int]) -> None:
-    rates = (5.0, 10.0, 20.0, 50.0, 100.0) if full else (5.0, 20.0)
+def grid_of(
+    full: bool, presets: list[str], rates: list[float] | None, kinds: list[str], frictions: list[float] | None
+) -> list[tuple[str, float, float, str]]:
+    """The twin runs: (preset, rate x bandwidth, friction factor, excitation kind)."""
+    rates_ = tuple(rates) if rates else ((5.0, 10.0, 20.0, 50.0, 100.0) if full else (5.0, 20.0))
     grid: list[tuple[str, float, float, str]] = []
-    for name in BANDWIDTH_HZ:
-        for mult in rates:
-            for friction in (1.0, 4.0) if full else (1.0,):
-                grid.append((name, mult, friction, "sines"))
-        if not full:
-            grid.append((name, 20.0, 4.0, "sines"))
-    for name in ("xm430", "sts3215"):
-        grid += [(name, mult, 1.0, "steps") for mult in ((20.0, 50.0) if full else (20.0,))]
+    for name in presets:
+        if "sines" in kinds:
+            for mult in rates_:
+                for friction in frictions or ((1.0, 4.0) if full else (1.0,)):
+                    grid.append((name, mult, friction, "sines"))
+            if not full and frictions is None and rates is None:
+                grid.append((name, 20.0, 4.0, "sines"))
+        if "steps" in kinds and name in ("xm430", "sts3215"):
+            steps_rates = tuple(rates) if rates else ((20.0, 50.0) if full else (20.0,))
+            grid += [(name, mult, 1.0, "steps") for mult in steps_rates]
+    return grid
+
+
+def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "gap", "fit/floor",
             "95 % / truth", "covers", "white", "loop fit", "verdict", "s"]  # fmt: skip
     rows = []
@@ -258,12 +269,28 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--full", action="store_true", help="every rate 5-100x, friction x1 and x4, seeds 1,2,3")
     ap.add_argument("--seeds", help="comma-separated twin seeds (default 1, or 1,2,3 with --full)")
+    ap.add_argument("--presets", default=",".join(BANDWIDTH_HZ), help="comma-separated twin presets (default: all)")
+    ap.add_argument(
+        "--rates", help="comma-separated rates, multiples of the loop bandwidth (default 5,20; --full 5-100)"
+    )
+    ap.add_argument("--frictions", help="comma-separated motor friction factors (default 1, and 4 at 20x)")
+    ap.add_argument("--kinds", default="sines,steps", help="excitations: sines (gentle), steps (held)")
+    ap.add_argument("--no-paper", action="store_true", help="skip the paper's example")
+    ap.add_argument("--no-real", action="store_true", help="skip the real recordings")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else ([1, 2, 3] if args.full else [1])
+    presets = args.presets.split(",")
+    unknown = [p for p in presets if p not in BANDWIDTH_HZ]
+    if unknown:
+        ap.error(f"--presets: {', '.join(unknown)} is not one of {', '.join(BANDWIDTH_HZ)}")
+    rates = [float(r) for r in args.rates.split(",")] if args.rates else None
+    frictions = [float(f) for f in args.frictions.split(",")] if args.frictions else None
     warnings.filterwarnings("ignore", category=RuntimeWarning)
-    paper()
-    real()
-    twins(args.full, seeds)
+    if not args.no_paper:
+        paper()
+    if not args.no_real:
+        real()
+    twins(grid_of(args.full, presets, rates, args.kinds.split(","), frictions), seeds)
 
 
 if __name__ == "__main__":
