@@ -28,7 +28,9 @@ A second table gives the servo-loop model's own answer on each twin record
 (:func:`servoid.ident.offline.loop_fit.fit_loop`: the place of the play it
 chose, the validation margin between the two places, its gap, fit, interval,
 the play's dead time at a reversal in samples, the simulations and seconds it
-took), whether or not identify kept it.
+took), whether or not identify kept it. Last, the verdict's calibration: the
+runs counted as identifiable or withheld, and right (the true structure, the
+gap within the issue's target) or wrong; identifiable and wrong must be 0.
 
 Columns: the structure and the form that gave the answer, the gap error
 against the twin's true play, the fit against the floor the record's
@@ -71,6 +73,9 @@ STEP_AMPLITUDE, STEP_HOLD_S = 0.05, 1.5
 #: Record length: 40 s, at most this many samples.
 DURATION_S, MAX_SAMPLES = 40.0, 12_000
 NOISE_COUNTS = 0.3
+#: The issue's accuracy targets on |gap|: by the true place of the play (gentle sines), and on held steps.
+TARGET = {OUTPUT_BACKLASH: 0.05, PLAY_IN_LOOP: 0.15}
+STEPS_TARGET = 0.25
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: Short names of the verdict's rules, for the table.
 RULES = (("worse than predicting the mean", "mean"), ("zero or not finite", "play<=0"), ("reversals", "reversals"), ("no 95 %", "no-interval"),
@@ -109,6 +114,13 @@ def twin_record(name: str, mult: float, friction: float, kind: str, seed: int) -
         "floor": q * np.sqrt(1.0 / 12.0 + NOISE_COUNTS**2) / float(np.std(y)),
         "structure": PLAY_IN_LOOP if twin.truth.loop_encoder == "load" else OUTPUT_BACKLASH,
     }  # fmt: skip
+
+
+def right(rec: dict[str, object], result: Identification, kind: str) -> bool:
+    """Whether the answer is the true structure with the play within the issue's target."""
+    target = STEPS_TARGET if kind == "steps" else TARGET[str(rec["structure"])]
+    gap = result.play / float(rec["play"]) - 1.0  # type: ignore[arg-type]
+    return bool(result.structure == rec["structure"] and np.isfinite(gap) and abs(gap) <= target)
 
 
 def reasons(result: Identification) -> str:
@@ -156,6 +168,7 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     rows = []
     loop_rows: list[list[str]] = []
     covered = judged = 0
+    confusion: dict[tuple[str, str], list[str]] = {}
     for name, mult, friction, kind in grid:
         for seed in seeds:
             rec = twin_record(name, mult, friction, kind, seed)
@@ -170,6 +183,12 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
             covers = bool(np.isfinite(lo) and lo <= play <= hi)
             judged += 1
             covered += covers
+            label = f"{name} {kind} {mult:g}x x{friction:g} s{seed}"
+            cell = (
+                "identifiable" if result.identifiable else "withheld",
+                "right" if right(rec, result, kind) else "WRONG",
+            )
+            confusion.setdefault(cell, []).append(label if result.identifiable else f"{label} ({reasons(result)[5:]})")
             rows.append([
                 name, kind, f"{mult:g}x", f"x{friction:g}", str(seed), str(rec["structure"]),
                 f"{result.structure} ({result.form})", f"{100 * (result.play / play - 1):+.1f} %",
@@ -184,6 +203,12 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     table("Twins: identify with no structure flags (gap = play / true play - 1; fit against the twin's floor)",
           cols, rows)  # fmt: skip
     print(f"intervals covering the true play: {covered} of {judged}")
+    print("\nThe verdict's calibration (right = the true structure and |gap| within the issue's target:")
+    print(f"{100 * TARGET[OUTPUT_BACKLASH]:g} % motor side, {100 * TARGET[PLAY_IN_LOOP]:g} % play in the loop, "
+          f"{100 * STEPS_TARGET:g} % on held steps)")  # fmt: skip
+    for cell in (("identifiable", "right"), ("identifiable", "WRONG"), ("withheld", "right"), ("withheld", "WRONG")):
+        runs = confusion.get(cell, [])
+        print(f"  {cell[0]} and {cell[1]}: {len(runs)}" + "".join(f"\n    {r}" for r in runs))
     table("Twins: the servo-loop model alone (fit_loop; from identify when it ran there, else fitted here)",
           ["preset", "excitation", "rate", "fric", "seed", "true", "loop's choice", "margin", "gap", "fit/floor",
            "95 % / truth", "dead time (samples)", "simulations", "s"], loop_rows)  # fmt: skip
