@@ -44,7 +44,7 @@ from servoid.ident.offline.intervals import (
 )
 from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
 from servoid.ident.offline.refine import Refinement, arx_start, refine
-from servoid.ident.offline.second_structure import LoopResult, needed, second_structure
+from servoid.ident.offline.second_structure import LoopResult, black_box_better, needed, second_structure
 from servoid.ident.offline.structure import OrderChoice, select_orders
 from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 from servoid.ident.reprs import html_table
@@ -311,7 +311,7 @@ def identify(
     valid: Sequence[bool] | np.ndarray | None = None,
     online: MRGIAResult | None = None,
     select: Collection[str] = (),
-    sample_period_s: float = 1.0,
+    sample_period_s: float | None = None,
     servo_loop: bool = True,
 ) -> Identification:
     """Identify a backlash model from a record.
@@ -344,9 +344,11 @@ def identify(
         Which of ``"na"``, ``"nb"``, ``"delay"`` to choose from the data by
         BIC (:func:`servoid.ident.offline.structure.select_orders`); the
         others are ``config``'s. The command line selects those not given.
-    sample_period_s : float
-        The sample period in seconds, for the servo-loop model (1.0 when the
-        record has no time).
+    sample_period_s : float, optional
+        The sample period in seconds, for the servo-loop model. None: the record has no time
+        (the loop model then works in samples, and only when the black box is off its floor or
+        its residual is coloured); with a period the record is a servo's, and the loop model
+        always runs (:func:`~servoid.ident.offline.second_structure.needed`).
     servo_loop : bool
         Whether the servo-loop model may be fitted as the second structure (the skip rule still
         applies); False for a caller that only wants the black box (``diagnose``'s starts).
@@ -367,7 +369,7 @@ def identify(
     unknown = sorted(set(select) - set(SELECTABLE))
     if unknown:
         raise ConfigError(f"select names {unknown}; expected some of {list(SELECTABLE)}")
-    period = validation.positive("sample_period_s", sample_period_s)
+    period = 1.0 if sample_period_s is None else validation.positive("sample_period_s", sample_period_s)
     u_arr, y_arr, keep = _record(u, y, valid, config)
     first = 0 if keep is None else int(np.argmax(keep))
     y0 = float(y_arr[first])
@@ -525,8 +527,15 @@ def identify(
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None
-    if servo_loop and refinement is not None and keep is None and needed(at_floor, white):
-        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit))
+    timed = sample_period_s is not None
+    if servo_loop and refinement is not None and keep is None and (timed or needed(at_floor, white)):
+        black_box = _BlackBox(refinement.model, fit)
+        loop = second_structure(u_c, y_c, period, black_box)
+        if loop is not None and black_box_better(loop, black_box):
+            # the black box answers, but a play inside the loop crossed in under a sample would fit it
+            # as well with another play: the place, and so the play, is then not determined
+            evidence = replace(evidence, dead_time_samples=loop.dead_time_samples)
+            loop = None
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))

@@ -100,28 +100,31 @@ def test_a_record_that_cannot_determine_the_play(tmp_path, capsys):
     assert main(["export", str(model), "--format", "json", "--not-identifiable"]) == 0
 
 
+@dataclasses.dataclass(frozen=True)
+class _FakeLoop:
+    """Numbers in the shape of part B's loop result (the seam's protocol)."""
+
+    structure: str = PLAY_IN_LOOP
+    play: float = 1.4
+    play_interval: tuple = (1.3, 1.5)
+    fit_nrmse: float = 0.01
+    validation_nrmse: dict = dataclasses.field(default_factory=lambda: {PLAY_IN_LOOP: 0.01})
+    margin: float = 0.02
+    params: dict = dataclasses.field(default_factory=dict)
+    simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    reasons: tuple = ()
+    dead_time_samples: float | None = 3.0
+    stall_band: float = 0.1
+
+
 def test_the_seam_carries_a_loop_result(monkeypatch):
     """What part B's fit returns is the answer, with the verdict applied to it (margin < 5 %: undetermined)."""
     import importlib
 
     pipeline = importlib.import_module("servoid.ident.identify")
 
-    @dataclasses.dataclass(frozen=True)
-    class FakeLoop:
-        structure: str = PLAY_IN_LOOP
-        play: float = 1.4
-        play_interval: tuple = (1.3, 1.5)
-        fit_nrmse: float = 0.01
-        validation_nrmse: dict = dataclasses.field(default_factory=lambda: {PLAY_IN_LOOP: 0.01})
-        margin: float = 0.02
-        params: dict = dataclasses.field(default_factory=dict)
-        simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
-        reasons: tuple = ()
-        dead_time_samples: float | None = 3.0
-        stall_band: float = 0.1
-
     seen = []
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or FakeLoop())
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or _FakeLoop())
     u, y = _paper(800, 6, snr=5.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
     result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
@@ -129,6 +132,27 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
     assert result.structure == PLAY_IN_LOOP and result.form == "servo_loop" and result.play == 1.4
     assert not result.identifiable and "structure undetermined" in result.reason
     assert result.to_dict()["second_structure"]["runner_up"] == "output_backlash"
+
+
+def test_a_servo_record_at_the_black_boxs_floor_still_asks_where_the_play_is(monkeypatch):
+    """With a period the loop model runs even when the black box is at its floor and white; when the
+    black box answers, the loop fit's dead time still judges it (a play inside the loop crossed in
+    under a sample would fit as well with another play). Without a period nothing changes."""
+    import importlib
+
+    pipeline = importlib.import_module("servoid.ident.identify")
+
+    # far worse than the black box (the black box answers), its play inside the loop crossed in 0.2 sample
+    worse = _FakeLoop(play=0.5, play_interval=(0.4, 0.6), fit_nrmse=10.0, margin=0.5, dead_time_samples=0.2)
+    seen = []
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or worse)
+    u, y = _paper(1500, 4)
+    untimed = identify(u, y, MRGIAConfig())
+    assert seen == [] and untimed.identifiable  # the paper's plant: at its floor, white, no time
+    timed = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert seen == [0.01] and timed.form == "pseudo_wiener"
+    assert timed.play == pytest.approx(untimed.play)
+    assert not timed.identifiable and "sampled too slowly" in timed.reason
 
 
 def test_old_model_files_read_as_output_backlash_not_judged(tmp_path):
