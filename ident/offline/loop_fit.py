@@ -58,7 +58,6 @@ __all__ = [
     "fit_loop",
     "block_mask",
     "MIN_SAMPLES",
-    "dead_time_samples",
 ]
 
 #: Fewest samples :func:`fit_loop` accepts (8 blocks of at least 25 samples).
@@ -586,43 +585,8 @@ def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> f
     the median error of the record stands for the error at a reversal (the study's Q3 rule).
     Under about one sample the place of the play cannot be seen, whichever place won.
     """
-    return _crossing_samples(model.play, model.kp, u, y, model.sample_period_s)
-
-
-def _crossing_samples(play: float, kp: float, u: np.ndarray, y: np.ndarray, period: float) -> float:
-    speed = kp * float(np.median(np.abs(u - y)))
-    return play / speed / period if speed > 0.0 else math.inf
-
-
-def dead_time_samples(play: float, u: Any, y: Any, sample_period_s: float) -> float:
-    """The dead time a play inside the loop would show at a reversal, in samples, without fitting the loop model.
-
-    For an answer of the black box (which puts the play outside the loop): were the same play
-    inside the loop, the horn would wait ``play / (kp median|u - y|)`` at each reversal, with
-    ``kp`` the position loop's rate from the linear start (an ARX(2, 2)'s poles, step 2 of the
-    module docstring). Under about one sample a play inside the loop cannot be seen, so the
-    record cannot tell the two places apart -- and the two give different plays (the study's
-    Q3: the XM430 at 5x its bandwidth, black box +246 % at its floor with a white residual).
-
-    Parameters
-    ----------
-    play : float
-        The play ``c1 + c2``, unit of ``y``.
-    u, y : array_like
-        The record (set points and readings, one unit).
-    sample_period_s : float
-        The host period, s.
-
-    Returns
-    -------
-    float
-        Samples (``inf`` when the record never leaves its set point).
-    """
-    u_arr = np.asarray(u, dtype=np.float64)
-    y_arr = np.asarray(y, dtype=np.float64)
-    centre = float(np.mean(u_arr))
-    kp, _ = _linear_start(u_arr - centre, y_arr - centre, sample_period_s)
-    return _crossing_samples(float(play), kp, u_arr, y_arr, sample_period_s)
+    speed = model.kp * float(np.median(np.abs(u - y)))
+    return model.play / speed / model.sample_period_s if speed > 0.0 else math.inf
 
 
 def _noticed(model: ServoLoopModel, q: float) -> tuple[str, ...]:
