@@ -178,3 +178,14 @@ def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
     config = DiagnoseConfig(identification=MRGIAConfig(), candidates=("dead_zone",), max_effects=1)
     with pytest.raises(ModelError, match="worse than predicting its mean"):
         diagnose(u_t, y_t, u_v, y_v, config)
+
+
+def test_the_floor_of_an_encoder_record_is_not_rounded_to_whole_counts():
+    # a moving signal read by an encoder with 0.3 count of noise: rounding plus noise leave
+    # sqrt(1/12 + 0.09) counts; the median deviation of whole-count differences jumps past it
+    from servoid.ident.offline.intervals import noise_std
+
+    rng = np.random.default_rng(3)
+    ramp = 0.05 * np.arange(20_000)  # a twentieth of a count per sample, back and forth
+    counts = np.round(np.abs((ramp % 200.0) - 100.0) + rng.normal(0.0, 0.3, ramp.size))
+    assert noise_std(counts) == pytest.approx(np.sqrt(1 / 12 + 0.09), rel=0.05)
