@@ -15,10 +15,9 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    (``play_in_loop``), each with and without the velocity integrator; least squares over
    ``kp, kv, fc, fs, vs, veps, a0, play, asymmetry [, ki]`` on the **estimation blocks**
    (8 interleaved blocks; the simulation runs through the validation blocks but they are
-   not scored). The candidate with the integrator starts from the fitted P loop with a slow
-   integrator (``ki = 0.02 kp kv``, no constant force): it nests the P loop, so it starts where
-   that fit ended rather than in a basin of its own (from the scan's start it validated 1.1-1.9
-   times worse than the P loop on the horn-encoder twins).
+   not scored). Each candidate starts from the scan (not the integrator's from the P loop's fit:
+   tried, it inherited the P loop's basin and named the CiA 402 twin with friction x4 a play in
+   the loop at +200 %, identifiable).
 5. **Select** the candidate with the smallest free-run NRMSE on the validation blocks; the
    **margin** is the best candidate of the other place relative to it (``val_other / val_best - 1``).
 6. **Final refit** of the winner on all samples, and the play's 95 % interval from the
@@ -468,19 +467,12 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0) -> LoopCh
         evaluations += used
         for integrator in (False, True):
             s = dict(start)
-            if integrator:
-                # nested start: the P loop's fit with an integrator added (the constant force is the
-                # integrator's to hold); the P(I) fit can then only improve on the P fit, where a start
-                # from the scan's rates sits in a basin of its own (measured: validation 1.1-1.9x worse)
-                s = dict(candidates[-1][1])
-                s["ki"] = 0.02 * s["kp"] * s["kv"]
-                s["a0"] = 0.0
-            else:
-                # the loop's rates and the play first (the linear start's rates are biased by the play)
-                s, prob, _ = _fit(
-                    uc, yc, period, structure, s, est, a_scale, integrator=False, max_nfev=STAGE_NFEV, free=_STAGE
-                )
-                evaluations += prob.evaluations
+            s["ki"] = 0.2 * s["kp"] * s["kv"] if integrator else 0.0
+            # the loop's rates and the play first (the linear start's rates are biased by the play), then everything
+            s, prob, _ = _fit(
+                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE
+            )
+            evaluations += prob.evaluations
             d, prob, _ = _fit(
                 uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV
             )
