@@ -532,10 +532,7 @@ def identify(
         black_box = _BlackBox(refinement.model, fit)
         loop = second_structure(u_c, y_c, period, black_box)
         if loop is not None and black_box_better(loop, black_box):
-            # the black box answers, but a play inside the loop crossed in under a sample would fit it
-            # as well with another play: the place, and so the play, is then not determined
-            evidence = replace(evidence, dead_time_samples=loop.dead_time_samples)
-            loop = None
+            loop = None  # the black box fits clearly better than the play in either place of a loop
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))

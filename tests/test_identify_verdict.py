@@ -135,24 +135,26 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
 
 
 def test_a_servo_record_at_the_black_boxs_floor_still_asks_where_the_play_is(monkeypatch):
-    """With a period the loop model runs even when the black box is at its floor and white; when the
-    black box answers, the loop fit's dead time still judges it (a play inside the loop crossed in
-    under a sample would fit as well with another play). Without a period nothing changes."""
+    """With a period the loop model runs even when the black box is at its floor and white (a play
+    inside the loop crossed in under a sample fits the black box as well, with another play); it
+    answers when it fits as well, the black box when it fits clearly better. Without a period the
+    skip rule keeps it out."""
     import importlib
 
     pipeline = importlib.import_module("servoid.ident.identify")
 
-    # far worse than the black box (the black box answers), its play inside the loop crossed in 0.2 sample
-    worse = _FakeLoop(play=0.5, play_interval=(0.4, 0.6), fit_nrmse=10.0, margin=0.5, dead_time_samples=0.2)
     seen = []
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or worse)
+    answer = [_FakeLoop(fit_nrmse=10.0)]  # far worse than the black box
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or answer[0])
     u, y = _paper(1500, 4)
     untimed = identify(u, y, MRGIAConfig())
     assert seen == [] and untimed.identifiable  # the paper's plant: at its floor, white, no time
     timed = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
-    assert seen == [0.01] and timed.form == "pseudo_wiener"
+    assert seen == [0.01] and timed.form == "pseudo_wiener" and timed.identifiable
     assert timed.play == pytest.approx(untimed.play)
-    assert not timed.identifiable and "sampled too slowly" in timed.reason
+    answer[0] = _FakeLoop(fit_nrmse=untimed.fit_nrmse, margin=0.02)  # as good, the play's place undetermined
+    tied = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert tied.form == "servo_loop" and not tied.identifiable and "structure undetermined" in tied.reason
 
 
 def test_old_model_files_read_as_output_backlash_not_judged(tmp_path):

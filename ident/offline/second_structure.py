@@ -135,8 +135,7 @@ def second_structure(u: np.ndarray, y: np.ndarray, sample_period_s: float, black
     LoopResult or None
         None when the record is too short for the servo-loop model
         (:data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES`). Whether it or the black box
-        answers is :func:`black_box_better`'s; when the black box answers, the servo-loop fit
-        still says whether a play inside the loop could be seen at this rate (its dead time).
+        answers is :func:`black_box_better`'s.
     """
     from servoid.ident.offline.loop_fit import MIN_SAMPLES, fit_loop
 
