@@ -6,8 +6,8 @@ rate at a time (the full grid is expensive): ``--presets cia402 --rates 20 --kin
 
 Every row is ``servoid.ident.identify`` as a user runs it with no structure
 flags (orders and delay chosen by BIC, the operating point and the initial
-state estimated, the second structure fitted when the black box is off its
-floor), on:
+state estimated, the second structure fitted on every record with time and,
+without time, when the black box is off its floor), on:
 
 1. **The twins** (``drivers/twin``: every preset, its own loop closed where
    the real servo closes it, 4096-count output encoders, 0.3 count of
