@@ -45,7 +45,7 @@ from servoid.ident.offline.intervals import (
 )
 from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
 from servoid.ident.offline.refine import Refinement, arx_start, refine
-from servoid.ident.offline.second_structure import LoopResult, needed, second_structure
+from servoid.ident.offline.second_structure import LoopResult, black_box_better, needed, second_structure
 from servoid.ident.offline.structure import OrderChoice, select_orders
 from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 from servoid.ident.reprs import html_table
@@ -324,7 +324,7 @@ def identify(
     valid: Sequence[bool] | np.ndarray | None = None,
     online: MRGIAResult | None = None,
     select: Collection[str] = (),
-    sample_period_s: float = 1.0,
+    sample_period_s: float | None = None,
     servo_loop: bool = True,
 ) -> Identification:
     """Identify a backlash model from a record.
@@ -357,9 +357,11 @@ def identify(
         Which of ``"na"``, ``"nb"``, ``"delay"`` to choose from the data by
         BIC (:func:`servoid.ident.offline.structure.select_orders`); the
         others are ``config``'s. The command line selects those not given.
-    sample_period_s : float
-        The sample period in seconds, for the servo-loop model (1.0 when the
-        record has no time).
+    sample_period_s : float, optional
+        The sample period in seconds, for the servo-loop model. None: the record has no time
+        (the loop model then works in samples, and only when the black box is off its floor or
+        its residual is coloured); with a period the record is a servo's, and the loop model
+        always runs (:func:`~servoid.ident.offline.second_structure.needed`).
     servo_loop : bool
         Whether the servo-loop model may be fitted as the second structure (the skip rule still
         applies); False for a caller that only wants the black box (``diagnose``'s starts).
@@ -380,7 +382,7 @@ def identify(
     unknown = sorted(set(select) - set(SELECTABLE))
     if unknown:
         raise ConfigError(f"select names {unknown}; expected some of {list(SELECTABLE)}")
-    period = validation.positive("sample_period_s", sample_period_s)
+    period = 1.0 if sample_period_s is None else validation.positive("sample_period_s", sample_period_s)
     u_arr, y_arr, keep = _record(u, y, valid, config)
     first = 0 if keep is None else int(np.argmax(keep))
     y0 = float(y_arr[first])
@@ -542,8 +544,12 @@ def identify(
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
     loop: LoopResult | None = None
-    if servo_loop and refinement is not None and needed(at_floor, white):
-        loop = second_structure(u_c, y_c, period, _BlackBox(refinement.model, fit), keep=keep)
+    timed = sample_period_s is not None
+    if servo_loop and refinement is not None and (timed or needed(at_floor, white)):
+        black_box = _BlackBox(refinement.model, fit)
+        loop = second_structure(u_c, y_c, period, black_box, keep=keep)
+        if loop is not None and black_box_better(loop, black_box):
+            loop = None  # the black box fits clearly better than the play in either place of a loop
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))

@@ -128,29 +128,32 @@ def test_a_record_that_cannot_determine_the_play(tmp_path, capsys):
     assert main(["export", str(model), "--format", "json", "--not-identifiable"]) == 0
 
 
+@dataclasses.dataclass(frozen=True)
+class _FakeLoop:
+    """Numbers in the shape of part B's loop result (the seam's protocol)."""
+
+    structure: str = PLAY_IN_LOOP
+    play: float = 1.4
+    play_interval: tuple = (1.3, 1.5)
+    fit_nrmse: float = 0.01
+    validation_nrmse: dict = dataclasses.field(default_factory=lambda: {PLAY_IN_LOOP: 0.01})
+    margin: float = 0.02
+    params: dict = dataclasses.field(default_factory=dict)
+    simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
+    reasons: tuple = ()
+    dead_time_samples: float | None = 3.0
+    stall_band: float = 0.1
+
+
 def test_the_seam_carries_a_loop_result(monkeypatch):
     """What part B's fit returns is the answer, with the verdict applied to it (margin < 5 %: undetermined)."""
     import importlib
 
     pipeline = importlib.import_module("servoid.ident.identify")
 
-    @dataclasses.dataclass(frozen=True)
-    class FakeLoop:
-        structure: str = PLAY_IN_LOOP
-        play: float = 1.4
-        play_interval: tuple = (1.3, 1.5)
-        fit_nrmse: float = 0.01
-        validation_nrmse: dict = dataclasses.field(default_factory=lambda: {PLAY_IN_LOOP: 0.01})
-        margin: float = 0.02
-        params: dict = dataclasses.field(default_factory=dict)
-        simulated: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(3))
-        reasons: tuple = ()
-        dead_time_samples: float | None = 3.0
-        stall_band: float = 0.1
-
     seen = []
     monkeypatch.setattr(
-        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or FakeLoop()
+        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or _FakeLoop()
     )
     u, y = _paper(800, 6, snr=5.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
@@ -159,6 +162,29 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
     assert result.structure == PLAY_IN_LOOP and result.form == "servo_loop" and result.play == 1.4
     assert not result.identifiable and "structure undetermined" in result.reason
     assert result.to_dict()["second_structure"]["runner_up"] == "output_backlash"
+
+
+def test_a_servo_record_at_the_black_boxs_floor_still_asks_where_the_play_is(monkeypatch):
+    """With a period the loop model runs even when the black box is at its floor and white (a play
+    inside the loop crossed in under a sample fits the black box as well, with another play); it
+    answers when it fits as well, the black box when it fits clearly better. Without a period the
+    skip rule keeps it out."""
+    import importlib
+
+    pipeline = importlib.import_module("servoid.ident.identify")
+
+    seen = []
+    answer = [_FakeLoop(fit_nrmse=10.0)]  # far worse than the black box
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb: seen.append(period) or answer[0])
+    u, y = _paper(1500, 4)
+    untimed = identify(u, y, MRGIAConfig())
+    assert seen == [] and untimed.identifiable  # the paper's plant: at its floor, white, no time
+    timed = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert seen == [0.01] and timed.form == "pseudo_wiener" and timed.identifiable
+    assert timed.play == pytest.approx(untimed.play)
+    answer[0] = _FakeLoop(fit_nrmse=untimed.fit_nrmse, margin=0.02)  # as good, the play's place undetermined
+    tied = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert tied.form == "servo_loop" and not tied.identifiable and "structure undetermined" in tied.reason
 
 
 def test_old_model_files_read_as_output_backlash_not_judged(tmp_path):
@@ -189,7 +215,8 @@ def test_diagnose_on_a_model_worse_than_the_mean_is_an_error():
 def test_the_blockwise_autocorrelation_is_the_whole_records():
     # identify()'s whiteness test and integrated time correlate the residual block by block (bounded
     # memory); across block boundaries the sums must be the direct ones
-    from servoid.ident.offline.intervals import AUTOCORRELATION_BLOCK, _autocorrelation
+    from servoid.ident.diagnosis.residuals import AUTOCORRELATION_BLOCK
+    from servoid.ident.diagnosis.residuals import autocorrelation as _autocorrelation
 
     rng = np.random.default_rng(7)
     n = 2 * AUTOCORRELATION_BLOCK + 123
@@ -213,3 +240,14 @@ def test_the_floor_of_a_record_with_lost_samples_is_its_noise_not_its_gaps():
     slow = np.round(np.sin(t / 400.0) / 1e-3) * 1e-3
     sparse = rng.random(t.size) > 0.9
     assert floor_nrmse(slow, sparse) == pytest.approx(1e-3 / np.sqrt(12.0) / np.std(slow[sparse]))
+
+
+def test_the_floor_of_an_encoder_record_is_not_rounded_to_whole_counts():
+    # a moving signal read by an encoder with 0.3 count of noise: rounding plus noise leave
+    # sqrt(1/12 + 0.09) counts; the median deviation of whole-count differences jumps past it
+    from servoid.ident.offline.intervals import noise_std
+
+    rng = np.random.default_rng(3)
+    ramp = 0.05 * np.arange(20_000)  # a twentieth of a count per sample, back and forth
+    counts = np.round(np.abs((ramp % 200.0) - 100.0) + rng.normal(0.0, 0.3, ramp.size))
+    assert noise_std(counts) == pytest.approx(np.sqrt(1 / 12 + 0.09), rel=0.05)

@@ -120,3 +120,18 @@ def test_lost_readings_are_simulated_through_and_never_read() -> None:
     assert np.all(np.isfinite(choice.simulated))  # simulated through the gaps
     with pytest.raises(ConfigError, match="keep"):
         fit_loop(u, y, period, keep=keep[:-1])
+
+
+def test_the_interval_takes_in_the_plays_of_candidates_that_validate_as_well() -> None:
+    # model error the record cannot resolve: a rival within the structure margin widens the interval,
+    # one clearly worse does not, and an interval the Jacobian could not give stays absent
+    from servoid.ident.offline.loop_fit import LoopCandidate, _with_rivals
+
+    def cand(structure: str, play: float, val: float) -> LoopCandidate:
+        model = ServoLoopModel(structure=structure, sample_period_s=0.01, kp=10.0, kv=100.0, c1=play / 2, c2=play / 2)
+        return LoopCandidate(structure, False, model, val, val, 1)
+
+    cands = [cand(OUTPUT_BACKLASH, 1.0, 0.010), cand(PLAY_IN_LOOP, 0.8, 0.0104), cand(PLAY_IN_LOOP, 3.0, 0.0106)]
+    assert _with_rivals((0.95, 1.05), cands, 0.010) == (0.8, 1.05)
+    lo, hi = _with_rivals((np.nan, np.nan), cands, 0.010)
+    assert np.isnan(lo) and np.isnan(hi)

@@ -15,12 +15,15 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    (``play_in_loop``), each with and without the velocity integrator; least squares over
    ``kp, kv, fc, fs, vs, veps, a0, play, asymmetry [, ki]`` on the **estimation blocks**
    (8 interleaved blocks; the simulation runs through the validation blocks but they are
-   not scored).
+   not scored). Each candidate starts from the scan (not the integrator's from the P loop's fit:
+   tried, it inherited the P loop's basin and named the CiA 402 twin with friction x4 a play in
+   the loop at +200 %, identifiable).
 5. **Select** the candidate with the smallest free-run NRMSE on the validation blocks; the
    **margin** is the best candidate of the other place relative to it (``val_other / val_best - 1``).
 6. **Final refit** of the winner on all samples, and the play's 95 % interval from the
-   Newey-West (HAC) sandwich on that fit's Jacobian: a statistical interval, which measures
-   noise, not model error.
+   Newey-West (HAC) sandwich on that fit's Jacobian (noise), widened to the plays of the
+   candidates that validate as well as the winner (within the structure margin): the model
+   error the record cannot resolve.
 
 What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
 contact is the play operator, so the free-run output is continuous in the parameters;
@@ -124,8 +127,10 @@ class LoopChoice:
     play : float
         ``c1 + c2`` of the final fit, in the unit of ``y``.
     play_interval : tuple of float
-        Its 95 % interval ``(lo, hi)`` from the HAC (Newey-West) sandwich (statistical: noise,
-        not model error); ``(nan, nan)`` when the Jacobian does not determine the play.
+        Its 95 % interval ``(lo, hi)``: the HAC (Newey-West) sandwich's (noise), widened to the
+        plays of the candidates that validate within :data:`MIN_STRUCTURE_MARGIN` of the best
+        (model error the record cannot resolve, :func:`_with_rivals`); ``(nan, nan)`` when the
+        Jacobian does not determine the play.
     fit_nrmse : float
         Free-run NRMSE of the final fit on the whole record.
     validation_nrmse : dict
@@ -508,6 +513,7 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any
     interval = (
         (math.nan, math.nan) if sol is None else _play_interval(*_spaced(sol.jac, sol.fun, kept), prob.free, d["play"])
     )
+    interval = _with_rivals(interval, [c for c, _ in candidates], best.validation_nrmse)
     reasons = _noticed(final, q)
     return LoopChoice(
         structure=best.structure,
@@ -639,6 +645,25 @@ def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...],
     if not math.isfinite(se):
         return (math.nan, math.nan)
     return (play * math.exp(-Z95 * se), play * math.exp(Z95 * se))
+
+
+def _with_rivals(interval: tuple[float, float], candidates: list[LoopCandidate], best: float) -> tuple[float, float]:
+    """The statistical interval widened to the plays of every candidate the validation cannot tell from the best.
+
+    The HAC interval measures noise; on a physical servo the play's error is model error (an
+    unmodelled load inertia, a feedback quantised to counts: the study's Q5, 0 of 14 twin intervals
+    covered the truth). The data's own measure of that error is how far models that fit equally
+    well put the play: every candidate, of either place and with or without the integrator,
+    whose validation NRMSE is within :data:`MIN_STRUCTURE_MARGIN` of the best -- the margin the
+    verdict uses to call two structures equal. Their plays join the interval (its hull), so the
+    interval and the structure rule say the same thing: models the record cannot separate bound
+    what it knows about the play. A statistical interval that is not finite stays so.
+    """
+    low, high = interval
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return interval
+    rivals = [c.model.play for c in candidates if c.validation_nrmse <= (1.0 + MIN_STRUCTURE_MARGIN) * best]
+    return (min([low, *rivals]), max([high, *rivals]))
 
 
 def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float:

@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online, select=_selected(args),
-                          sample_period_s=record.sample_period_s or 1.0)  # fmt: skip
+                          sample_period_s=record.sample_period_s)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
