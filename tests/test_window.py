@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import sys
 
 import numpy as np
 import pytest
@@ -72,11 +73,14 @@ def test_the_worker_thread_gives_the_answer_of_the_inline_refit() -> None:
     u, y = _record(25.0, seed=4)
     config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
     answers = []
+    switch = sys.getswitchinterval()
     for background in (False, True):
         est = WindowRefit(config, start=TRUTH, background=background)
         _feed(est, u, y, np.zeros(u.size, dtype=bool))
         answers.append(est.result())
-    # the thread may drop a window that fell due while the last one ran; the final window is fitted by both
+        assert (
+            sys.getswitchinterval() == switch
+        )  # lowered while the worker lived, restored    # the thread may drop a window that fell due while the last one ran; the final window is fitted by both
     assert answers[1].history[-1].t_s == answers[0].history[-1].t_s
     assert answers[0].model is not None and answers[1].model is not None
 

@@ -22,10 +22,16 @@ a receding-horizon fit:
 * the refit runs on one worker thread (``background=True``): the simulation is
   numba-compiled with ``nogil``, so the sampler keeps its GIL share; the
   feed only hands over a copy of the window (:attr:`WindowResult.stall_s` is
-  the longest time :meth:`update` ever took). A window that falls due while
-  the previous refit still runs is left out (:attr:`WindowResult.dropped`);
-  ``background=False`` runs each refit inside :meth:`update` (replays, tests:
-  deterministic).
+  the longest time :meth:`update` ever took). While the worker lives, the
+  interpreter's switch interval is at most :data:`SWITCH_INTERVAL_S` (restored
+  by :meth:`WindowRefit.result`): with Python's 5 ms a sampler waiting for the
+  GIL behind the fit's Python code missed 2.5x as many 200 Hz slots on a loaded
+  2-core machine (293 against 116 of 4000 late by half a period); at 0.5 ms,
+  138 against 102 (docs/online.md). A window that falls due while
+  the previous refit still runs is left out (:attr:`WindowResult.dropped`),
+  unless ``wait=True`` (a servo on a virtual clock, which runs faster than
+  real time: there waiting costs no sample); ``background=False`` runs each
+  refit inside :meth:`update` (replays, tests: deterministic).
 
 Each refit is one row of :attr:`WindowResult.history`: the servo time of the
 window's end, the play, the free-run NRMSE on the window and the window's
@@ -37,6 +43,7 @@ estimate has converged is judged on those rows
 from __future__ import annotations
 
 import math
+import sys
 import time
 from collections.abc import Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -49,7 +56,17 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.servo_loop import ServoLoopModel
 
-__all__ = ["WindowConfig", "WindowRow", "WindowResult", "WindowRefit", "WINDOW_S", "EVERY_S", "FIRST_S", "BURN_IN_S"]
+__all__ = [
+    "WindowConfig",
+    "WindowRow",
+    "WindowResult",
+    "WindowRefit",
+    "WINDOW_S",
+    "EVERY_S",
+    "FIRST_S",
+    "BURN_IN_S",
+    "SWITCH_INTERVAL_S",
+]
 
 #: Servo seconds refitted each time: long enough for tens of reversals at a designed
 #: excitation's holds, short enough that a refit costs well under :data:`EVERY_S` (0.1-0.6 s
@@ -63,6 +80,8 @@ FIRST_S = 10.0
 BURN_IN_S = 1.0
 #: scipy's ``max_nfev`` of a warm refit.
 MAX_NFEV = 10
+#: Largest interpreter switch interval while a worker refits, s (the module's text).
+SWITCH_INTERVAL_S = 0.0005
 
 
 @dataclass(frozen=True)
@@ -158,7 +177,8 @@ class WindowResult:
     dropped : int
         Windows left out because the previous refit was still running.
     stall_s : float
-        Longest wall time one :meth:`WindowRefit.update` took (what the sampler waited).
+        Longest wall time one :meth:`WindowRefit.update` took (what the sampler waited; a wait
+        for the last refit with ``wait=True`` is not counted).
     errors : tuple of str
         Refits that failed, with why.
     """
@@ -218,9 +238,14 @@ class WindowRefit:
         The model to start from (a model file's loop); default: :func:`fit_loop` on the first window.
     background : bool
         Refit on a worker thread (a live session) or inside :meth:`update` (a replay).
+    wait : bool
+        When a window falls due while the last refit still runs, wait for it (a virtual
+        clock) instead of leaving the window out (a live servo: the sampler must not wait).
     """
 
-    def __init__(self, config: WindowConfig, *, start: ServoLoopModel | None = None, background: bool = True) -> None:
+    def __init__(
+        self, config: WindowConfig, *, start: ServoLoopModel | None = None, background: bool = True, wait: bool = False
+    ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
         if start is not None and not math.isclose(start.sample_period_s, config.sample_period_s, rel_tol=1e-6):
@@ -239,7 +264,12 @@ class WindowRefit:
         self._dropped = 0
         self._stall = 0.0
         self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="servoid-window") if background else None
+        self._switch = sys.getswitchinterval()
+        if background:
+            sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL_S))
         self._future: Future[tuple[ServoLoopModel, WindowRow]] | None = None
+        self._wait = bool(wait)
+        self._waited = 0.0  # of the current sample, on a virtual clock: not a stall of a real sampler
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -251,16 +281,19 @@ class WindowRefit:
 
     def _take(self, u: float, y: float, keep: bool) -> None:
         t0 = time.perf_counter()
+        self._waited = 0.0
         self._u.append(u)
         self._y.append(y)
         self._keep.append(keep)
         n = len(self._u)
         if n >= self._first and (n - self._first) % self._every == 0:
             self._due(n)
-        self._stall = max(self._stall, time.perf_counter() - t0)
+        self._stall = max(self._stall, time.perf_counter() - t0 - self._waited)
 
     def _due(self, n: int) -> None:
-        self._collect(wait=False)
+        t0 = time.perf_counter()
+        self._collect(wait=self._wait)
+        self._waited = time.perf_counter() - t0 if self._wait else 0.0
         if self._future is not None:
             self._dropped += 1
             return
@@ -326,6 +359,7 @@ class WindowRefit:
         if self._pool is not None:
             self._pool.shutdown(wait=True)
             self._pool = None
+            sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history), self.config, self._dropped,
                             self._stall, tuple(self._errors))  # fmt: skip
 

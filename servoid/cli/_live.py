@@ -145,6 +145,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     from servoid.drivers import driver_from_url
+    from servoid.drivers.clock import VirtualClock
     from servoid.drivers.simulated import SimulatedServo
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
@@ -181,7 +182,8 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
         )
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
-        window = WindowRefit(WindowConfig(config.period_s))
+        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual)
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or
