@@ -90,3 +90,20 @@ def test_bad_settings_are_refused_in_one_line() -> None:
         WindowConfig(0.01, window_s=1.0, burn_in_s=2.0)
     with pytest.raises(ConfigError, match="period"):
         WindowRefit(WindowConfig(0.02), start=TRUTH)
+
+
+def test_the_loop_wear_tracker_raises_its_alarm_after_the_play_steps_up_and_not_before() -> None:
+    from servoid.ident.monitoring.alarms import Bound
+    from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker
+
+    u, y = _record(40.0, seed=5, play_growth=0.3)  # the play x1.3 from 20 s on
+    config = WindowConfig(1 / RATE, window_s=5.0, every_s=1.0, first_s=5.0, burn_in_s=0.5)
+    tracker = LoopWearTracker(
+        TRUTH, [Bound(quantity=PLAY, high=1.1 * TRUTH.play)], config=config, background=False, baseline_s=10.0
+    )
+    _feed(tracker, u, y, np.zeros(u.size, dtype=bool))  # type: ignore[arg-type]
+    tracker.result()
+    raised = [e for e in tracker.events if e.raised]
+    assert tracker.std > 0.0 and len(raised) == 1
+    # a window (5 s) must hold mostly worn samples, then persist (5 refits, 1 s apart)
+    assert 20.0 < raised[0].sample / RATE <= 20.0 + 5.0 + 5.0

@@ -331,6 +331,11 @@ class WindowRefit:
             return
         self._history.append(row)
 
+    def rows(self) -> tuple[WindowRow, ...]:
+        """The refits finished so far (a finished background refit is collected, a running one not waited for)."""
+        self._collect(wait=False)
+        return tuple(self._history)
+
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the servo-loop simulation now, not inside the sampling loop."""
         ServoLoopModel("output_backlash", self.config.sample_period_s, kp=10.0, kv=50.0).simulate(np.zeros(4))
