@@ -1,6 +1,7 @@
 """The monitor's servo-loop estimate on a wearing twin: tracking a growing play, the alarm after a step, false alarms.
 
-Run: ``.venv/bin/python benchmarks/monitor_loop.py [--presets xm430 ...] [--full]``.
+Run: ``.venv/bin/python benchmarks/monitor_loop.py [--presets xm430 ...] [--full]`` (about 8 minutes
+for the two default presets on a shared 2-core machine).
 
 What ``servoid monitor`` runs for a model whose play sits in the loop: the
 moving-window refit of the servo-loop model (:class:`servoid.ident.online.window.WindowRefit`),
@@ -14,7 +15,9 @@ every ``--every`` s; the alarm rule of ``servoid monitor``
 monitor's own baseline: the model's play on a physical servo carries the
 structure's bias, the same in every window, which an alarm on wear must not
 see); the standard deviation is the scatter of those first window plays
-(the estimate's own noise). The twin is the physical one (``drivers/twin``),
+(the estimate's own noise) -- the rule of
+:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`, replayed here on
+the refits so that one run gives the alarm times of every rule setting. The twin is the physical one (``drivers/twin``),
 driven by gentle sines (the excitation servoid designs for a play in the
 loop), its play changed while it runs (:meth:`~servoid.drivers.twin.servo.Twin.set_play`)
 every 0.05 s; servo time is virtual, so the run is as fast as the refits.
@@ -45,6 +48,7 @@ from servoid.drivers.twin import Twin, preset
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
+from servoid.ident.monitoring.loop_wear import MONITOR_EVERY_S, MONITOR_WINDOW_S
 from servoid.ident.offline.loop_fit import fit_loop
 from servoid.ident.online.window import WindowConfig, WindowRefit
 
@@ -99,8 +103,12 @@ def _alarms(t: np.ndarray, plays: np.ndarray, persist: int) -> list[float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--presets", nargs="+", default=["xm430", "cia402"])
-    parser.add_argument("--window", type=float, default=2.0, help="window, servo s (default 2)")
-    parser.add_argument("--every", type=float, default=0.25, help="refit period, servo s (default 0.25)")
+    parser.add_argument(
+        "--window", type=float, default=MONITOR_WINDOW_S, help="window, servo s (default: the tracker's)"
+    )
+    parser.add_argument(
+        "--every", type=float, default=MONITOR_EVERY_S, help="refit period, servo s (default: the tracker's)"
+    )
     parser.add_argument("--persist", type=int, default=3, help="checks in a row for an alarm (default 3)")
     parser.add_argument("--track", type=float, default=120.0, help="tracking run, servo s (default 120)")
     parser.add_argument("--quiet", type=int, default=100_000, help="samples of the run without wear")

@@ -9,7 +9,8 @@ recursive estimator; it has a cheap output-error refit from a near answer
 (:func:`servoid.ident.offline.loop_fit.refit_loop`). So the online estimate is
 a receding-horizon fit:
 
-* the stream is buffered as it comes (a lost sample is kept with its command:
+* the stream is buffered as it comes, at most two windows of it (constant
+  memory: a monitor runs for days; a lost sample is kept with its command:
   the simulation runs through it, the fit does not score it);
 * every :attr:`WindowConfig.every_s` of servo time, once
   :attr:`WindowConfig.first_s` have come, the last :attr:`WindowConfig.window_s`
@@ -27,7 +28,9 @@ a receding-horizon fit:
   by :meth:`WindowRefit.result`): with Python's 5 ms a sampler waiting for the
   GIL behind the fit's Python code missed 2.5x as many 200 Hz slots on a loaded
   2-core machine (293 against 116 of 4000 late by half a period); at 0.5 ms,
-  138 against 102 (docs/online.md). A window that falls due while
+  138 against 102 (docs/online.md). The worker also runs at a lower
+  scheduling priority (:data:`WORKER_NICENESS`; Linux), so that on a busy
+  machine the sampler's thread goes first. A window that falls due while
   the previous refit still runs is left out (:attr:`WindowResult.dropped`),
   unless ``wait=True`` (a servo on a virtual clock, which runs faster than
   real time: there waiting costs no sample); ``background=False`` runs each
@@ -43,7 +46,9 @@ estimate has converged is judged on those rows
 from __future__ import annotations
 
 import math
+import os
 import sys
+import threading
 import time
 from collections.abc import Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -80,6 +85,8 @@ FIRST_S = 10.0
 BURN_IN_S = 1.0
 #: scipy's ``max_nfev`` of a warm refit.
 MAX_NFEV = 10
+#: How much lower the worker thread's scheduling priority is than the sampler's (``nice``).
+WORKER_NICENESS = 10
 #: Largest interpreter switch interval while a worker refits, s (the module's text).
 SWITCH_INTERVAL_S = 0.0005
 
@@ -227,6 +234,15 @@ def _refit(
     return fit.model, row
 
 
+def _yield_cpu() -> None:
+    """Lower the worker thread's scheduling priority (Linux sets it per thread): on a busy machine the sampler goes first."""
+    try:
+        tid = threading.get_native_id()
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + WORKER_NICENESS))
+    except (AttributeError, OSError):  # not Linux, or not permitted: the thread keeps its priority
+        pass
+
+
 class WindowRefit:
     """An :class:`~servoid.ident.online.estimator.Estimator` of the servo-loop model (the module's method).
 
@@ -256,6 +272,7 @@ class WindowRefit:
         self._u: list[float] = []
         self._y: list[float] = []
         self._keep: list[bool] = []
+        self._n = 0  # samples taken in all
         self._window = config.samples(config.window_s)
         self._every = config.samples(config.every_s)
         self._first = config.samples(config.first_s)
@@ -263,7 +280,11 @@ class WindowRefit:
         self._errors: list[str] = []
         self._dropped = 0
         self._stall = 0.0
-        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="servoid-window") if background else None
+        self._pool = (
+            ThreadPoolExecutor(max_workers=1, thread_name_prefix="servoid-window", initializer=_yield_cpu)
+            if background
+            else None
+        )
         self._switch = sys.getswitchinterval()
         if background:
             sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL_S))
@@ -285,7 +306,10 @@ class WindowRefit:
         self._u.append(u)
         self._y.append(y)
         self._keep.append(keep)
-        n = len(self._u)
+        self._n += 1
+        n = self._n
+        if len(self._u) > 2 * self._window:  # constant memory: only the last window is ever fitted
+            del self._u[: -self._window], self._y[: -self._window], self._keep[: -self._window]
         if n >= self._first and (n - self._first) % self._every == 0:
             self._due(n)
         self._stall = max(self._stall, time.perf_counter() - t0 - self._waited)
@@ -297,14 +321,15 @@ class WindowRefit:
         if self._future is not None:
             self._dropped += 1
             return
-        lo = max(0, n - self._window)
-        keep = np.array(self._keep[lo:n], dtype=np.bool_)
+        size = len(self._u)
+        lo = max(0, size - self._window)
+        keep = np.array(self._keep[lo:], dtype=np.bool_)
         if not keep.any():
             return
         lo += int(np.argmax(keep))  # the simulation starts at a measured sample
-        if n - lo < 4 * self.config.samples(self.config.burn_in_s) or int(np.sum(keep)) < 50:
+        if size - lo < 4 * self.config.samples(self.config.burn_in_s) or int(np.sum(keep)) < 50:
             return
-        job = (np.array(self._u[lo:n]), np.array(self._y[lo:n]), np.array(self._keep[lo:n], dtype=np.bool_),
+        job = (np.array(self._u[lo:]), np.array(self._y[lo:]), np.array(self._keep[lo:], dtype=np.bool_),
                self.model, self.config, n * self.config.sample_period_s)  # fmt: skip
         if self._pool is None:
             self._store(job)
@@ -355,7 +380,7 @@ class WindowRefit:
             Fit the window that ends at the last sample (when it is not the last refit's).
         """
         self._collect(wait=True)
-        n = len(self._u)
+        n = self._n
         last = self._history[-1].t_s if self._history else -1.0
         if final and n >= self._first and not math.isclose(last, n * self.config.sample_period_s):
             pool, self._pool = self._pool, None
@@ -367,7 +392,3 @@ class WindowRefit:
             sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history), self.config, self._dropped,
                             self._stall, tuple(self._errors))  # fmt: skip
-
-    def record(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The whole stream so far: ``u``, ``y`` (NaN where not measured) and which samples were measured."""
-        return np.array(self._u), np.array(self._y), np.array(self._keep, dtype=np.bool_)

@@ -32,7 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
     from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
-    from servoid.ident.online.window import WindowRefit
+    from servoid.ident.online.window import WindowResult
     from servoid.identify_outputs import Record
     from servoid.recording import Recording
     from servoid.session import SessionProgress, SessionResult
@@ -205,15 +205,16 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
+    # the window refit's last window (the worker stops here, whatever follows)
+    window_result = window.result(final=result.stopped != "interrupted")
     if result.stopped == "interrupted":
-        window.result(final=False)
         _term.warn(f"interrupted after {len(result)} samples; they are in {path} "
                    f"(identify them with: servoid identify --data {path})")  # fmt: skip
         raise KeyboardInterrupt
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
     live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
-    live["online_loop"] = loop_online(window, result, quiet=quiet)
+    live["online_loop"] = loop_online(window_result, result)
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
         live["decimation"] = est.stats.to_dict()
@@ -319,7 +320,7 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
     return dataclasses.replace(record, live={**record.live, "online": chosen, "online_mrgia": mrgia})
 
 
-def loop_online(window: WindowRefit, result: SessionResult, *, quiet: bool) -> dict[str, Any]:
+def loop_online(online: WindowResult, result: SessionResult) -> dict[str, Any]:
     """The servo-loop model's online estimate, refined on the whole record from it, and its verdict (JSON-ready).
 
     The refinement is :func:`~servoid.ident.offline.loop_fit.refit_loop` over the
@@ -327,6 +328,13 @@ def loop_online(window: WindowRefit, result: SessionResult, *, quiet: bool) -> d
     scratch); :func:`~servoid.ident.online.verdict.judge_window` judges the
     online estimate on its windows and against it. :func:`with_verdict` then
     reports this estimate or the MRGIA's, by the structure identification chose.
+
+    Parameters
+    ----------
+    online : WindowResult
+        The window refit's run (:meth:`~servoid.ident.online.window.WindowRefit.result`).
+    result : SessionResult
+        The session it ran in (every sample, with the usable ones).
     """
     import numpy as np
 
@@ -334,7 +342,6 @@ def loop_online(window: WindowRefit, result: SessionResult, *, quiet: bool) -> d
     from servoid.ident.offline.loop_fit import refit_loop
     from servoid.ident.online.verdict import judge_window
 
-    online = window.result()
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
     if online.model is None:
         return out
