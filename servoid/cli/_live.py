@@ -279,17 +279,20 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
     pseudo-Wiener model, :func:`~servoid.ident.online.verdict.judge_online`)
     and the moving-window servo-loop refit (:func:`loop_online`). The one
     reported as ``online`` is the servo loop's when identification chose that
-    form, or when the black box is off its floor or its residual is coloured
-    (the skip rule, :func:`~servoid.ident.offline.second_structure.needed`);
-    else the MRGIA's (the paper's plant). Both are kept in the JSON. Records
-    that are not live pass unchanged.
+    form, or, as the second-structure seam decides
+    (:func:`~servoid.ident.offline.second_structure.second_structure`), when
+    the black box is off its floor or its residual is coloured and the loop
+    refined from the online estimate fits the record within
+    ``1 + MIN_STRUCTURE_MARGIN`` of the black box; else the MRGIA's (the
+    paper's plant). Both are kept in the JSON. Records that are not live pass
+    unchanged.
     """
     if not record.live:
         return record
     import math
 
     from servoid.ident.models.structure_names import PSEUDO_WIENER, SERVO_LOOP
-    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, MIN_STRUCTURE_MARGIN
     from servoid.ident.offline.second_structure import needed
     from servoid.ident.online.verdict import judge_online
 
@@ -299,7 +302,12 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
     loop = record.live.get("online_loop") or {}
     loop_verdict = loop.get("verdict")
     at_floor = math.isfinite(result.floor_nrmse) and result.fit_nrmse <= MAX_FIT_TO_FLOOR * result.floor_nrmse
-    use_loop = loop_verdict is not None and (result.form == SERVO_LOOP or needed(at_floor, result.residual_white))
+    # the second-structure seam's rule: the loop only where the black box is not enough, and fits about as well
+    loop_fit = _num((loop.get("refined") or {}).get("fit_nrmse"))
+    use_loop = loop_verdict is not None and (
+        result.form == SERVO_LOOP
+        or (needed(at_floor, result.residual_white) and loop_fit <= (1.0 + MIN_STRUCTURE_MARGIN) * result.fit_nrmse)
+    )
     chosen = mrgia
     if loop_verdict is not None:
         model = loop["estimate"]["model"]
