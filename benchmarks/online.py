@@ -1,6 +1,9 @@
 """Online identification at real servo rates: probe, design, decimated MRGIA, verdict, on every twin x transport.
 
-Run: ``.venv/bin/python benchmarks/online.py [--presets xm430 ...] [--transports sim ...] [--samples 12000]``.
+Run: ``.venv/bin/python benchmarks/online.py [--full] [--presets xm430 ...] [--transports sim ...] [--samples 12000]``.
+
+The default run is short: every preset on ``sim://`` (4 runs); ``--full`` runs
+the grid, every preset x every transport of ``benchmarks/twins.py``.
 
 Each run is ``servoid identify --driver URL --json --samples N`` with nothing
 else (the probe, the design from it, the decimated online estimator, the
@@ -11,19 +14,24 @@ are, one row per run:
 
 * ``probe s``: wall time of the probe (from the run's own table), ``k``: the
   decimation it chose, ``lost``: the share of unusable samples;
-* ``online`` and ``refined``: the online estimate's ``c1 + c2`` and the
-  refined fit's, at the output; ``err``: the online one against the twin's
-  true play (the pseudo-Wiener model's play on a twin is not the twin's play:
-  ``/work/notes/proto12`` finding 1; this column says how far);
-* ``to 5 %``: servo seconds until the online ``c1 + c2`` stays within 5 % of
-  its final value (replayed from the recording through the same decimated
-  stream, which is deterministic), ``fit on/ref``: free-run NRMSE of the
-  online model over that of the refined one on the same record;
+* ``estimator``: which online estimate identify reported (``loop:<place of
+  the play>``: the moving-window servo-loop refit; ``mrgia``: the decimated
+  MRGIA, when the black box sits at its floor with a white residual);
+* ``online`` and ``refined``: that estimate's play and the refined fit's
+  (refined from it), at the output; ``err``: the online one against the
+  twin's true play;
+* ``to 5 %``: servo seconds until the online play stays within 5 % of its
+  final value (the window refits' history; for the MRGIA replayed from the
+  recording through the same decimated stream), ``fit on/ref``: free-run
+  NRMSE of the online model over that of the refined one on the same record;
+* ``refit s/stall ms/dropped``: the window refit's median wall time (on its
+  worker thread), the longest time one sample's hand-over took on the
+  sampling thread, and the windows left out because a refit still ran;
 * ``verdict``: the online verdict (``servoid.ident.online.verdict``) and its first reason;
 * ``wall s``: the whole command, probe included.
 
-Not measured here (not built): the monitor's tracking of a growing play on the
-wearing twin. The machine may be shared: wall times depend on its load.
+The monitor's tracking of a growing play on the wearing twin is
+``benchmarks/monitor_loop.py``. The machine may be shared: wall times depend on its load.
 """
 
 from __future__ import annotations
@@ -82,6 +90,14 @@ def seconds_to_within(out: Path, result: dict) -> float:
     return slow * k / float(result["acquisition"]["rate_hz"])
 
 
+def window_seconds_to_within(history: list[dict]) -> float:
+    """Servo seconds until the window refits' play stays within WITHIN of its final value (from the run's history)."""
+    plays = np.array([r["play"] for r in history])
+    t = np.array([r["t_s"] for r in history])
+    outside = np.flatnonzero(np.abs(plays - plays[-1]) > WITHIN * abs(plays[-1]))
+    return float(t[0] if outside.size == 0 else t[min(int(outside[-1]) + 1, t.size - 1)])
+
+
 def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     params = preset(name)
     play = params.play_rad
@@ -89,27 +105,38 @@ def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 8, f"{wall:.0f}", outcome(error)]
-    online_gap = sum(result["mrgia"]["values"][c] for c in ("c1", "c2")) / scale
-    refined_gap = (result["model"]["c1"] + result["model"]["c2"]) / scale
+        return [name, transport, f"{play:.5f}", *["-"] * 10, f"{wall:.0f}", outcome(error)]
     verdict = result["online"]
+    online_gap = verdict["online_gap"] / scale
+    refined_gap = (verdict["refined_gap"] or float("nan")) / scale
     fit_ratio = (verdict["online_nrmse"] or float("nan")) / (verdict["refined_nrmse"] or float("nan"))
     why = "settled" if verdict["settled"] else "not: " + (verdict["reasons"][0][:40] if verdict["reasons"] else "?")
+    window = result["online_loop"]["estimate"]
+    costs = [r["seconds"] for r in window["history"]]
+    if verdict["estimator"] == "window":
+        to5 = window_seconds_to_within(window["history"])
+        what = f"loop:{verdict['structure']}"
+    else:
+        to5, what = seconds_to_within(out, result), "mrgia"
     probe = result["probe"]
     return [
         name, transport, f"{play:.5f}", f"{probe['samples'] / probe['rate_hz']:.1f}",
-        str(result["decimation"]["factor"]), f"{result['lost']['share_unusable']:.2f}", f"{online_gap:.5f}",
-        f"{refined_gap:.5f}", f"{(online_gap - play) / play:+.0%}", f"{seconds_to_within(out, result):.1f}",
-        f"{fit_ratio:.2f}", f"{wall:.0f}", why,
+        str(result["decimation"]["factor"]), f"{result['lost']['share_unusable']:.2f}", what, f"{online_gap:.5f}",
+        f"{refined_gap:.5f}", f"{(online_gap - play) / play:+.0%}", f"{to5:.1f}", f"{fit_ratio:.2f}",
+        f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}",
+        f"{wall:.0f}", why,
     ]  # fmt: skip
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--presets", nargs="+", default=list(preset_names()))
-    parser.add_argument("--transports", nargs="+", default=list(LIVE), choices=list(LIVE))
+    parser.add_argument("--transports", nargs="+", default=None, choices=list(LIVE), help="default: sim (--full: all)")
+    parser.add_argument("--full", action="store_true", help="every preset x every transport")
     parser.add_argument("--samples", type=int, default=12_000, help="samples per run (default 12000: 60 s at 200 Hz)")
     args = parser.parse_args()
+    if args.transports is None:
+        args.transports = list(LIVE) if args.full else [next(iter(LIVE))]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     with tempfile.TemporaryDirectory() as tmp:
@@ -120,8 +147,8 @@ def main() -> None:
         ]
     table(
         f"servoid identify --driver URL --samples {args.samples} (probe, design, decimated MRGIA, verdict)",
-        ["preset", "transport", "true play", "probe s", "k", "lost", "online", "refined", "err", "to 5 % s",
-         "fit on/ref", "wall s", "verdict"],
+        ["preset", "transport", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
+         "to 5 % s", "fit on/ref", "refit s/stall ms/dropped", "wall s", "verdict"],
         rows,
     )  # fmt: skip
 

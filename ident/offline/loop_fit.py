@@ -56,6 +56,8 @@ __all__ = [
     "LoopCandidate",
     "fit_loop",
     "refit",
+    "refit_loop",
+    "LoopRefit",
     "block_mask",
     "MIN_SAMPLES",
 ]
@@ -683,3 +685,91 @@ def _noticed(model: ServoLoopModel, q: float) -> tuple[str, ...]:
     if q > 0.0 and model.play < q:
         reasons.append(f"the fitted play {model.play:.4g} is smaller than the record's resolution {q:.4g}")
     return tuple(reasons)
+
+
+@dataclass(frozen=True)
+class LoopRefit:
+    """Result of :func:`refit_loop`: one place of the play, refitted from a known model.
+
+    Attributes
+    ----------
+    model : ServoLoopModel
+        The refitted model (the start's structure and integrator).
+    fit_nrmse : float
+        Free-run NRMSE on the scored samples.
+    evaluations : int
+        Simulations used (Jacobians included).
+    seconds : float
+        Wall-clock time of the refit.
+    """
+
+    model: ServoLoopModel
+    fit_nrmse: float
+    evaluations: int
+    seconds: float
+
+
+def refit_loop(
+    u: Any,
+    y: Any,
+    start: ServoLoopModel,
+    *,
+    score: Any = None,
+    max_nfev: int = FINAL_NFEV,
+) -> LoopRefit:
+    """Refit a servo-loop model on a record, starting from ``start`` (a warm start: no scan, one place of the play).
+
+    The place of the play and whether the velocity loop has an integrator are
+    the start's; the free parameters, their scaling and the fit are those of
+    :func:`fit_loop`'s candidates. What a moving-window estimator runs every
+    few seconds on its last window (:mod:`servoid.ident.online.window`).
+
+    Parameters
+    ----------
+    u : array_like
+        Set points at the host instants, in the unit of ``y``; ``start.sample_period_s`` apart.
+    y : array_like
+        Readings at the host instants; ``y[0]`` must be measured (the simulation starts there),
+        others may be anything where ``score`` is False.
+    start : ServoLoopModel
+        The model to start from (the previous window's answer, or :func:`fit_loop`'s).
+    score : array_like of bool, optional
+        Samples the fit scores (default all): leave out lost samples and a burn-in at the
+        start, where the loop's state is not known.
+    max_nfev : int
+        scipy's ``max_nfev`` (a Jacobian costs one simulation per free parameter on top).
+
+    Returns
+    -------
+    LoopRefit
+    """
+    t0 = time.perf_counter()
+    u_arr = validation.signal("u", u, min_length=2)
+    y_arr = np.asarray(y, dtype=np.float64)
+    if y_arr.shape != u_arr.shape:
+        raise ConfigError(f"u and y differ in shape: {u_arr.shape} against {y_arr.shape}")
+    keep = np.ones(u_arr.size, dtype=bool) if score is None else np.asarray(score, dtype=bool)
+    if keep.shape != u_arr.shape or int(np.sum(keep)) < 2:
+        raise ConfigError(f"score must be a bool array of u's shape {u_arr.shape} with at least 2 samples scored")
+    if not (math.isfinite(float(y_arr[0])) and np.all(np.isfinite(y_arr[keep]))):
+        raise ConfigError("y must be finite at its first sample and wherever it is scored")
+    if not isinstance(start, ServoLoopModel):
+        raise ConfigError(f"start must be a ServoLoopModel, not {type(start).__name__}")
+    max_nfev = validation.integer("max_nfev", max_nfev, minimum=1)
+    period = start.sample_period_s
+    centre = float(np.mean(u_arr))
+    uc = np.ascontiguousarray(u_arr - centre)
+    yc = np.ascontiguousarray(np.where(keep, y_arr, y_arr[0]) - centre)
+    v_typ = max(float(np.std(np.diff(yc[keep]))) / period, 1e-12 * float(np.ptp(yc[keep])) / period, 1e-300)
+    d = start.params()
+    play = max(start.play, 1e-12 * max(float(np.ptp(yc[keep])), 1e-300))
+    d["play"] = play
+    d["asym"] = float(np.clip(start.c1 / play - 0.5, -0.5, 0.5)) if start.play > 0.0 else 0.0
+    integrator = start.ki > 0.0
+    d, prob, _ = _fit(
+        uc, yc, period, start.structure, d, keep, 0.1 * start.kv * v_typ, integrator=integrator, max_nfev=max_nfev
+    )
+    d["s0"] = start.s0
+    model = _model(start.structure, period, d)
+    y_hat = model.simulate(uc, y0=float(yc[0]))
+    return LoopRefit(model, nrmse(yc[keep], y_hat[keep]), prob.evaluations, time.perf_counter() - t0)

@@ -16,13 +16,22 @@ fit
     ``fit_slack``), and its dead zone lies within ``gap_tol`` of the refined one.
 
 Every rule that fails is named in :attr:`OnlineVerdict.reasons`.
+
+The servo-loop model's online estimate (a moving-window refit,
+:mod:`servoid.ident.online.window`) has no line coverage; it is judged by
+:func:`judge_window` on its trajectory over the last :data:`LAST_WINDOWS`
+refits (the play moved by at most ``drift_tol``), on the last window's fit
+against the floor its resolution and noise leave (at most
+:data:`~servoid.ident.offline.intervals.MAX_FIT_TO_FLOOR` times, the
+offline rule: a model off its floor misses something, and a settled estimate
+of a wrong model is the worst outcome), and, as above, against the refined fit.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -30,7 +39,10 @@ from servoid.errors import ModelError
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.online.mrgia import MRGIAResult
 
-__all__ = ["OnlineVerdict", "judge_online", "DRIFT_TOL", "GAP_TOL", "FIT_RATIO", "TAIL"]
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.online.window import WindowResult
+
+__all__ = ["OnlineVerdict", "judge_online", "judge_window", "LAST_WINDOWS", "DRIFT_TOL", "GAP_TOL", "FIT_RATIO", "TAIL"]
 
 #: Share of the run (its end) over which the trajectory must be still.
 TAIL = 0.25
@@ -42,6 +54,9 @@ GAP_TOL = 0.10
 FIT_RATIO = 1.25
 #: Added to the allowed NRMSE, so that near-perfect fits are not judged on rounding.
 FIT_SLACK = 0.01
+#: Refits of a moving-window estimate whose plays must agree (:func:`judge_window`): with
+#: the default refit period, the last 10 s of servo time.
+LAST_WINDOWS = 3
 
 
 @dataclass(frozen=True)
@@ -148,8 +163,79 @@ def judge_online(
     r_gap = math.nan if refined is None else refined.dead_zone
     r_fit = math.nan if refined_nrmse is None else float(refined_nrmse)
     if refined is not None:
-        if not o_fit <= fit_ratio * r_fit + fit_slack:
-            reasons.append(f"its fit ({o_fit:.3g}) is worse than {fit_ratio:g}x the refined one ({r_fit:.3g})")
-        if not abs(gap - r_gap) <= gap_tol * abs(r_gap):
-            reasons.append(f"its play differs from the refined one by {100 * (gap / r_gap - 1):+.0f} %")
+        _against_refined(reasons, gap, o_fit, r_gap, r_fit, gap_tol, fit_ratio, fit_slack)
     return OnlineVerdict(not reasons, tuple(reasons), float(gap), float(r_gap), o_fit, r_fit, drift)
+
+
+def _against_refined(
+    reasons: list[str],
+    gap: float,
+    o_fit: float,
+    r_gap: float,
+    r_fit: float,
+    gap_tol: float,
+    fit_ratio: float,
+    fit_slack: float,
+) -> None:
+    """The rules against the refined fit of the same record (both judges)."""
+    if not o_fit <= fit_ratio * r_fit + fit_slack:
+        reasons.append(f"its fit ({o_fit:.3g}) is worse than {fit_ratio:g}x the refined one ({r_fit:.3g})")
+    if not abs(gap - r_gap) <= gap_tol * abs(r_gap):
+        reasons.append(f"its play differs from the refined one by {100 * (gap / r_gap - 1):+.0f} %")
+
+
+def judge_window(
+    online: WindowResult,
+    online_nrmse: float | None = None,
+    refined_play: float | None = None,
+    refined_nrmse: float | None = None,
+    *,
+    last: int = LAST_WINDOWS,
+    drift_tol: float = DRIFT_TOL,
+    gap_tol: float = GAP_TOL,
+    fit_ratio: float = FIT_RATIO,
+    fit_slack: float = FIT_SLACK,
+) -> OnlineVerdict:
+    """Judge a moving-window estimate (:mod:`servoid.ident.online.window`; the module's rules).
+
+    Parameters
+    ----------
+    online : WindowResult
+        The run, with every refit.
+    online_nrmse : float, optional
+        Free-run NRMSE of the online model on the whole record.
+    refined_play : float, optional
+        The play of the refined fit of the same record; without it only trajectory and floor are judged.
+    refined_nrmse : float, optional
+        Its free-run NRMSE.
+    last : int
+        Refits whose plays must agree.
+    drift_tol : float
+        Largest spread of those plays, relative to the last.
+    gap_tol, fit_ratio, fit_slack : float
+        As in :func:`judge_online`.
+    """
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+
+    reasons: list[str] = list(online.errors[-1:])
+    plays = online.plays
+    gap = float(plays[-1]) if plays.size else math.nan
+    drift = math.nan
+    if plays.size < last:
+        reasons.append(f"{plays.size} window refit(s): too few to judge the trajectory (at least {last})")
+    else:
+        tail = plays[-last:]
+        drift = float(np.ptp(tail) / max(abs(gap), float(np.max(np.abs(tail))), 1e-300))
+        if not drift <= drift_tol:
+            reasons.append(f"the play still moved {100 * drift:.0f} % over the last {last} windows")
+    if online.history:
+        row = online.history[-1]
+        if not row.nrmse <= MAX_FIT_TO_FLOOR * row.floor:
+            reasons.append(f"the last window's fit ({row.nrmse:.3g}) is {row.nrmse / row.floor:.2g}x the floor "
+                           f"its resolution and noise leave (at most {MAX_FIT_TO_FLOOR:g})")  # fmt: skip
+    o_fit = math.nan if online_nrmse is None else float(online_nrmse)
+    r_gap = math.nan if refined_play is None else float(refined_play)
+    r_fit = math.nan if refined_nrmse is None else float(refined_nrmse)
+    if refined_play is not None:
+        _against_refined(reasons, gap, o_fit, r_gap, r_fit, gap_tol, fit_ratio, fit_slack)
+    return OnlineVerdict(not reasons, tuple(reasons), gap, r_gap, o_fit, r_fit, drift)

@@ -32,6 +32,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
     from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
+    from servoid.ident.online.window import WindowResult
     from servoid.identify_outputs import Record
     from servoid.recording import Recording
     from servoid.session import SessionProgress, SessionResult
@@ -144,9 +145,11 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
     from servoid.drivers import driver_from_url
+    from servoid.drivers.clock import VirtualClock
     from servoid.drivers.simulated import SimulatedServo
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.ident.online.window import WindowConfig, WindowRefit
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
     from servoid.session.listeners import EstimatorFeed
@@ -178,6 +181,10 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         online = EstimatorFeed(
             DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
         )
+        # the servo-loop model's online estimate, on every sample, refitted on a worker thread
+        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual)
+        window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or
                 ("uniform" if hold is None else f"steps:amplitude={amplitude!r},hold={hold}"),
@@ -192,12 +199,14 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                 bar(p.done, _status_text(p, driver.position_unit.unit))
 
             result = run_session(
-                driver, u, config, recording=path, metadata=meta, listeners=[online],
+                driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(window)],
                 on_progress=None if quiet else update,
             )  # fmt: skip
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
+    # the window refit's last window (the worker stops here, whatever follows)
+    window_result = window.result(final=result.stopped != "interrupted")
     if result.stopped == "interrupted":
         _term.warn(f"interrupted after {len(result)} samples; they are in {path} "
                    f"(identify them with: servoid identify --data {path})")  # fmt: skip
@@ -205,6 +214,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
     live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
+    live["online_loop"] = loop_online(window_result, result)
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
         live["decimation"] = est.stats.to_dict()
@@ -261,21 +271,103 @@ def _record(
 
 
 def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Record:
-    """A live record with the online estimate's verdict (:func:`servoid.ident.online.verdict.judge_online`), printed.
+    """A live record with the online estimate's verdict, printed: the MRGIA's or the servo loop's, by structure.
 
     The online estimate is the product of a live run: it is judged on its
     trajectory and against the refined fit of the same record, and both
-    numbers are shown. Records that are not live pass unchanged.
+    numbers are shown. Two estimators ran: the decimated MRGIA (the
+    pseudo-Wiener model, :func:`~servoid.ident.online.verdict.judge_online`)
+    and the moving-window servo-loop refit (:func:`loop_online`). The one
+    reported as ``online`` is the servo loop's when identification chose that
+    form, or, as the second-structure seam decides
+    (:func:`~servoid.ident.offline.second_structure.second_structure`), when
+    the black box is off its floor or its residual is coloured and the loop
+    refined from the online estimate fits the record within
+    ``1 + MIN_STRUCTURE_MARGIN`` of the black box; else the MRGIA's (the
+    paper's plant). Both are kept in the JSON. Records that are not live pass
+    unchanged.
     """
     if not record.live:
         return record
+    import math
+
+    from servoid.ident.models.structure_names import PSEUDO_WIENER, SERVO_LOOP
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, MIN_STRUCTURE_MARGIN
+    from servoid.ident.offline.second_structure import needed
     from servoid.ident.online.verdict import judge_online
 
     refined = result.model if result.refinement is not None else None
     verdict = judge_online(result.mrgia, result.mrgia_nrmse, refined, result.fit_nrmse if refined else None)
+    mrgia = {**verdict.to_dict(), "estimator": "mrgia", "structure": PSEUDO_WIENER}
+    loop = record.live.get("online_loop") or {}
+    loop_verdict = loop.get("verdict")
+    at_floor = math.isfinite(result.floor_nrmse) and result.fit_nrmse <= MAX_FIT_TO_FLOOR * result.floor_nrmse
+    # the second-structure seam's rule: the loop only where the black box is not enough, and fits about as well
+    loop_fit = _num((loop.get("refined") or {}).get("fit_nrmse"))
+    use_loop = loop_verdict is not None and (
+        result.form == SERVO_LOOP
+        or (needed(at_floor, result.residual_white) and loop_fit <= (1.0 + MIN_STRUCTURE_MARGIN) * result.fit_nrmse)
+    )
+    chosen = mrgia
+    if loop_verdict is not None:
+        model = loop["estimate"]["model"]
+        loop_dict = {**loop_verdict, "estimator": "window", "structure": model["structure"] if model else None}
+        chosen = loop_dict if use_loop else mrgia
     if not quiet:
-        (_term.stderr.print if verdict.settled else _term.warn)(verdict.line(record.output_unit))
-    return dataclasses.replace(record, live={**record.live, "online": verdict.to_dict()})
+        unit = record.output_unit
+        mark = {True: "", False: " (not the reported one)"}
+        (_term.stderr.print if verdict.settled else _term.warn)(
+            "pseudo-Wiener, decimated MRGIA" + mark[not use_loop] + ": " + verdict.line(unit)
+        )
+        if loop_verdict is not None:
+            line = (f"servo loop ({loop_dict['structure']}), window refit{mark[use_loop]}: play "
+                    f"{_num(loop_verdict.get('online_gap')):.4g} {unit} (fit {_num(loop_verdict.get('online_nrmse')):.3g}); refined from it: "
+                    f"{_num(loop_verdict.get('refined_gap')):.4g} {unit} (fit {_num(loop_verdict.get('refined_nrmse')):.3g}); ")  # fmt: skip
+            line += "settled" if loop_verdict["settled"] else "NOT settled: " + "; ".join(loop_verdict["reasons"])
+            (_term.stderr.print if loop_verdict["settled"] else _term.warn)(line)
+    return dataclasses.replace(record, live={**record.live, "online": chosen, "online_mrgia": mrgia})
+
+
+def loop_online(online: WindowResult, result: SessionResult) -> dict[str, Any]:
+    """The servo-loop model's online estimate, refined on the whole record from it, and its verdict (JSON-ready).
+
+    The refinement is :func:`~servoid.ident.offline.loop_fit.refit_loop` over the
+    usable samples, started from the last window's model (no second fit from
+    scratch); :func:`~servoid.ident.online.verdict.judge_window` judges the
+    online estimate on its windows and against it. :func:`with_verdict` then
+    reports this estimate or the MRGIA's, by the structure identification chose.
+
+    Parameters
+    ----------
+    online : WindowResult
+        The window refit's run (:meth:`~servoid.ident.online.window.WindowRefit.result`).
+    result : SessionResult
+        The session it ran in (every sample, with the usable ones).
+    """
+    import numpy as np
+
+    from servoid.ident.metrics import nrmse
+    from servoid.ident.offline.loop_fit import refit_loop
+    from servoid.ident.online.verdict import judge_window
+
+    out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
+    if online.model is None:
+        return out
+    keep = result.valid
+    first = int(np.argmax(keep))
+    u, y, keep = result.u[first:], result.y[first:], keep[first:]
+    started = time.perf_counter()
+    try:
+        refined = refit_loop(u, y, online.model, score=keep)
+    except (ConfigError, ValueError) as exc:
+        out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
+        return out
+    online_nrmse = nrmse(y[keep], online.model.simulate(u, y0=float(y[0]))[keep])
+    verdict = judge_window(online, online_nrmse, refined.model.play, refined.fit_nrmse)
+    out["refined"] = {"model": refined.model.to_dict(), "fit_nrmse": refined.fit_nrmse,
+                      "seconds": time.perf_counter() - started}  # fmt: skip
+    out["verdict"] = verdict.to_dict()
+    return out
 
 
 def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Path) -> dict[str, Any]:
@@ -374,6 +466,11 @@ def _status_text(p: SessionProgress, unit: str) -> str:
         shown = ", ".join(f"{k} {v:.4g}" for k, v in p.estimate.items())
         text += f" | {shown} ({unit})"
     return text
+
+
+def _num(value: Any) -> float:
+    """A number of a verdict's dict for printing (NaN when it is missing)."""
+    return float("nan") if value is None else float(value)
 
 
 def _flat(identity: dict[str, Any]) -> str:

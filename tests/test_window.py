@@ -1,0 +1,109 @@
+"""The moving-window servo-loop estimator: exact recovery from a model file's start, lost samples, the verdict, the thread."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+
+import numpy as np
+import pytest
+
+from servoid.errors import ConfigError
+from servoid.excitation.generate import sample
+from servoid.excitation.specs import GentleSpec
+from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.online.verdict import judge_window
+from servoid.ident.online.window import WindowConfig, WindowRefit
+
+RATE = 100.0
+TRUTH = ServoLoopModel(PLAY_IN_LOOP, 1 / RATE, kp=12.0, kv=60.0, fc=0.3, fs=0.45, vs=0.05, veps=0.005, c1=0.01, c2=0.01)
+
+
+def _record(seconds: float, seed: int, play_growth: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Gentle sines through the exact servo-loop model (the estimator's exact-recovery case), 1e-4 of noise."""
+    n = int(seconds * RATE)
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), n, seed=seed)
+    if play_growth == 0.0:
+        y = TRUTH.simulate(u, y0=0.0)
+    else:  # the play steps up half-way (a worn gear): two simulations joined where the second starts at rest
+        half = n // 2
+        worn = dataclasses.replace(TRUTH, c1=TRUTH.c1 * (1 + play_growth), c2=TRUTH.c2 * (1 + play_growth))
+        y = np.concatenate([TRUTH.simulate(u[:half], y0=0.0), worn.simulate(u[half:], y0=0.0)])
+    return u, y + 1e-4 * np.random.default_rng(seed).standard_normal(n)
+
+
+def _feed(est: WindowRefit, u: np.ndarray, y: np.ndarray, lost: np.ndarray) -> None:
+    for ui, yi, gone in zip(u, y, lost, strict=True):
+        if gone:
+            est.skip(ui)
+        else:
+            est.update(ui, yi)
+
+
+def test_the_window_refit_recovers_the_play_from_a_rough_start_with_lost_samples_and_says_settled() -> None:
+    u, y = _record(40.0, seed=1)
+    lost = np.random.default_rng(2).random(u.size) < 0.05
+    y[lost] = np.nan  # a lost reading is never looked at
+    start = dataclasses.replace(TRUTH, kp=9.0, kv=80.0, c1=0.014, c2=0.006)
+    est = WindowRefit(WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0), start=start, background=False)
+    _feed(est, u, y, lost)
+    result = est.result()
+    assert len(result.history) == 7 and result.dropped == 0 and not result.errors
+    assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.03
+    assert result.history[0].play != result.history[-1].play  # it did move from the start
+    verdict = judge_window(result)
+    assert verdict.settled, verdict.reasons
+
+
+def test_the_verdict_names_a_play_that_still_moves_and_a_short_history() -> None:
+    u, y = _record(30.0, seed=3, play_growth=0.6)
+    est = WindowRefit(WindowConfig(1 / RATE, window_s=5.0, every_s=5.0, first_s=5.0), start=TRUTH, background=False)
+    _feed(est, u, y, np.zeros(u.size, dtype=bool))
+    result = est.result()
+    plays = result.plays
+    assert plays[-1] > 1.3 * plays[0]  # the worn half is seen
+    verdict = judge_window(result, last=4)
+    assert not verdict.settled and any("still moved" in r for r in verdict.reasons)
+    short = judge_window(dataclasses.replace(result, history=result.history[:1]))
+    assert any("too few" in r for r in short.reasons)
+
+
+def test_the_worker_thread_gives_the_answer_of_the_inline_refit() -> None:
+    u, y = _record(25.0, seed=4)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
+    answers = []
+    switch = sys.getswitchinterval()
+    for background in (False, True):
+        est = WindowRefit(config, start=TRUTH, background=background)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        answers.append(est.result())
+        assert (
+            sys.getswitchinterval() == switch
+        )  # lowered while the worker lived, restored    # the thread may drop a window that fell due while the last one ran; the final window is fitted by both
+    assert answers[1].history[-1].t_s == answers[0].history[-1].t_s
+    assert answers[0].model is not None and answers[1].model is not None
+
+
+def test_bad_settings_are_refused_in_one_line() -> None:
+    with pytest.raises(ConfigError, match="burn_in_s"):
+        WindowConfig(0.01, window_s=1.0, burn_in_s=2.0)
+    with pytest.raises(ConfigError, match="period"):
+        WindowRefit(WindowConfig(0.02), start=TRUTH)
+
+
+def test_the_loop_wear_tracker_raises_its_alarm_after_the_play_steps_up_and_not_before() -> None:
+    from servoid.ident.monitoring.alarms import Bound
+    from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker
+
+    u, y = _record(40.0, seed=5, play_growth=0.3)  # the play x1.3 from 20 s on
+    config = WindowConfig(1 / RATE, window_s=5.0, every_s=1.0, first_s=5.0, burn_in_s=0.5)
+    tracker = LoopWearTracker(
+        TRUTH, [Bound(quantity=PLAY, high=1.1 * TRUTH.play)], config=config, background=False, baseline_s=10.0
+    )
+    _feed(tracker, u, y, np.zeros(u.size, dtype=bool))  # type: ignore[arg-type]
+    tracker.result()
+    raised = [e for e in tracker.events if e.raised]
+    assert tracker.std > 0.0 and len(raised) == 1
+    # a window (5 s) must hold mostly worn samples, then persist (5 refits, 1 s apart)
+    assert 20.0 < raised[0].sample / RATE <= 20.0 + 5.0 + 5.0
