@@ -78,11 +78,17 @@ def test_the_worker_thread_gives_the_answer_of_the_inline_refit() -> None:
         est = WindowRefit(config, start=TRUTH, background=background)
         _feed(est, u, y, np.zeros(u.size, dtype=bool))
         answers.append(est.result())
-        assert (
-            sys.getswitchinterval() == switch
-        )  # lowered while the worker lived, restored    # the thread may drop a window that fell due while the last one ran; the final window is fitted by both
+        assert sys.getswitchinterval() == switch  # lowered while the worker lived, restored
+    # the thread may drop a window that fell due while the last one ran; the final window is fitted by both
     assert answers[1].history[-1].t_s == answers[0].history[-1].t_s
     assert answers[0].model is not None and answers[1].model is not None
+    # a session that fails: close() stops the worker and restores the switch interval, twice as well as once
+    est = WindowRefit(config, start=TRUTH, background=True)
+    assert sys.getswitchinterval() < switch
+    _feed(est, u[:100], y[:100], np.zeros(100, dtype=bool))
+    est.close()
+    est.close()
+    assert sys.getswitchinterval() == switch
 
 
 def test_bad_settings_are_refused_in_one_line() -> None:

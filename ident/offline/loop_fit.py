@@ -43,7 +43,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from servoid import validation
-from servoid.errors import ConfigError
+from servoid.errors import ConfigError, ModelError
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel, substeps
@@ -438,6 +438,9 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any
     ConfigError
         Non-finite or mismatched signals, fewer than :data:`MIN_SAMPLES` samples (kept ones), a
         constant output, or a non-positive period.
+    ModelError
+        The output moves, but not in the estimation or the validation blocks (a heavy load the
+        set point barely stirs): there is nothing to fit or to validate on.
     """
     t0 = time.perf_counter()
     u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
@@ -464,6 +467,12 @@ def fit_loop(u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any
 
     est = block_mask(n) & kept
     val = ~block_mask(n) & kept
+    for part, name in ((est, "estimation"), (val, "validation")):
+        if not np.any(part) or float(np.ptp(yc[part])) <= 0.0:
+            raise ModelError(
+                f"the output never moves in the {name} blocks ({int(np.unique(yc[kept]).size)} distinct readings in "
+                "all): the servo-loop model cannot be fitted and validated on this record"
+            )
     candidates: list[tuple[LoopCandidate, dict[str, float]]] = []
     evaluations = 0
     for structure in (OUTPUT_BACKLASH, PLAY_IN_LOOP):
@@ -644,9 +653,13 @@ def _play_interval(jac: np.ndarray, residual: np.ndarray, free: tuple[str, ...],
     gradient = np.zeros(int(np.sum(used)))
     gradient[int(np.sum(used[:i]))] = 1.0
     se = hac_stderr(jac[:, used], np.asarray(residual, dtype=np.float64), gradient)
-    if not math.isfinite(se):
-        return (math.nan, math.nan)
+    if not math.isfinite(se) or Z95 * se > _MAX_LOG_SPREAD:
+        return (math.nan, math.nan)  # an error of ln(play) this large bounds nothing (and exp would overflow)
     return (play * math.exp(-Z95 * se), play * math.exp(Z95 * se))
+
+
+#: Largest ``Z95 * se(ln play)`` given as an interval: e^50 is no bound on a play, and e^710 overflows.
+_MAX_LOG_SPREAD = 50.0
 
 
 def _with_rivals(interval: tuple[float, float], candidates: list[LoopCandidate], best: float) -> tuple[float, float]:

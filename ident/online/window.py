@@ -371,6 +371,16 @@ class WindowRefit:
         m = self.model
         return {} if m is None or not self._history else {"play": m.play, "kp": m.kp, "kv": m.kv}
 
+    def close(self) -> None:
+        """Stop the worker without another refit and give the interpreter its switch interval back; safe twice.
+
+        For a session that ended in an error: :meth:`result` does the same on the normal way out.
+        """
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+            sys.setswitchinterval(self._switch)
+
     def result(self, *, final: bool = True) -> WindowResult:
         """Wait for a running refit; with ``final``, refit the last window too (the end of the stream); stop the worker.
 

@@ -198,10 +198,14 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             def update(p: SessionProgress) -> None:
                 bar(p.done, _status_text(p, driver.position_unit.unit))
 
-            result = run_session(
-                driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(window)],
-                on_progress=None if quiet else update,
-            )  # fmt: skip
+            try:
+                result = run_session(
+                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(window)],
+                    on_progress=None if quiet else update,
+                )  # fmt: skip
+            except BaseException:
+                window.close()  # the worker stopped and the switch interval restored on an error's way out too
+                raise
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
