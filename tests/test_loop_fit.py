@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from servoid.drivers.twin import Twin, preset
-from servoid.errors import ConfigError
+from servoid.errors import ConfigError, ModelError
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident import MRGIAConfig, identify
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, SERVO_LOOP
-from servoid.ident.offline.loop_fit import LoopChoice, fit_loop
+from servoid.ident.offline.loop_fit import MIN_SAMPLES, LoopChoice, block_mask, fit_loop
 
 #: The presets' loop bandwidths, Hz (measured in the issue-12 study): only to set the host rate.
 BANDWIDTH_HZ = {"xm430": 3.5, "cia402": 20.0}
@@ -135,3 +135,12 @@ def test_the_interval_takes_in_the_plays_of_candidates_that_validate_as_well() -
     assert _with_rivals((0.95, 1.05), cands, 0.010) == (0.8, 1.05)
     lo, hi = _with_rivals((np.nan, np.nan), cands, 0.010)
     assert np.isnan(lo) and np.isnan(hi)
+
+
+def test_an_output_that_never_moves_where_it_is_validated_is_named_not_a_crash() -> None:
+    # a heavy load the set point barely stirs: a few counts of motion, all of it in estimation blocks
+    n = 4 * MIN_SAMPLES
+    u = np.random.default_rng(1).uniform(-0.1, 0.1, n)
+    y = np.where(block_mask(n), np.round(np.cumsum(u) / 3.0) * 1e-3, 0.0)
+    with pytest.raises(ModelError, match="never moves in the validation blocks"):
+        fit_loop(u, y, 0.01)
