@@ -175,7 +175,9 @@ def test_a_servo_record_at_the_black_boxs_floor_still_asks_where_the_play_is(mon
 
     seen = []
     answer = [_FakeLoop(fit_nrmse=10.0)]  # far worse than the black box
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or answer[0])
+    monkeypatch.setattr(
+        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or answer[0]
+    )
     u, y = _paper(1500, 4)
     untimed = identify(u, y, MRGIAConfig())
     assert seen == [] and untimed.identifiable  # the paper's plant: at its floor, white, no time

@@ -141,6 +141,6 @@ def test_an_output_that_never_moves_where_it_is_validated_is_named_not_a_crash()
     # a heavy load the set point barely stirs: a few counts of motion, all of it in estimation blocks
     n = 4 * MIN_SAMPLES
     u = np.random.default_rng(1).uniform(-0.1, 0.1, n)
-    y = np.where(block_mask(n), np.round(np.cumsum(u) / 3.0) * 1e-3, 0.0)
+    y = np.where(block_mask(n), np.round(30.0 * np.cumsum(u)) * 1e-3, 0.0)
     with pytest.raises(ModelError, match="never moves in the validation blocks"):
         fit_loop(u, y, 0.01)
