@@ -34,6 +34,7 @@ the last scored sample; BLAS runs single-threaded (small matrices, many of them)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -552,7 +553,7 @@ def refit(
 
     A nested model for a comparison: ``diagnose`` fits the chosen structure without its friction
     terms (``start`` with ``fc = fs = 0``, ``hold=("fc", "fs", "vs", "veps")``) to see what they
-    buy. The fit is :func:`fit_loop`'s candidate fit (same scaling and steps) on every kept sample.
+    buy. It is :func:`refit_loop` with :func:`fit_loop`'s candidate budget on every kept sample.
 
     Parameters
     ----------
@@ -573,20 +574,9 @@ def refit(
     ServoLoopModel
     """
     u_arr, y_arr, kept, period = _checked(u, y, sample_period_s, keep)
-    centre = float(np.mean(u_arr))
-    uc = np.ascontiguousarray(u_arr - centre)
-    yc = np.ascontiguousarray(y_arr - centre)
-    v_typ = max(float(np.std(np.diff(yc))) / period, 1e-12 * float(np.ptp(yc)) / period)
-    d = start.params()
-    d["play"] = start.play
-    d["asym"] = (start.c1 - start.c2) / (2.0 * start.play) if start.play > 0.0 else 0.0
-    integrator = start.ki > 0.0
-    free = tuple(n for n in _free(start.structure, integrator) if n not in hold)
-    fitted, _, _ = _fit(
-        uc, yc, period, start.structure, d, kept, 0.1 * start.kv * v_typ,
-        integrator=integrator, max_nfev=CANDIDATE_NFEV, free=free,
-    )  # fmt: skip
-    return _model(start.structure, period, fitted)
+    if period != start.sample_period_s:
+        start = dataclasses.replace(start, sample_period_s=period)
+    return refit_loop(u_arr, y_arr, start, score=kept, max_nfev=CANDIDATE_NFEV, hold=hold).model
 
 
 def _checked(u: Any, y: Any, sample_period_s: float, keep: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
@@ -729,6 +719,7 @@ def refit_loop(
     *,
     score: Any = None,
     max_nfev: int = FINAL_NFEV,
+    hold: tuple[str, ...] = (),
 ) -> LoopRefit:
     """Refit a servo-loop model on a record, starting from ``start`` (a warm start: no scan, one place of the play).
 
@@ -751,6 +742,9 @@ def refit_loop(
         start, where the loop's state is not known.
     max_nfev : int
         scipy's ``max_nfev`` (a Jacobian costs one simulation per free parameter on top).
+    hold : tuple of str
+        Names of :data:`~servoid.ident.models.servo_loop.PARAM_NAMES` (or ``play``, ``asym``)
+        held at ``start``'s values (a nested model, as :func:`refit` fits).
 
     Returns
     -------
@@ -779,9 +773,11 @@ def refit_loop(
     d["play"] = play
     d["asym"] = float(np.clip(start.c1 / play - 0.5, -0.5, 0.5)) if start.play > 0.0 else 0.0
     integrator = start.ki > 0.0
+    free = tuple(n for n in _free(start.structure, integrator) if n not in hold)
     d, prob, _ = _fit(
-        uc, yc, period, start.structure, d, keep, 0.1 * start.kv * v_typ, integrator=integrator, max_nfev=max_nfev
-    )
+        uc, yc, period, start.structure, d, keep, 0.1 * start.kv * v_typ, integrator=integrator, max_nfev=max_nfev,
+        free=free,
+    )  # fmt: skip
     d["s0"] = start.s0
     model = _model(start.structure, period, d)
     y_hat = model.simulate(uc, y0=float(yc[0]))
