@@ -20,8 +20,8 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from servoid.bus_facts import GENTLE_AMPLITUDE_RAD
 from servoid.cli import _live, _term
-from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError, ServoidError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -90,7 +90,7 @@ def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -
         raise ConfigError(f"--rate (={args.rate:g}) must lie in (0, 20000] Hz")
     if args.samples is not None and args.samples < 1:
         raise ConfigError(f"--samples (={args.samples}) must be >= 1")
-    amplitude = args.amplitude if args.amplitude is not None else MODEL_AMPLITUDE
+    amplitude = args.amplitude if args.amplitude is not None else GENTLE_AMPLITUDE_RAD
     if not (math.isfinite(amplitude) and amplitude > 0):
         raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
     bus = driver_from_url(args.driver)
@@ -103,15 +103,19 @@ def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -
         identities = [j.identity for j in bus.joints]
         samples = args.samples or _live.DEFAULT_SAMPLES
 
+        # gentle sines by default (bus_facts says why), --amplitude their size
+        spec = args.excitation or gentle_default(args.amplitude, args.rate, bus.command_unit.unit)
+
         def signal(index: int, n: int) -> np.ndarray:
-            one = argparse.Namespace(**{**vars(args), "seed": args.seed + index, "samples": n})
+            one = argparse.Namespace(**{**vars(args), "seed": args.seed + index, "samples": n, "excitation": spec,
+                                        "amplitude": args.amplitude if args.excitation else None})  # fmt: skip
             limits = bus.joints[index].limits
             return _live.excitation(one, amplitude, limits, bus.command_unit.unit) - limits.centre
 
         u, blocks = bus_excitation(signal, len(ids), samples, mode=args.joints)
         u += np.array([j.limits.centre for j in bus.joints])
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or "uniform",
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": spec,
                 "joints_excitation": args.joints}  # fmt: skip
         if not quiet:
             _term.stderr.print(f"servoid identify: {bus.describe()}: {len(ids)} joints, {args.joints}, at "
@@ -133,30 +137,66 @@ def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -
     for index, servo_id in enumerate(ids):
         one = joint_result(result, index)
         block = blocks[index]
-        one = dataclasses.replace(one, samples=one.samples[block], usable_flags=result.valid[block], _arrays={})
+        one = dataclasses.replace(
+            one, samples=one.samples[block], usable_flags=result.valid[block], slot_counts=None, _arrays={}
+        )  # this joint's slots: its own counts
         source = f"{bus.describe()} joint {servo_id}"
         try:
+            # the one-servo rules, per joint: too many unusable samples is a refusal with the reason, not a model
+            lost = _live.check_lost(one, args.max_lost, allow=args.allow_lost, path=path)
             record = _live._record(one, source, identities[index], None, path, None)  # noqa: SLF001
+            # with the record's time, so that the servo-loop model (the play inside the loop) is fitted too
             found = identify(record.u, record.y, make_config(args.epsilon if args.epsilon is not None else 0.0),
-                             refine_model=not args.no_refine, valid=record.valid)  # fmt: skip
+                             refine_model=not args.no_refine, valid=record.valid,
+                             sample_period_s=record.sample_period_s)  # fmt: skip
         except ServoidError as exc:  # this joint's samples do not identify it: say so, go on with the next
             _term.warn(f"joint {servo_id}: {exc}")
             joints.append({"id": servo_id, "error": str(exc)})
             continue
         for w in found.warnings:
             _term.warn(f"joint {servo_id}: {w}")
+        record = dataclasses.replace(record, live={"lost": lost})
         paths = write_outputs(args.out / f"joint_{servo_id}", record, found, plots=not args.no_plots)
         joints.append({"id": servo_id, **result_json(record, found, paths), "_found": found})
+    failed = any("error" in j for j in joints)
+    withheld = any("error" not in j and not j["_found"].identifiable for j in joints)
+    status = 1 if failed or (args.strict and withheld) else 0
     if args.json:
         _term.print_json({"acquisition": result.to_dict(), "joints_excitation": args.joints,
                           "joints": [{k: v for k, v in j.items() if k != "_found"} for j in joints]})  # fmt: skip
-        return 0
+        return status
     _term.table(f"servoid identify: {len(ids)} joints on {bus.describe()}", *summary_rows(joints, bus))
-    return 0 if all("error" not in j for j in joints) else 1
+    if args.strict and withheld:
+        _term.warn("--strict: the play of at least one joint is not identifiable; exit 1")
+    return status
+
+
+def gentle_default(amplitude: float | None, rate_hz: float, unit: str) -> str:
+    """The bus's default excitation as a spec: gentle sines of ``amplitude`` (default 0.1 rad), peak 8 rad/s^2.
+
+    Parameters
+    ----------
+    amplitude : float or None
+        ``--amplitude`` (the command unit), or None for :data:`~servoid.bus_facts.GENTLE_AMPLITUDE_RAD`.
+    rate_hz : float
+        The sample rate: the peak acceleration per sample squared is ``GENTLE_PEAK_ACCEL_RAD_S2 / rate^2``.
+    unit : str
+        The bus's command unit; the defaults are in rad, so another unit needs ``--excitation``.
+    """
+    from servoid.bus_facts import GENTLE_PEAK_ACCEL_RAD_S2
+
+    if unit != "rad":
+        raise ConfigError(f"the bus commands in {unit!r}, the default gentle sines are in rad: give --excitation")
+    size = GENTLE_AMPLITUDE_RAD if amplitude is None else amplitude
+    return f"gentle:amplitude={size!r},accel={GENTLE_PEAK_ACCEL_RAD_S2 / rate_hz**2!r},spread=8"
 
 
 def summary_rows(joints: list[dict[str, Any]], bus: BusDriver) -> tuple[list[str], list[list[str]]]:
-    """One row per joint: samples used, the play (c1 + c2) in rad and degrees, m2, the fit, the model file.
+    """One row per joint: samples used, where the play sits, the play and its 95 % interval, the fit, the verdict.
+
+    The play is the answer's (:attr:`~servoid.ident.identify.Identification.play`, of the
+    structure identification chose), never shown without its verdict: a joint
+    whose play the record cannot determine says "no" and why.
 
     Parameters
     ----------
@@ -165,18 +205,23 @@ def summary_rows(joints: list[dict[str, Any]], bus: BusDriver) -> tuple[list[str
     bus : BusDriver
         The bus (for the unit).
     """
+    from servoid.ident.models.structure_names import SERVO_LOOP
+
     unit = bus.position_unit.unit
-    cols = ["joint", "samples", f"play c1+c2 ({unit})", "play (deg)", "m2", "c1", "c2", "fit NRMSE", "model"]
+    cols = ["joint", "samples", "play sits", f"play c1+c2 ({unit})", "play (deg)", f"95 % ({unit})",
+            "fit / floor", "identifiable", "model"]  # fmt: skip
     rows = []
     for j in joints:
         if "error" in j:
-            rows.append([str(j["id"]), "-", "-", "-", "-", "-", "-", "-", j["error"][:60]])
+            rows.append([str(j["id"]), "-", "-", "-", "-", "-", "-", "no: " + j["error"][:60], "-"])
             continue
         found = j["_found"]
-        model = found.model
-        degrees = math.degrees(model.dead_zone) if unit == "rad" else math.nan
-        rows.append([
-            str(j["id"]), str(found.samples), f"{model.dead_zone:.4g}", f"{degrees:.3g}", f"{model.m2:.4g}",
-            f"{model.c1:.4g}", f"{model.c2:.4g}", f"{found.fit_nrmse:.3g}", j["outputs"]["model"],
-        ])  # fmt: skip
+        degrees = f"{math.degrees(found.play):.3g}" if unit == "rad" else "-"
+        low, high = found.play_interval
+        interval = f"[{low:.4g}, {high:.4g}]" if math.isfinite(low) and math.isfinite(high) else "none"
+        fit = found.loop.fit_nrmse if found.form == SERVO_LOOP and found.loop is not None else found.fit_nrmse
+        ratio = fit / found.floor_nrmse if found.floor_nrmse > 0 else math.nan
+        verdict = "yes" if found.identifiable else "no: " + found.reason[:60]
+        rows.append([str(j["id"]), str(found.samples), found.structure, f"{found.play:.4g}", degrees, interval,
+                     f"{ratio:.2f}", verdict, j["outputs"]["model"]])  # fmt: skip
     return cols, rows

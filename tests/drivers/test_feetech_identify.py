@@ -23,11 +23,13 @@ def test_two_joints_of_one_bus_give_two_models_near_the_plant(tmp_path, capsys):
     # record holds the command, hence the loose tolerance)
     with EmulatorProcess([3, 5], servo="model") as emu:
         code = main(["identify", "--driver", emu.url([3, 5], latency_ms=100), "--samples", "1000", "--rate", "200",
-                     "--use-late", "--guard", "0", "--joints", "together", "--no-plots", "--json",
+                     "--use-late", "--guard", "0", "--allow-lost", "--joints", "together", "--no-plots", "--json",
                      "--out", str(tmp_path)])  # fmt: skip
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["joints_excitation"] == "together"
     assert [j["id"] for j in out["joints"]] == [3, 5]
+    for joint in out["joints"]:  # each joint answers with its verdict and its own lost-sample count (1000 slots)
+        assert isinstance(joint["identifiable"], bool) and joint["structure"] and joint["lost"]["samples"] == 1000
     rec = read_recording(tmp_path / "recording.csv", u_column="u_5", y_column="y_5")
     assert rec.metadata["joints"] == "3,5" and len(rec) == 1000
     for servo_id in (3, 5):
@@ -38,3 +40,15 @@ def test_two_joints_of_one_bus_give_two_models_near_the_plant(tmp_path, capsys):
         if content.identifiable is not False:
             assert content.model.dead_zone == pytest.approx(MODEL_PLANT.dead_zone, rel=0.25), servo_id
     assert np.isfinite(rec.y).sum() > 500
+
+
+def test_the_bus_default_is_gentle_sines_at_8_rad_s2_and_needs_rad():
+    from servoid.cli._live_bus import gentle_default
+    from servoid.errors import ConfigError
+    from servoid.excitation import parse_spec
+
+    spec = parse_spec(gentle_default(None, 200.0, "rad"))
+    assert spec.amplitude == 0.1 and spec.accel == pytest.approx(8.0 / 200.0**2)
+    assert parse_spec(gentle_default(0.05, 100.0, "rad")).amplitude == 0.05
+    with pytest.raises(ConfigError, match="'deg'.*--excitation"):
+        gentle_default(None, 200.0, "deg")
