@@ -16,10 +16,12 @@ the exchange time over it.
 Table 2 (identification): ``n`` emulated STS3215 twins (Feetech) and XM430
 twins (Dynamixel) on one bus at ``--rate``, the joints excited
 ``sequential`` (one after the other, ``--samples`` each, the others holding)
-and ``together`` (independent signals, ``--samples`` slots): each joint
-identified from its own usable samples (:func:`servoid.ident.identify`, the
-refined fit); its play ``c1 + c2`` against the twin's true play (its
-``play_rad``). The twins are mechanically independent, so ``together`` sees
+and ``together`` (independent signals, ``--samples`` slots), by the gentle
+sines ``servoid identify`` sends a bus by default: each joint identified from
+its own usable samples as ``servoid identify`` does (:func:`servoid.ident.identify`
+with the record's time: both places of the play); the answer's play against
+the twin's true play (its ``play_rad``), where it sits, the black box's fit
+over the record's floor and the verdict. The twins are mechanically independent, so ``together`` sees
 no coupling here: the table measures what the bus timing does, not what an
 arm's mechanics would (docs/feetech.md).
 
@@ -44,12 +46,14 @@ from typing import Any
 import numpy as np
 from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
+from servoid.cli._live_bus import gentle_default
 from servoid.drivers import driver_from_url
 from servoid.drivers.dynamixel.emulator import EmulatorProcess as DxlProcess
 from servoid.drivers.feetech.emulator import EmulatorProcess as FeetechProcess
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.twin import preset
 from servoid.errors import ServoidError
+from servoid.excitation import parse_spec, sample
 from servoid.ident import MRGIAConfig, identify
 from servoid.session import SessionConfig, run_session
 from servoid.session.joints import bus_excitation, joint_result
@@ -115,16 +119,21 @@ def rate_table(seconds: float, rates: list[float]) -> None:
            "x floor", "note"], rows)  # fmt: skip
 
 
+def _gentle(joints: int, samples: int, mode: str, rate: float, seed: int) -> tuple[np.ndarray, list[slice]]:
+    """What ``servoid identify`` sends a bus by default: gentle sines (:func:`servoid.cli._live_bus.gentle_default`)."""
+    spec = parse_spec(gentle_default(None, rate, "rad"))
+    return bus_excitation(lambda index, n: sample(spec, n, seed=seed + index), joints, samples, mode=mode)
+
+
 def identification_table(samples: int, rate: float, joints: int, *, clocked: bool = True) -> None:
     rows = []
     config = MRGIAConfig(na=2, nb=0, delay=1)
     for vendor, (process, options, servo) in VENDORS.items():
         truth = preset(servo).play_rad
-        amplitude = 0.2
         for mode in ("sequential", "together"):
             ids = list(range(1, joints + 1))
             with process(ids, servo=servo, period_s=1.0 / rate if clocked else None, **options) as emu:
-                u, blocks = _excitation(joints, samples, mode, amplitude, 7)
+                u, blocks = _gentle(joints, samples, mode, rate, 7)
                 started = time.perf_counter()
                 result, fault = _session(_url(emu, ids), u, rate, clocked=clocked)
                 took = time.perf_counter() - started
@@ -138,20 +147,21 @@ def identification_table(samples: int, rate: float, joints: int, *, clocked: boo
                 late = 100 * float(np.mean(result.status[block] != "ok"))
                 row = [vendor, mode, f"{took:.0f}", str(servo_id), f"{late:.0f}",
                        f"{int(valid.sum())}/{block.stop - block.start}"]  # fmt: skip
-                try:
-                    found = identify(one.u[block], one.y[block], config, valid=valid)
+                try:  # as servoid identify does: with the record's time, so both places of the play are fitted
+                    found = identify(one.u[block], one.y[block], config, valid=valid, sample_period_s=1.0 / rate)
                 except ServoidError as exc:
-                    rows.append([*row, "-", f"{truth:.4g}", "-", str(exc)[:50]])
+                    rows.append([*row, "-", f"{truth:.4g}", "-", "-", "-", str(exc)[:50]])
                     continue
-                play = found.model.dead_zone
+                play = found.play
+                verdict = "yes" if found.identifiable else "no: " + found.reason[:40]
                 rows.append([*row, f"{play:.4g}", f"{truth:.4g}", f"{100 * (play - truth) / truth:+.0f}",
-                             f"{found.fit_nrmse:.3g}"])  # fmt: skip
+                             found.structure, f"{found.fit_nrmse / found.floor_nrmse:.2f}", verdict])  # fmt: skip
     title = (f"Table 2: the play identified per joint, {joints} twins on one bus at {rate:g} Hz (true play: the twin's)"
              if clocked else f"Table 3: as table 2, each goal one sample of the twins (their timing the host's "
              f"no more), late samples used, no guard; {rate:g} Hz asked")  # fmt: skip
     table(title,
           ["bus", "excitation", "session s", "joint", "not on time %", "usable", "play rad", "true rad", "error %",
-           "fit NRMSE"],
+           "play sits", "black box fit / floor", "identifiable"],
           rows)  # fmt: skip
 
 
