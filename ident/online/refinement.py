@@ -27,13 +27,16 @@ answer honest, warm:
    model of that place (:attr:`WindowResult.rival`; else the online model with
    the play moved), and scored on the validation blocks; the margin between
    them is the structure rule's number;
-3. the play's 95 % interval is the answer's HAC interval widened to the plays of
-   the models the record cannot tell from it: the other place when it
-   validates within :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`
-   (the rule of ``fit_loop``'s interval), and the refits of step 1 whose fit
-   is within that margin of the best.
+3. when the other place validates better, it is refined as step 1 refines
+   the online model (on the whole record, from its play and 0.8x and 1.2x
+   of it) and answers; the play's 95 % interval is the answer's HAC interval
+   widened to the plays of the models the record cannot tell from it: the
+   other place when it validates within
+   :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN` (the rule of
+   ``fit_loop``'s interval), and the answer's place's refits whose fit is
+   within that margin of the answer's.
 
-Cost: five warm refits (about 3 s on 40 s at 140 Hz) instead of ``fit_loop``'s
+Cost: five warm refits (about 3 s on 40 s at 140 Hz; eight when the place switches) instead of ``fit_loop``'s
 scans, four candidates and final fit.
 """
 
@@ -119,12 +122,8 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
     if int(kept.sum()) < MIN_SAMPLES:
         raise ConfigError(f"{int(kept.sum())} usable samples; the servo-loop refinement needs at least {MIN_SAMPLES}")
     # 1. the online model on the whole record, and from a smaller and a larger play: the best fit is the refinement
-    refits = [
-        refit_loop(u_arr, y_arr, _scaled(start, f), score=kept, max_nfev=FINAL_NFEV)
-        for f in (1.0, 1 - REACH, 1 + REACH)
-    ]
-    best_fit = min(refits, key=lambda r: r.fit_nrmse)
-    whole = best_fit if best_fit.fit_nrmse < (1.0 - TIE) * refits[0].fit_nrmse else refits[0]
+    whole, refits = _refine(u_arr, y_arr, start, kept)
+    spent = list(refits)
     # 2. both places on the estimation blocks, scored on the validation blocks
     blocks = block_mask(u_arr.size)
     est, val = blocks & kept, ~blocks & kept
@@ -152,15 +151,17 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
     worse = candidates[1].validation_nrmse
     margin = worse / best.validation_nrmse - 1.0 if best.validation_nrmse > 0.0 else math.inf
     # 3. the answer: the refinement when validation keeps the online place of the play, else the other refitted
-    final = whole if best.structure == start.structure else refit_loop(u_arr, y_arr, best.model, score=kept)
+    if best.structure != start.structure:  # the other place, refined as step 1 refines the online model
+        final, refits = _refine(u_arr, y_arr, best.model, kept)
+        spent += refits
+    else:
+        final = whole
     model: ServoLoopModel = final.model
     simulated = model.simulate(uc, y0=float(yc[0]))
     inside = (
         model if model.structure == PLAY_IN_LOOP else next(c.model for c in candidates if c.structure == PLAY_IN_LOOP)
     )
-    evaluations = (
-        whole.evaluations + sum(c.evaluations for c in candidates) + (0 if final is whole else final.evaluations)
-    )
+    evaluations = sum(r.evaluations for r in spent) + sum(c.evaluations for c in candidates)
     choice = LoopChoice(
         structure=model.structure,
         play=model.play,
@@ -179,6 +180,15 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
         evaluations=evaluations,
     )
     return choice, whole
+
+
+def _refine(u: np.ndarray, y: np.ndarray, model: ServoLoopModel, kept: np.ndarray) -> tuple[LoopRefit, list[LoopRefit]]:
+    """Step 1 for one place of the play: ``model`` refitted on the whole record, and from its play moved by
+    :data:`REACH` both ways; the refinement (the first unless another fits better by more than :data:`TIE`) and all three.
+    """
+    refits = [refit_loop(u, y, _scaled(model, f), score=kept, max_nfev=FINAL_NFEV) for f in (1.0, 1 - REACH, 1 + REACH)]
+    best = min(refits, key=lambda r: r.fit_nrmse)
+    return (best if best.fit_nrmse < (1.0 - TIE) * refits[0].fit_nrmse else refits[0]), refits
 
 
 def _scaled(model: ServoLoopModel, factor: float) -> ServoLoopModel:

@@ -419,19 +419,33 @@ def loop_online(online: WindowResult, result: SessionResult) -> tuple[dict[str, 
 
 def _on_record(loop: LoopChoice | None, result: SessionResult, record: Record, factor: int) -> LoopChoice | None:
     """The refinement's free run moved onto the record identification sees (decimated, from its first usable
-    sample, about its operating point ``mean(u)``), as ``identify(loop=)`` takes it."""
+    sample, about its operating point ``mean(u)``), as ``identify(loop=)`` takes it.
+
+    With ``factor > 1`` the refinement ran on every sample, identification on every ``factor``-th:
+    its verdict's floor is the slow record's, which the fast fit is not to be judged against
+    (the STS3215 twin: fit 0.10, the slow floor 0.13, the fast one 0.019); the fast record's
+    floor rule joins the loop's reasons.
+    """
     if loop is None:
         return None
     import numpy as np
 
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, floor_nrmse
+
     first = int(np.argmax(result.valid))
+    reasons = loop.reasons
+    floor = floor_nrmse(result.y[first:], result.valid[first:]) if factor > 1 else float("nan")
+    if np.isfinite(floor) and floor > 0.0 and loop.fit_nrmse > MAX_FIT_TO_FLOOR * floor:
+        reasons = (*reasons, f"on every sample of the session (the servo-loop model's record), its fit (NRMSE "
+                             f"{loop.fit_nrmse:.3g}) is {loop.fit_nrmse / floor:.3g} times the floor {floor:.3g} "
+                             f"(at most {MAX_FIT_TO_FLOOR:g}): the model misses something and the play may be absorbing it")  # fmt: skip
     full = np.full(len(result), np.nan)
     full[first:] = loop.simulated
     n = record.u.size
     # the record's sample j is the fast sample (offset + j) * factor, its first usable one at the end
     offset = result.u.size // factor - n if factor > 1 else len(result) - n
     at = (offset + np.arange(n)) * factor
-    return dataclasses.replace(loop, simulated=full[at] - float(np.mean(record.u)))
+    return dataclasses.replace(loop, simulated=full[at] - float(np.mean(record.u)), reasons=reasons)
 
 
 def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Path) -> dict[str, Any]:
