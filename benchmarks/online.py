@@ -27,6 +27,9 @@ are, one row per run:
 * ``refit s/stall ms/dropped``: the window refit's median wall time (on its
   worker thread), the longest time one sample's hand-over took on the
   sampling thread, and the windows left out because a refit still ran;
+* ``answer``: the play identify reported (``answer`` in its JSON): ``online+ref`` the online
+  window estimate refined on the whole record from it, ``offline`` identification's own fit
+  (the black box); its error against the truth and whether it was called identifiable;
 * ``verdict``: the online verdict (``servoid.ident.online.verdict``) and its first reason;
 * ``wall s``: the whole command, probe included.
 
@@ -105,7 +108,7 @@ def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 10, f"{wall:.0f}", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 11, f"{wall:.0f}", outcome(error)]
     verdict = result["online"]
     online_gap = verdict["online_gap"] / scale
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
@@ -119,10 +122,14 @@ def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     else:
         to5, what = seconds_to_within(out, result), "mrgia"
     probe = result["probe"]
+    answer = result["answer"]
+    said = {"online_refined": "online+ref", "offline_fit": "offline"}.get(answer["source"], answer["source"])
+    answer_play = answer["play"] / scale
     return [
         name, transport, f"{play:.5f}", f"{probe['samples'] / probe['rate_hz']:.1f}",
         str(result["decimation"]["factor"]), f"{result['lost']['share_unusable']:.2f}", what, f"{online_gap:.5f}",
         f"{refined_gap:.5f}", f"{(online_gap - play) / play:+.0%}", f"{to5:.1f}", f"{fit_ratio:.2f}",
+        f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {'ident.' if result['identifiable'] else 'not'})",
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}",
         f"{wall:.0f}", why,
     ]  # fmt: skip
@@ -148,7 +155,7 @@ def main() -> None:
     table(
         f"servoid identify --driver URL --samples {args.samples} (probe, design, decimated MRGIA, verdict)",
         ["preset", "transport", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
-         "to 5 % s", "fit on/ref", "refit s/stall ms/dropped", "wall s", "verdict"],
+         "to 5 % s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped", "wall s", "verdict"],
         rows,
     )  # fmt: skip
 

@@ -326,6 +326,7 @@ def identify(
     select: Collection[str] = (),
     sample_period_s: float | None = None,
     servo_loop: bool = True,
+    loop: LoopResult | None = None,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -365,6 +366,11 @@ def identify(
     servo_loop : bool
         Whether the servo-loop model may be fitted as the second structure (the skip rule still
         applies); False for a caller that only wants the black box (``diagnose``'s starts).
+    loop : LoopResult, optional
+        The servo-loop model's result over this record, already computed (a live session
+        refined its online estimate: :func:`servoid.ident.online.refinement.refine_online`); it is
+        used as it is instead of a fit from scratch, and the black box is still compared with it.
+        Its ``simulated`` output must be on this record's samples.
 
     Returns
     -------
@@ -543,12 +549,12 @@ def identify(
     )  # fmt: skip
     structure, form = OUTPUT_BACKLASH, PSEUDO_WIENER
     at_floor = bool(np.isfinite(floor) and fit <= MAX_FIT_TO_FLOOR * floor)
-    loop: LoopResult | None = None
+    given_loop, loop = loop, None
     timed = sample_period_s is not None
     if servo_loop and refinement is not None and (timed or needed(at_floor, white)):
         black_box = _BlackBox(refinement.model, fit)
         try:
-            loop = second_structure(u_c, y_c, period, black_box, keep=keep)
+            loop = second_structure(u_c, y_c, period, black_box, keep=keep) if given_loop is None else given_loop
         except ModelError as exc:  # a record that barely moves: the black box answers, and the verdict judges it
             warnings.append(f"the servo-loop model was not fitted: {exc}")
             loop = None

@@ -76,6 +76,11 @@ class Record:
     live : dict
         What a live run adds to ``model.json`` and ``--json``: the probe, the
         design, the decimation and the online verdict (``servoid.cli._live``).
+    loop : LoopChoice or None
+        The servo-loop model refined on this record from a live run's settled
+        online estimate (:func:`servoid.ident.online.refinement.refine_online`):
+        identification takes it as its servo-loop answer (``identify(loop=)``)
+        rather than fitting one from scratch. None: not live, or no online model.
     """
 
     u: np.ndarray
@@ -92,6 +97,7 @@ class Record:
     acquisition: dict[str, Any] | None = None
     online: MRGIAResult | None = None
     live: dict[str, Any] = field(default_factory=dict)
+    loop: Any = None
 
     @property
     def y_used(self) -> np.ndarray:

@@ -49,6 +49,10 @@ class MonitorConfig:
         End the run at the first alarm raised.
     plot_every_s : float
         Wall-clock seconds between refreshes of the live plot.
+    factor : int
+        The wear estimator sees every ``factor``-th sample, anti-aliased
+        (:class:`~servoid.ident.online.decimate.DecimatingEstimator`): the session samples
+        ``factor`` times faster than the rate the model was identified at.
     """
 
     estimator: WearEstimatorConfig
@@ -59,8 +63,10 @@ class MonitorConfig:
     compensation_step: float = 0.02
     stop_on_alarm: bool = False
     plot_every_s: float = 5.0
+    factor: int = 1
 
     def __post_init__(self) -> None:
+        validation.integer("factor", self.factor, minimum=1)
         check = validation.integer("check_every", self.check_every, minimum=1)
         row = validation.integer("row_every", self.row_every, minimum=1)
         if row % check:

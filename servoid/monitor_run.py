@@ -2,7 +2,9 @@
 
 :func:`run_monitor` runs an input through a driver with the sampling session
 (:func:`servoid.session.run_session`, keeping no samples), feeds each
-measured sample to a :class:`~servoid.ident.monitoring.wear_estimator.WearEstimator` and, every
+measured sample to a :class:`~servoid.ident.monitoring.wear_estimator.WearEstimator` (every
+``config.factor``-th, anti-aliased, when the session samples faster than the
+model's rate) and, every
 ``check_every`` samples, applies the alarm rule
 (:class:`~servoid.ident.monitoring.alarms.Alarms`) to the dead zone ``c1 + c2``, the
 down-line slope ``m2`` and the fit. It writes, in ``out``:
@@ -54,6 +56,7 @@ from servoid.ident.control.compensate import default_band
 from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.monitoring.alarms import AlarmEvent, Alarms
 from servoid.ident.monitoring.wear_estimator import WearEstimate, WearEstimator
+from servoid.ident.online.decimate import DecimatingEstimator
 from servoid.ident.serialise import dumps
 from servoid.modelfile import ModelFile
 from servoid.monitor_config import EXIT_ALARM, MonitorConfig
@@ -297,18 +300,55 @@ def run_monitor(
     loop = _Loop(driver, session, config, model_file, Path(out), truth_at, on_event, plot, total)
     loop.estimator.warm_up()
     loop.start(metadata or {})
+    return loop.result(drive(driver, loop, inputs, session, loop.progress(on_progress)))
+
+
+def drive(
+    driver: Driver,
+    loop: Any,
+    inputs: Iterable[float],
+    session: SessionConfig,
+    on_progress: Callable[[SessionProgress], None] | None,
+) -> SessionResult:
+    """Run the session with a monitor's ``loop`` as its listener until the inputs end, it stops on an alarm, or Ctrl-C.
+
+    ``loop`` (this module's, or :mod:`servoid.monitor_loop`'s) has ``stop``,
+    ``stopped_on_alarm``, ``on_sample``, ``finish(reason)`` and ``close()``: its
+    files are finished whatever ends the run, and a driver's failure is raised
+    after them.
+
+    Parameters
+    ----------
+    driver : Driver
+        An open driver.
+    loop : object
+        The monitor's state (the listener).
+    inputs : iterable of float
+        The command per slot.
+    session : SessionConfig
+        Sample period and policies.
+    on_progress : callable, optional
+        The session's progress callback.
+    """
     try:
         result = run_session(
-            driver, loop.commands(inputs), session, listeners=[loop], keep_samples=False,
-            on_progress=loop.progress(on_progress),
-        )  # fmt: skip
+            driver, until_stopped(inputs, loop), session, listeners=[loop], keep_samples=False, on_progress=on_progress
+        )
         loop.finish("alarm" if loop.stopped_on_alarm else (result.stopped or "end of input"))
     except DriverError as exc:
         loop.finish(f"{type(exc).__name__}: {exc}")
         raise
     finally:
         loop.close()
-    return loop.result(result)
+    return result
+
+
+def until_stopped(inputs: Iterable[float], loop: Any) -> Iterator[float]:
+    """The inputs, until ``loop.stop`` is set (an alarm with ``stop_on_alarm``)."""
+    for value in inputs:
+        if loop.stop:
+            return
+        yield value
 
 
 class _Loop:
@@ -331,6 +371,8 @@ class _Loop:
         self.plot_path = None if plot is None else Path(plot)
         self.unit = driver.position_unit.unit
         self.estimator = WearEstimator(config.estimator)
+        # the estimator runs at the model's rate, on the anti-aliased decimated stream (issue 15)
+        self.feed: Any = self.estimator if config.factor == 1 else DecimatingEstimator(self.estimator, config.factor)
         self.alarms = Alarms(config.bounds, config.rule)
         self.history = MonitorHistory()
         self.names = self.estimator.estimate().names
@@ -365,6 +407,7 @@ class _Loop:
             "source": self.source,
             "unit": self.unit,
             "period_s": repr(self.session.period_s),
+            "decimate": str(cfg.factor),
             "reference": dumps(ref.to_dict()),
             "bounds": "; ".join(f"{b.label} {b.describe()}" for b in cfg.bounds) or "none",
             "rule": f"persist={cfg.rule.persist} checks of {cfg.check_every} samples, z={cfg.rule.z:g}, "
@@ -411,23 +454,16 @@ class _Loop:
             self.on_event(kind, line)
 
     # ---- the loop ---------------------------------------------------------------
-    def commands(self, inputs: Iterable[float]) -> Iterator[float]:
-        """The inputs, until an alarm stops the run."""
-        for value in inputs:
-            if self.stop:
-                return
-            yield value
-
     def on_sample(self, sample: Sample, usable: bool) -> None:
         """A session listener: the wear estimator takes the usable samples and skips the others."""
         if usable:
             self.on_time += 1
             try:
-                self.estimator.update(sample.u, sample.y)
+                self.feed.update(sample.u, sample.y)
             except EstimatorDiverged as exc:
                 self._restart(sample, exc)
         else:
-            self.estimator.skip(sample.u)
+            self.feed.skip(sample.u)
         self.n += 1
         self.last = sample
         if self.n % self.config.check_every == 0:
@@ -507,7 +543,8 @@ class _Loop:
         content = replace(
             self.model_file, model=model, stderr=stderr, method=METHOD, fit_nrmse=fit, source=self.source,
             samples=self.n, identified_at="", band=compensation_band(self.model_file, model),
-            sample_period_s=self.session.period_s, servo=self.driver.identity or self.model_file.servo,
+            sample_period_s=self.session.period_s * self.config.factor,
+            servo=self.driver.identity or self.model_file.servo,
         )  # fmt: skip
         # written aside and renamed, so a reader never sees half a file
         path = self.files["model"]

@@ -126,16 +126,28 @@ def test_emulate_serial_in_one_process_identify_driver_in_another(tmp_path):
         emulator.wait(timeout=10)
 
 
-def test_a_live_twin_with_lost_samples_gets_the_servo_loop_model(tmp_path, capsys):
-    # the live record's mask (lost readings, their guard windows) no longer skips the second structure
+def test_a_live_twin_with_lost_samples_gets_one_servo_loop_answer_refined_from_the_online_one(tmp_path, capsys):
+    # the live record's mask (lost readings, their guard windows) no longer skips the second structure; the
+    # servo-loop answer is the online window refit's, refined on the whole record from it: one answer, not two
     code, obj, err = run_json(capsys, "--driver", "sim://xm430?clock=virtual&drop=0.005&seed=3", "--rate", "200",
-                              "--samples", "1500", "--no-probe", "--no-plots", "--out", str(tmp_path))  # fmt: skip
+                              "--samples", "2400", "--no-probe", "--no-plots", "--out", str(tmp_path))  # fmt: skip
     assert code == 0, err
-    assert obj["lost"]["not_measured"] > 0 and obj["lost"]["usable"] < 1500
+    assert obj["lost"]["not_measured"] > 0 and obj["lost"]["usable"] < 2400
     loop = obj["second_structure"]
     assert loop is not None and set(loop["validation_nrmse"]) == {"output_backlash", "play_in_loop"}
-    if obj["form"] == "servo_loop":  # the answer is the loop model's, named as offline
-        assert obj["structure"] == loop["structure"] and obj["play"] == loop["play"]
+    answer, refined = obj["answer"], obj["online_loop"]["refined"]["choice"]
+    assert answer["play"] == obj["play"]
+    if obj["form"] == "servo_loop":  # the answer is the refinement of the online estimate
+        assert answer["source"] == "online_refined" and obj["online"]["estimator"] == "window"
+        assert obj["structure"] == loop["structure"] == refined["structure"]
+        assert obj["play"] == loop["play"] == refined["play"]
+        assert answer["gap"] == pytest.approx(obj["online"]["online_gap"] / obj["play"] - 1.0)
+        assert answer["online_settled"] == obj["online"]["settled"]
+        low, high = obj["play_interval"]
+        assert low <= obj["play"] <= high
+    else:
+        assert answer["source"] == "offline_fit"
     assert isinstance(obj["identifiable"], bool) and "not fitted" not in (obj["reason"] or "")
     saved = json.loads((tmp_path / "model.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     assert (saved["structure"]["name"], saved["structure"]["form"]) == (obj["structure"], obj["form"])
+    assert saved["answer"] == answer

@@ -11,7 +11,7 @@ from servoid.cli import main
 from servoid.cli.monitor import parse_bounds
 from servoid.errors import ConfigError
 from servoid.ident.models.wear import GEAR_PLANT
-from servoid.modelfile import ModelFile, save_model
+from servoid.modelfile import ModelFile, load_model, save_model
 from servoid.monitor_run import EXIT_ALARM, read_estimates
 
 GEAR = "sim://gear?snr=40&clock=virtual"
@@ -100,3 +100,48 @@ def test_bounds_parse_absolute_relative_or_none():
     with pytest.raises(ConfigError, match="--dead-zone"):
         parse_bounds("1", quantity="dead_zone", label="dz", reference=1.0)
     assert dataclasses.is_dataclass(b)
+
+
+def test_the_wear_estimator_runs_at_the_model_rate_on_the_decimated_stream(tmp_path, model, capsys):
+    # --rate twice the model's: the session samples at 2 kHz, the MRGIA sees every 2nd sample (anti-aliased)
+    out = tmp_path / "fast"
+    code = main(["monitor", "--driver", GEAR, "--model", str(model), "--rate", "2000", "--duration", "1",
+                 "--json", "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    _, meta = read_estimates(out / "estimates.csv")
+    assert meta["decimate"] == "2" and meta["period_s"] == "0.0005"
+    assert json.loads((out / "model.json").read_text())["units"]["sample_period_s"] == pytest.approx(0.001)
+    # without --rate: the live run's own rate, stated in the model file (its probe's design)
+    live = save_model(
+        tmp_path / "live.json", dataclasses.replace(load_model(model), extra={"decimation": {"factor": 4}})
+    )
+    code = main(["monitor", "--driver", GEAR, "--model", str(live), "--duration", "0.5", "--json",
+                 "--out", str(tmp_path / "live")])  # fmt: skip
+    assert code == 0
+    _, meta = read_estimates(tmp_path / "live" / "estimates.csv")
+    assert meta["decimate"] == "4" and float(meta["period_s"]) == pytest.approx(0.00025)
+    assert main(["monitor", "--driver", GEAR, "--model", str(model), "--rate", "1500", "--out", str(out)]) == 2
+    assert "not a whole multiple" in capsys.readouterr().err
+
+
+def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the_play_steps_up(tmp_path, capsys):
+    # the model file as a live identify of the XM430 twin writes it (the play inside the loop, 12 s of servo time)
+    sines = "gentle:amplitude=0.1,accel=0.000408,spread=8"
+    ident = tmp_path / "ident"
+    assert main(["identify", "--driver", "sim://xm430?clock=virtual", "--rate", "140", "--samples", "1680",
+                 "--no-probe", "--excitation", sines, "--no-plots", "--json", "--out", str(ident)]) == 0  # fmt: skip
+    saved = json.loads(capsys.readouterr().out)
+    assert saved["form"] == "servo_loop"
+    # the wearing twin: its play x1.6 from 25 s on (sample 3500 at 140 Hz)
+    out = tmp_path / "watch"
+    code = main(["monitor", "--driver", "sim://xm430?clock=virtual&swap_at=3500&swap_factor=1.6", "--model",
+                 str(ident / "model.json"), "--duration", "55", "--excitation", sines, "--json", "--out", str(out)])  # fmt: skip
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    summary = json.loads(captured.out)
+    assert summary["estimator"] == "window" and summary["structure"] == saved["structure"]
+    raised = [a for a in summary["alarms"] if a["raised"]]
+    assert len(raised) == 1 and raised[0]["since"] > 3500 and raised[0]["side"] == "above"
+    rows, meta = read_estimates(out / "estimates.csv")
+    assert "window" in meta["servoid monitor"] and rows["true_play"][-1] == pytest.approx(1.6 * rows["true_play"][0])
+    assert rows["dead_zone"][-1] > 1.2 * rows["dead_zone"][0]  # the window plays followed the step up

@@ -113,3 +113,22 @@ def test_the_loop_wear_tracker_raises_its_alarm_after_the_play_steps_up_and_not_
     assert tracker.std > 0.0 and len(raised) == 1
     # a window (5 s) must hold mostly worn samples, then persist (5 refits, 1 s apart)
     assert 20.0 < raised[0].sample / RATE <= 20.0 + 5.0 + 5.0
+
+
+def test_the_refinement_of_the_online_estimate_comes_back_to_the_play_from_either_side_and_names_the_place() -> None:
+    from servoid.ident.online.refinement import refine_online
+    from servoid.ident.online.window import WindowResult
+
+    u, y = _record(20.0, seed=5)
+    keep = np.random.default_rng(6).random(u.size) > 0.03
+    keep[0] = True
+    y[~keep] = np.nan
+    start = dataclasses.replace(TRUTH, kp=10.0, c1=0.011, c2=0.011)  # an online estimate 10 % off in play
+    online = WindowResult(start, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    choice, refined = refine_online(u, y, online, keep=keep)
+    assert choice.structure == PLAY_IN_LOOP and choice.margin > 0.05  # the other place validates worse
+    assert abs(refined.model.play / TRUTH.play - 1) < 0.03 and choice.play == refined.model.play
+    low, high = choice.play_interval
+    assert low <= choice.play <= high and high - low < 0.1 * choice.play  # the record pins the play: a narrow reach
+    with pytest.raises(ConfigError, match="no model"):
+        refine_online(u, y, dataclasses.replace(online, model=None), keep=keep)

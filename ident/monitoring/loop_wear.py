@@ -12,11 +12,13 @@ file's loop, so no fit from scratch) and applies the monitor's alarm rule
 The play's standard deviation, which the rule's margin needs, is the scatter
 of the window plays over the first ``baseline_s`` of monitoring (the estimate's
 own noise on the servo as it was when monitoring began); before that the rule
-is not applied. Measured in ``benchmarks/monitor_loop.py``.
+is not applied. With ``rebase`` the bounds on the play are then moved to the
+median of those plays (``servoid monitor``'s ``--dead-zone P%``). Measured in ``benchmarks/monitor_loop.py``.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 
@@ -56,6 +58,12 @@ class LoopWearTracker:
         Servo seconds whose window plays give the scatter.
     background, wait : bool
         As :class:`~servoid.ident.online.window.WindowRefit`.
+    rebase : bool
+        Scale the bounds on the play, once the baseline is known, by the median baseline play
+        over the start's play: a bound given as a share of the model file's play then holds
+        around the play the windows see on this servo (its structure's bias is the same in
+        every window, and an alarm on wear must not see it; ``benchmarks/monitor_loop.py``'s
+        rule). The scaled bounds are :attr:`bounds`.
     """
 
     def __init__(
@@ -68,15 +76,21 @@ class LoopWearTracker:
         baseline_s: float = BASELINE_S,
         background: bool = True,
         wait: bool = False,
+        rebase: bool = False,
     ) -> None:
         if config is None:
             config = WindowConfig(start.sample_period_s, window_s=MONITOR_WINDOW_S, every_s=MONITOR_EVERY_S,
                                   first_s=MONITOR_WINDOW_S)  # fmt: skip
         self.window = WindowRefit(config, start=start, background=background, wait=wait)
         self.alarms = Alarms(bounds, rule)
+        self.bounds = tuple(bounds)
+        self._rule = rule
+        self._rebase = bool(rebase)
+        self._start_play = start.play
         self.baseline_s = validation.positive("baseline_s", baseline_s)
         self.events: list[AlarmEvent] = []
         self._seen = 0
+        self._baseline: list[float] = []
         self._std = math.nan
 
     def update(self, u: float, y: float) -> None:
@@ -90,19 +104,26 @@ class LoopWearTracker:
         self._check()
 
     def _check(self) -> None:
-        rows = self.window.rows()
-        if len(rows) == self._seen:
+        new = self.window.rows_since(self._seen)  # per sample: only the refits not seen yet are copied
+        if not new:
             return
         if math.isnan(self._std):
-            base = [r.play for r in rows if r.t_s <= self.baseline_s]
-            if rows[-1].t_s <= self.baseline_s or len(base) < 3:
-                self._seen = len(rows)
+            self._baseline += [r.play for r in new if r.t_s <= self.baseline_s]
+            if new[-1].t_s <= self.baseline_s or len(self._baseline) < 3:
+                self._seen += len(new)
                 return
-            self._std = float(np.std(base, ddof=1))
+            self._std = float(np.std(self._baseline, ddof=1))
+            if self._rebase and self._start_play > 0.0:
+                scale = float(np.median(self._baseline)) / self._start_play
+                self.bounds = tuple(
+                    dataclasses.replace(b, low=b.low * scale, high=b.high * scale) if b.quantity == PLAY else b
+                    for b in self.bounds
+                )
+                self.alarms = Alarms(self.bounds, self._rule)
         period = self.window.config.sample_period_s
-        for row in rows[self._seen :]:
+        for row in new:
             self.events += self.alarms.check(int(round(row.t_s / period)), {PLAY: (row.play, self._std)})
-        self._seen = len(rows)
+        self._seen += len(new)
 
     @property
     def std(self) -> float:

@@ -704,12 +704,16 @@ class LoopRefit:
         Simulations used (Jacobians included).
     seconds : float
         Wall-clock time of the refit.
+    play_interval : tuple of float
+        The play's 95 % HAC interval from the refit's Jacobian (noise only, as :func:`fit_loop`'s
+        before its rivals widen it); ``(nan, nan)`` when the Jacobian does not determine it.
     """
 
     model: ServoLoopModel
     fit_nrmse: float
     evaluations: int
     seconds: float
+    play_interval: tuple[float, float] = (math.nan, math.nan)
 
 
 def refit_loop(
@@ -774,11 +778,16 @@ def refit_loop(
     d["asym"] = float(np.clip(start.c1 / play - 0.5, -0.5, 0.5)) if start.play > 0.0 else 0.0
     integrator = start.ki > 0.0
     free = tuple(n for n in _free(start.structure, integrator) if n not in hold)
-    d, prob, _ = _fit(
+    d, prob, sol = _fit(
         uc, yc, period, start.structure, d, keep, 0.1 * start.kv * v_typ, integrator=integrator, max_nfev=max_nfev,
         free=free,
     )  # fmt: skip
     d["s0"] = start.s0
     model = _model(start.structure, period, d)
     y_hat = model.simulate(uc, y0=float(yc[0]))
-    return LoopRefit(model, nrmse(yc[keep], y_hat[keep]), prob.evaluations, time.perf_counter() - t0)
+    interval = (
+        (math.nan, math.nan)
+        if sol is None or "play" not in free
+        else _play_interval(*_spaced(sol.jac, sol.fun, keep), free, d["play"])
+    )
+    return LoopRefit(model, nrmse(yc[keep], y_hat[keep]), prob.evaluations, time.perf_counter() - t0, interval)

@@ -188,6 +188,9 @@ class WindowResult:
         for the last refit with ``wait=True`` is not counted).
     errors : tuple of str
         Refits that failed, with why.
+    rival : ServoLoopModel or None
+        The first fit's best model with the play in the other place (None when the run started
+        from a given model): where the refinement of the whole record starts that place from.
     """
 
     model: ServoLoopModel | None
@@ -196,6 +199,7 @@ class WindowResult:
     dropped: int
     stall_s: float
     errors: tuple[str, ...] = field(default=())
+    rival: ServoLoopModel | None = None
 
     @property
     def plays(self) -> np.ndarray:
@@ -211,8 +215,12 @@ class WindowResult:
 
 def _refit(
     u: np.ndarray, y: np.ndarray, keep: np.ndarray, start: ServoLoopModel | None, config: WindowConfig, t_s: float
-) -> tuple[ServoLoopModel, WindowRow]:
-    """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``."""
+) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
+    """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
+
+    Returns the model, its row, and from the first fit the best model of the other place of the
+    play (the rival the refinement of the whole record starts that place from; None after).
+    """
     from servoid.ident.offline.intervals import floor_nrmse
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
@@ -225,13 +233,15 @@ def _refit(
         # warm refits leave them out), from the first measured one
         idx = np.flatnonzero(keep)
         filled = np.interp(np.arange(u.size), idx, y[idx])
-        model = fit_loop(u, filled, config.sample_period_s).model
+        choice = fit_loop(u, filled, config.sample_period_s)
+        model = choice.model
+        rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
-        model = start
+        model, rival = start, None
     fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
     row = WindowRow(t_s, fit.model.play, fit.fit_nrmse, floor_nrmse(y[score]), time.perf_counter() - t0,
                     fit.model.structure)  # fmt: skip
-    return fit.model, row
+    return fit.model, row, rival
 
 
 def _yield_cpu() -> None:
@@ -288,7 +298,8 @@ class WindowRefit:
         self._switch = sys.getswitchinterval()
         if background:
             sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL_S))
-        self._future: Future[tuple[ServoLoopModel, WindowRow]] | None = None
+        self._future: Future[tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]] | None = None
+        self._rival: ServoLoopModel | None = None
         self._wait = bool(wait)
         self._waited = 0.0  # of the current sample, on a virtual clock: not a stall of a real sampler
 
@@ -338,10 +349,13 @@ class WindowRefit:
 
     def _store(self, job: tuple[Any, ...]) -> None:
         try:
-            self.model, row = _refit(*job)
+            self._keep_fit(*_refit(*job))
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
             self._errors.append(f"window ending at {job[-1]:.1f} s: {exc}")
-            return
+
+    def _keep_fit(self, model: ServoLoopModel, row: WindowRow, rival: ServoLoopModel | None) -> None:
+        self.model = model
+        self._rival = rival if rival is not None else self._rival
         self._history.append(row)
 
     def _collect(self, *, wait: bool) -> None:
@@ -350,16 +364,32 @@ class WindowRefit:
             return
         self._future = None
         try:
-            self.model, row = fut.result()
+            fitted = fut.result()
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
             self._errors.append(str(exc))
             return
-        self._history.append(row)
+        self._keep_fit(*fitted)
 
     def rows(self) -> tuple[WindowRow, ...]:
         """The refits finished so far (a finished background refit is collected, a running one not waited for)."""
         self._collect(wait=False)
         return tuple(self._history)
+
+    def rows_since(self, start: int) -> tuple[WindowRow, ...]:
+        """The refits finished after the first ``start`` (as :meth:`rows`; a caller per sample copies only new ones).
+
+        Parameters
+        ----------
+        start : int
+            How many refits the caller has seen.
+        """
+        self._collect(wait=False)
+        return tuple(self._history[start:])
+
+    @property
+    def dropped(self) -> int:
+        """Windows left out so far because the previous refit was still running."""
+        return self._dropped
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the servo-loop simulation now, not inside the sampling loop."""
@@ -401,4 +431,4 @@ class WindowRefit:
             self._pool = None
             sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history), self.config, self._dropped,
-                            self._stall, tuple(self._errors))  # fmt: skip
+                            self._stall, tuple(self._errors), self._rival)  # fmt: skip

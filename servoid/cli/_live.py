@@ -31,6 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.drivers.base import Limits
     from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.offline.loop_fit import LoopChoice
     from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
     from servoid.ident.online.window import WindowResult
     from servoid.identify_outputs import Record
@@ -218,7 +219,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if result.estimator_error:
         _term.warn(f"online estimation stopped early: {result.estimator_error}")
     live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
-    live["online_loop"] = loop_online(window_result, result)
+    live["online_loop"], loop = loop_online(window_result, result)
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
         live["decimation"] = est.stats.to_dict()
@@ -227,7 +228,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                        "samples: the online estimator saw their mean (hold the excitation for whole groups)")  # fmt: skip
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
-    return dataclasses.replace(record, live=live), estimator_config
+    return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
 
 
 def history_every(samples: int) -> int:
@@ -275,7 +276,7 @@ def _record(
 
 
 def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Record:
-    """A live record with the online estimate's verdict, printed: the MRGIA's or the servo loop's, by structure.
+    """A live record with the online estimate's verdict and which number is the answer, printed.
 
     The online estimate is the product of a live run: it is judged on its
     trajectory and against the refined fit of the same record, and both
@@ -288,8 +289,13 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
     the black box is off its floor or its residual is coloured and the loop
     refined from the online estimate fits the record within
     ``1 + MIN_STRUCTURE_MARGIN`` of the black box; else the MRGIA's (the
-    paper's plant). Both are kept in the JSON. Records that are not live pass
-    unchanged.
+    paper's plant). Both are kept in the JSON.
+
+    ``live["answer"]`` says where the reported play came from (:func:`answer`):
+    the online servo-loop estimate refined on the whole record from it (a
+    settled online estimate: one answer), identification's own fit (an online
+    estimate that did not settle, or the black box), and how far the online
+    play lies from it. Records that are not live pass unchanged.
     """
     if not record.live:
         return record
@@ -317,6 +323,7 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
         model = loop["estimate"]["model"]
         loop_dict = {**loop_verdict, "estimator": "window", "structure": model["structure"] if model else None}
         chosen = loop_dict if use_loop else mrgia
+    said = answer(record, result, chosen)
     if not quiet:
         unit = record.output_unit
         mark = {True: "", False: " (not the reported one)"}
@@ -324,22 +331,58 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
             "pseudo-Wiener, decimated MRGIA" + mark[not use_loop] + ": " + verdict.line(unit)
         )
         if loop_verdict is not None:
-            line = (f"servo loop ({loop_dict['structure']}), window refit{mark[use_loop]}: play "
-                    f"{_num(loop_verdict.get('online_gap')):.4g} {unit} (fit {_num(loop_verdict.get('online_nrmse')):.3g}); refined from it: "
-                    f"{_num(loop_verdict.get('refined_gap')):.4g} {unit} (fit {_num(loop_verdict.get('refined_nrmse')):.3g}); ")  # fmt: skip
+            line = (f"servo loop ({loop_dict['structure']}), online window refit{mark[use_loop]}: play "
+                    f"{_num(loop_verdict.get('online_gap')):.4g} {unit} (fit {_num(loop_verdict.get('online_nrmse')):.3g}); "
+                    f"refined on the whole record from it: {_num(loop_verdict.get('refined_gap')):.4g} {unit} "
+                    f"(fit {_num(loop_verdict.get('refined_nrmse')):.3g}); ")  # fmt: skip
             line += "settled" if loop_verdict["settled"] else "NOT settled: " + "; ".join(loop_verdict["reasons"])
             (_term.stderr.print if loop_verdict["settled"] else _term.warn)(line)
-    return dataclasses.replace(record, live={**record.live, "online": chosen, "online_mrgia": mrgia})
+    return dataclasses.replace(record, live={**record.live, "online": chosen, "online_mrgia": mrgia, "answer": said})
 
 
-def loop_online(online: WindowResult, result: SessionResult) -> dict[str, Any]:
+def answer(record: Record, result: Identification, online: dict[str, Any]) -> dict[str, Any]:
+    """Which number a live identify reports as its answer, and how the online estimate compared (JSON-ready).
+
+    ``source`` is ``online_refined`` when the servo-loop answer is the refinement of the
+    online estimate (identification took it, ``identify(loop=)``; ``online_settled`` says
+    whether the online estimate had converged), ``offline_fit`` when identification's own fit
+    answers (the black box, or no online servo-loop model), and ``gap`` is the online play relative to the answer's (the
+    convergence check). ``line`` is the sentence ``servoid identify`` prints under its headline.
+    """
+    import math
+
+    unit = record.output_unit
+    online_play = _num(online.get("online_gap"))
+    play = float(result.play)
+    gap = online_play / play - 1.0 if math.isfinite(online_play) and play > 0.0 else math.nan
+    took_online = record.loop is not None and result.loop is record.loop
+    source = "online_refined" if took_online else "offline_fit"
+    est = "the servo loop's window refit" if online.get("estimator") == "window" else "the decimated MRGIA"
+    why = "settled" if online.get("settled") else "NOT settled"
+    if took_online:
+        line = (f"the answer: the online estimate ({est}, {why}) refined on the whole record from it: play "
+                f"{play:.4g} {unit}; online {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
+    else:
+        line = (f"the answer: identification's own fit ({result.form}): play {play:.4g} {unit}; the online estimate "
+                f"({est}, {why}) {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
+    return {"source": source, "play": play, "structure": result.structure, "form": result.form,
+            "online_estimator": online.get("estimator"), "online_play": online_play, "online_settled":
+            bool(online.get("settled")), "gap": gap, "line": line}  # fmt: skip
+
+
+def loop_online(online: WindowResult, result: SessionResult) -> tuple[dict[str, Any], LoopChoice | None]:
     """The servo-loop model's online estimate, refined on the whole record from it, and its verdict (JSON-ready).
 
-    The refinement is :func:`~servoid.ident.offline.loop_fit.refit_loop` over the
+    The refinement is :func:`~servoid.ident.online.refinement.refine_online` over the
     usable samples, started from the last window's model (no second fit from
     scratch); :func:`~servoid.ident.online.verdict.judge_window` judges the
     online estimate on its windows and against it. :func:`with_verdict` then
     reports this estimate or the MRGIA's, by the structure identification chose.
+
+    Returns the JSON-ready summary and the refinement as identification's
+    servo-loop answer (``identify(loop=)``: one answer, started from the online
+    estimate, whether or not that settled -- the verdict says which; None when
+    there is no online model, and identification fits its own).
 
     Parameters
     ----------
@@ -351,27 +394,58 @@ def loop_online(online: WindowResult, result: SessionResult) -> dict[str, Any]:
     import numpy as np
 
     from servoid.ident.metrics import nrmse
-    from servoid.ident.offline.loop_fit import refit_loop
+    from servoid.ident.online.refinement import refine_online
     from servoid.ident.online.verdict import judge_window
 
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
     if online.model is None:
-        return out
+        return out, None
     keep = result.valid
     first = int(np.argmax(keep))
     u, y, keep = result.u[first:], result.y[first:], keep[first:]
     started = time.perf_counter()
     try:
-        refined = refit_loop(u, y, online.model, score=keep)
+        choice, whole = refine_online(u, y, online, keep=keep)
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
-        return out
+        return out, None
     online_nrmse = nrmse(y[keep], online.model.simulate(u, y0=float(y[0]))[keep])
-    verdict = judge_window(online, online_nrmse, refined.model.play, refined.fit_nrmse)
-    out["refined"] = {"model": refined.model.to_dict(), "fit_nrmse": refined.fit_nrmse,
-                      "seconds": time.perf_counter() - started}  # fmt: skip
+    verdict = judge_window(online, online_nrmse, whole.model.play, whole.fit_nrmse)
+    out["refined"] = {"model": whole.model.to_dict(), "fit_nrmse": whole.fit_nrmse,
+                      "seconds": time.perf_counter() - started, "choice": choice.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
-    return out
+    return out, choice
+
+
+def _on_record(loop: LoopChoice | None, result: SessionResult, record: Record, factor: int) -> LoopChoice | None:
+    """The refinement's free run moved onto the record identification sees (decimated, from its first usable
+    sample, about its operating point ``mean(u)``), as ``identify(loop=)`` takes it.
+
+    With ``factor > 1`` the refinement ran on every sample, identification on every ``factor``-th:
+    its verdict's floor is the slow record's, which the fast fit is not to be judged against
+    (the STS3215 twin: fit 0.10, the slow floor 0.13, the fast one 0.019); the fast record's
+    floor rule joins the loop's reasons.
+    """
+    if loop is None:
+        return None
+    import numpy as np
+
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, floor_nrmse
+
+    first = int(np.argmax(result.valid))
+    reasons = loop.reasons
+    floor = floor_nrmse(result.y[first:], result.valid[first:]) if factor > 1 else float("nan")
+    if np.isfinite(floor) and floor > 0.0 and loop.fit_nrmse > MAX_FIT_TO_FLOOR * floor:
+        reasons = (*reasons, f"on every sample of the session (the servo-loop model's record), its fit (NRMSE "
+                             f"{loop.fit_nrmse:.3g}) is {loop.fit_nrmse / floor:.3g} times the floor {floor:.3g} "
+                             f"(at most {MAX_FIT_TO_FLOOR:g}): the model misses something and the play may be absorbing it")  # fmt: skip
+    full = np.full(len(result), np.nan)
+    full[first:] = loop.simulated
+    n = record.u.size
+    # the record's sample j is the fast sample (offset + j) * factor, its first usable one at the end
+    offset = result.u.size // factor - n if factor > 1 else len(result) - n
+    at = (offset + np.arange(n)) * factor
+    return dataclasses.replace(loop, simulated=full[at] - float(np.mean(record.u)), reasons=reasons)
 
 
 def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Path) -> dict[str, Any]:

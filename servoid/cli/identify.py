@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> int:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online, select=_selected(args),
-                          sample_period_s=record.sample_period_s)  # fmt: skip
+                          sample_period_s=record.sample_period_s, loop=record.loop)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
@@ -279,6 +279,9 @@ def run(args: argparse.Namespace) -> int:
     if result.orders is not None:
         out.print(result.orders.describe())
     out.print(result.headline())
+    said = (record.live or {}).get("answer")
+    if said:
+        out.print(f"  {said['line']}")
     if result.loop is None and not result.identifiable:
         out.print("  the servo-loop model (the play inside the loop) was not fitted: the output backlash is the only "
                   "structure tried")  # fmt: skip

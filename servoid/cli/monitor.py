@@ -52,6 +52,12 @@ samples) with their bounds:
 An alarm prints a line starting with ALARM on stderr; with --fail-on-alarm the
 run stops there and servoid exits with status {EXIT_ALARM}.
 
+A model file whose answer is the servo-loop model (the play inside the loop,
+structure.form servo_loop) is followed instead by a moving-window refit of that
+model (10 s windows every 1 s of servo time): --dead-zone bounds its play (a
+share P% is taken of the play its first 20 s of windows see), one check per
+refit; --m2 and --fit do not apply.
+
 The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
 (--excitation SPEC), or both; the spec grammar is that of `servoid excite`.
@@ -101,8 +107,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
         help="the servo's model file (servoid identify): where the estimate starts, its unit and noise",
     )
     servo.add_argument("--rate", type=float, metavar="HZ",
-                       help=f"sample rate in Hz (default: the model's, else {_live.DEFAULT_RATE_HZ:g}); "
-                            "the model's linear block holds at the rate it was identified at")  # fmt: skip
+                       help=f"sample rate in Hz (default: the model's times its live run's decimation, else "
+                            f"{_live.DEFAULT_RATE_HZ:g}); a whole multiple k of the model's rate: the estimator runs "
+                            "on every k-th sample, anti-aliased, at the rate its linear block was identified at")  # fmt: skip
     servo.add_argument("--duration", type=float, metavar="S", help="run this many seconds (default: until Ctrl-C)")
     servo.add_argument("--guard", type=int, metavar="N",
                        help="samples left out after one whose command the servo may have applied otherwise than "
@@ -233,20 +240,33 @@ def _bounds(args: argparse.Namespace, model_file: ModelFile, unit: str) -> tuple
     return tuple(b for b in found if b is not None)
 
 
-def _period(args: argparse.Namespace, model_file: ModelFile) -> float:
-    """The sample period in seconds: the model's, or ``1 / --rate`` when it agrees with the model's."""
+def _period(args: argparse.Namespace, model_file: ModelFile) -> tuple[float, int]:
+    """The session's sample period in seconds and the factor the wear estimator decimates it by.
+
+    The estimator runs at the rate the model was identified at (its linear block holds only
+    there); the session samples that rate times a whole factor: ``--rate``, or by default the
+    live run's own (``decimation.factor`` in the model file, the design from the probe).
+    """
     period = model_file.sample_period_s
     if args.rate is None:
-        return period if period else 1.0 / _live.DEFAULT_RATE_HZ
+        if not period:
+            return 1.0 / _live.DEFAULT_RATE_HZ, 1
+        stated = (model_file.extra.get("decimation") or {}).get("factor", 1)
+        factor = stated if isinstance(stated, int) and 1 <= stated <= 1000 else 1
+        return period / factor, factor
     rate = args.rate
     if not (math.isfinite(rate) and 0 < rate <= 20_000):
         raise ConfigError(f"--rate (={rate:g}) must lie in (0, 20000] Hz")
-    if period and abs(rate * period - 1.0) > 0.01:
+    if not period:
+        return 1.0 / float(rate), 1
+    factor = round(rate * period)
+    if factor < 1 or abs(rate * period - factor) > 0.01 * rate * period:
         raise ConfigError(
-            f"--rate (={rate:g} Hz) differs from the rate the model was identified at ({1.0 / period:g} Hz): "
-            "its linear block holds only at that rate; leave --rate out or identify again at this rate"
+            f"--rate (={rate:g} Hz) differs from the rate the model was identified at ({1.0 / period:g} Hz) and is not "
+            "a whole multiple of it: its linear block holds only at that rate, where the estimator runs on every "
+            "k-th sample; give a multiple, leave --rate out, or identify again at this rate"
         )
-    return 1.0 / float(rate)
+    return 1.0 / float(rate), int(factor)
 
 
 def _truth_at(driver: Driver) -> Callable[[int], BacklashModel] | None:
@@ -271,6 +291,17 @@ def _input_specs(args: argparse.Namespace, driver: Driver) -> tuple[SignalSpec |
     else:
         excitation = None
     return operating, excitation
+
+
+def _inputs(args: argparse.Namespace, driver: Driver, total: int | None) -> tuple[Iterator[float], dict[str, str]]:
+    """The commands of the run (``total`` of them, or endless) and their ``# key: value`` description."""
+    operating, excitation = _input_specs(args, driver)
+    inputs = commands(driver.limits.centre, operating, excitation, seed=args.seed)
+    if total is not None:
+        inputs = itertools.islice(inputs, total)
+    meta = {"operating": format_spec(operating) if operating else "none",
+            "excitation": format_spec(excitation) if excitation else "none", "seed": str(args.seed)}  # fmt: skip
+    return inputs, meta
 
 
 def commands(
@@ -303,6 +334,7 @@ def run(args: argparse.Namespace) -> int:
     from servoid.drivers import driver_from_url
     from servoid.ident.models.structure_names import OUTPUT_BACKLASH
     from servoid.ident.monitoring.wear_estimator import WearEstimatorConfig
+    from servoid.loop_compensation import has_loop
     from servoid.modelfile import load_model
     from servoid.monitor_run import run_monitor
     from servoid.session import SessionConfig
@@ -314,10 +346,11 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         output_file(args.plot, option="--plot", force=args.force)
     model_file = load_model(args.model)
-    if model_file.structure != OUTPUT_BACKLASH:
+    loop = has_loop(model_file)  # the servo-loop model: followed by its window refit, not the MRGIA
+    if not loop and model_file.structure != OUTPUT_BACKLASH:
         raise ConfigError(
-            f"{args.model} holds the structure {model_file.structure} (the play inside the position loop): "
-            f"the monitor's wear estimator (the MRGIA) tracks the {OUTPUT_BACKLASH} structure only"
+            f"{args.model} holds the structure {model_file.structure} (the play inside the position loop) without "
+            f"its servo-loop model (structure.loop): the MRGIA tracks the {OUTPUT_BACKLASH} structure only"
         )
     if model_file.operating_point != (0.0, 0.0):
         _term.warn(f"{args.model} applies about an operating point {model_file.operating_point}: the monitor "
@@ -325,7 +358,7 @@ def run(args: argparse.Namespace) -> int:
     if model_file.effects:
         _term.warn(f"{args.model} has model extensions ({', '.join(model_file.effect_names())}); "
                    "the monitor tracks the plain backlash model")  # fmt: skip
-    period = _period(args, model_file)
+    period, factor = _period(args, model_file)
     rate = 1.0 / period
     total = None
     if args.duration is not None:
@@ -339,6 +372,9 @@ def run(args: argparse.Namespace) -> int:
     rule = AlarmRule(persist=args.persist, z=args.z)
     row_every = max(1, round(args.every * rate / args.check_every)) * args.check_every
     driver = driver_from_url(args.driver)
+    if loop:
+        with driver:
+            return _run_loop(args, driver, model_file, period, total, rule)
     with driver:
         unit = driver.position_unit.unit
         noise_std, epsilon = _noise(args, model_file, driver.identity)
@@ -347,13 +383,9 @@ def run(args: argparse.Namespace) -> int:
                                   process_noise=args.process_noise),
             bounds=_bounds(args, model_file, unit), rule=rule, check_every=args.check_every, row_every=row_every,
             compensation_step=args.compensation_step, stop_on_alarm=args.fail_on_alarm, plot_every_s=args.plot_every,
+            factor=factor,
         )  # fmt: skip
-        operating, excitation = _input_specs(args, driver)
-        inputs = commands(driver.limits.centre, operating, excitation, seed=args.seed)
-        if total is not None:
-            inputs = itertools.islice(inputs, total)
-        meta = {"operating": format_spec(operating) if operating else "none",
-                "excitation": format_spec(excitation) if excitation else "none", "seed": str(args.seed)}  # fmt: skip
+        inputs, meta = _inputs(args, driver, total)
         _announce_start(args, driver, config, rate, total, meta)
         started = time.perf_counter()
         with _term.live_progress("monitor", total) as bar:
@@ -367,6 +399,11 @@ def run(args: argparse.Namespace) -> int:
         _term.print_json(_summary_json(result, model_file, unit))
     else:
         _print_summary(result, model_file, unit, elapsed)
+    return _exit_status(result)
+
+
+def _exit_status(result: Any) -> int:
+    """0, or :data:`EXIT_ALARM` (with the line that says so) when the run stopped on an alarm."""
     if result.stopped == "alarm":
         first = result.first_alarm
         assert first is not None
@@ -375,6 +412,67 @@ def run(args: argparse.Namespace) -> int:
         )
         return EXIT_ALARM
     return 0
+
+
+def _run_loop(
+    args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float, total: int | None, rule: AlarmRule
+) -> int:
+    """Monitor a servo-loop model file: its play followed by the window refit (:mod:`servoid.monitor_loop`)."""
+    import dataclasses
+
+    from servoid.drivers.clock import VirtualClock
+    from servoid.drivers.simulated import SimulatedServo
+    from servoid.loop_compensation import loop_model
+    from servoid.monitor_loop import run_loop_monitor
+    from servoid.session import SessionConfig
+
+    unit = driver.position_unit.unit
+    if model_file.output_unit not in (unit, "unit"):
+        raise ConfigError(f"the model is in {model_file.output_unit!r} and {driver.describe()} reports {unit!r}: "
+                          "monitor with a model identified in the servo's unit")  # fmt: skip
+    # the loop's parameters are in seconds: the same loop at the session's period
+    start = dataclasses.replace(loop_model(model_file), sample_period_s=period)
+    bound = parse_bounds(args.dead_zone, quantity="dead_zone", label="play c1 + c2", reference=start.play, unit=unit)
+    simulated = driver if isinstance(driver, SimulatedServo) else None
+    twin = simulated is not None and simulated.twin_truth is not None
+
+    def true_play(k: int) -> float:
+        assert simulated is not None
+        truth = simulated.twin_truth_at(k)
+        return math.nan if truth is None else truth.play_rad
+
+    inputs, meta = _inputs(args, driver, total)
+    if not args.json:
+        length = "until Ctrl-C" if total is None else f"{total} samples ({total * period:g} s)"
+        _term.stderr.print(f"servoid monitor: {driver.describe()} at {1.0 / period:g} Hz, {length}; the servo-loop "
+                           f"model ({model_file.structure}), its play {start.play:.4g} {unit} followed by a window "
+                           f"refit; bound {bound.describe() if bound else 'none'}; writing to {args.out}/",
+                           markup=False, soft_wrap=True)  # fmt: skip
+    started = time.perf_counter()
+    with _term.live_progress("monitor", total) as bar:
+
+        def update(p: Any) -> None:
+            bar(p.done, f"late {100 * p.late_share:.1f} %")
+
+        result = run_loop_monitor(
+            driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard),
+            start=start, model_file=model_file, bounds=() if bound is None else (bound,), rule=rule, out=args.out,
+            stop_on_alarm=args.fail_on_alarm, rebase=args.dead_zone.strip().endswith("%"),
+            wait=simulated is not None and isinstance(simulated.clock, VirtualClock),
+            true_play=true_play if twin else None, on_event=_print_event, on_progress=update, metadata=meta,
+        )  # fmt: skip
+    elapsed = time.perf_counter() - started
+    if args.json:
+        _term.print_json({**result.to_dict(), "unit": unit, "structure": model_file.structure,
+                          "start_play": start.play})  # fmt: skip
+    else:
+        _term.stderr.print(f"servoid monitor: {result.samples} samples ({elapsed:.1f} s of wall time), {result.refits} "
+                           f"window refits ({result.dropped} left out); play now {result.play:.4g} +/- "
+                           f"{result.play_std:.2g} {unit} (from {start.play:.4g}); alarms raised "
+                           f"{sum(e.raised for e in result.events)}", markup=False, soft_wrap=True)  # fmt: skip
+        for name, path in result.files.items():
+            _term.stderr.print(f"  {name:13s} {path}", markup=False, soft_wrap=True)
+    return _exit_status(result)
 
 
 def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorConfig, rate: float,
@@ -392,6 +490,9 @@ def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorCon
     err.print(
         f"  input     operating {meta['operating']}, excitation {meta['excitation']}", markup=False, soft_wrap=True
     )
+    if config.factor > 1:
+        err.print(f"  estimator at the model's {rate / config.factor:g} Hz: 1 in {config.factor} samples, anti-aliased",
+                  markup=False, soft_wrap=True)  # fmt: skip
     err.print(f"  bounds    {bounds}", markup=False, soft_wrap=True)
     err.print(f"  rule      beyond a bound by > {config.rule.z:g} std at {config.rule.persist} checks in a row, "
               f"one check every {config.check_every} samples", markup=False, soft_wrap=True)  # fmt: skip

@@ -1,0 +1,320 @@
+"""Watching a servo whose play sits in its loop: ``servoid monitor`` on a servo-loop model file.
+
+The wear estimator of :mod:`servoid.monitor_run` is the MRGIA: it tracks the
+pseudo-Wiener model only. A model file whose answer is the servo-loop model
+(``structure.form`` ``servo_loop``: the play inside the position loop, or the
+loop model with the play at the output) is followed instead by
+:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`: the moving-window
+refit of live identification, started from the file's loop, with the alarm
+rule on its play. :func:`run_loop_monitor` runs the session with it and
+writes, in ``out``:
+
+``estimates.csv``
+    One row per window refit: ``k``, ``t``, the play with its scatter
+    (``dead_zone``, ``dead_zone_std``: the alarm rule's quantity), the loop
+    gains ``kp``, ``kv``, the window's free-run NRMSE and floor, the refit's
+    wall time, the active alarms (and ``true_play`` for a simulated twin).
+``events.jsonl``
+    Start and stop, alarms raised and cleared.
+``model.json``
+    The model file with the latest refit's loop and play, rewritten at each
+    alarm and at the end.
+
+Memory stays constant: the session keeps no samples and the tracker keeps two
+windows.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from servoid.drivers.base import Driver
+from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Bound
+from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker
+from servoid.ident.online.window import WindowRow
+from servoid.ident.serialise import dumps
+from servoid.modelfile import ModelFile
+from servoid.monitor_run import drive
+from servoid.recording import RecordingWriter
+from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult
+
+__all__ = ["LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
+
+#: ``method`` of the model files this monitor writes.
+METHOD = "window-tracking"
+
+#: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
+LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "kp", "kv", "fit", "floor", "refit_s", "alarms")
+
+
+@dataclass(frozen=True)
+class LoopMonitorResult:
+    """A finished (or stopped) monitoring run of a servo-loop model.
+
+    Attributes
+    ----------
+    samples : int
+        Slots run.
+    counts : dict
+        Slots per status (ok, late, missed, timeout).
+    play, play_std : float
+        The last refit's play and the scatter of the baseline's plays (NaN before it is known).
+    refits : int
+        Window refits done.
+    dropped : int
+        Windows left out because the previous refit still ran.
+    events : tuple of AlarmEvent
+        Every alarm raised or cleared, in order.
+    active : tuple of AlarmEvent
+        Alarms still raised at the end.
+    stopped : str or None
+        ``"alarm"``, ``"interrupted"`` or None.
+    files : dict
+        What was written, by name.
+    session : SessionResult
+        The session (counts only).
+    """
+
+    samples: int
+    counts: dict[str, int]
+    play: float
+    play_std: float
+    refits: int
+    dropped: int
+    events: tuple[AlarmEvent, ...]
+    active: tuple[AlarmEvent, ...]
+    stopped: str | None
+    files: dict[str, Path]
+    session: SessionResult
+
+    def to_dict(self) -> dict[str, Any]:
+        """For JSON: slots, the play, refits, every alarm event, those still active, why it stopped, the files."""
+        return {
+            "samples": self.samples, "counts": self.counts, "stopped": self.stopped, "estimator": "window",
+            "estimate": {"dead_zone": self.play, "dead_zone_std": self.play_std},
+            "refits": self.refits, "dropped": self.dropped, "alarms": [ev.to_dict() for ev in self.events],
+            "active": [ev.bound.quantity for ev in self.active], "files": {k: str(v) for k, v in self.files.items()},
+        }  # fmt: skip
+
+    @property
+    def first_alarm(self) -> AlarmEvent | None:
+        """The first alarm raised, if any."""
+        return next((e for e in self.events if e.raised), None)
+
+
+def run_loop_monitor(
+    driver: Driver,
+    inputs: Iterable[float],
+    session: SessionConfig,
+    *,
+    start: ServoLoopModel,
+    model_file: ModelFile,
+    bounds: Sequence[Bound],
+    rule: AlarmRule,
+    out: str | os.PathLike[str],
+    stop_on_alarm: bool = False,
+    wait: bool = False,
+    rebase: bool = False,
+    true_play: Callable[[int], float] | None = None,
+    on_event: Callable[[str, str], None] | None = None,
+    on_progress: Callable[[SessionProgress], None] | None = None,
+    metadata: Mapping[str, Any] | None = None,
+) -> LoopMonitorResult:
+    """Monitor an open driver with the servo-loop tracker until ``inputs`` end, an alarm stops it, or Ctrl-C.
+
+    Parameters
+    ----------
+    driver : Driver
+        An open driver.
+    inputs : iterable of float
+        The command per slot (may be endless), driver's unit.
+    session : SessionConfig
+        Sample period and policies; ``start`` must be at its period.
+    start : ServoLoopModel
+        The model file's loop, where the tracker starts.
+    model_file : ModelFile
+        The servo's model file (rewritten with the latest loop into ``model.json``).
+    bounds : sequence of Bound
+        Bounds on the play (quantity ``dead_zone``); others are not checked here.
+    rule : AlarmRule
+        The alarm rule.
+    out : path
+        Folder of the outputs.
+    stop_on_alarm : bool
+        End the run at the first alarm raised.
+    wait : bool
+        A servo on a virtual clock: a window that falls due waits for the last refit.
+    rebase : bool
+        The bounds are relative to the model file's play: move them to the baseline's median play
+        (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``rebase``; a ``baseline``
+        event says where they went).
+    true_play : callable, optional
+        ``true_play(k)`` the true play at sample ``k`` (a simulated twin): a column of the rows.
+    on_event : callable, optional
+        ``on_event(kind, line)`` for each alarm raised (``"alarm"``) or cleared (``"clear"``).
+    on_progress : callable, optional
+        The session's progress callback.
+    metadata : mapping, optional
+        Extra ``# key: value`` lines for ``estimates.csv``.
+
+    Returns
+    -------
+    LoopMonitorResult
+
+    Raises
+    ------
+    servoid.errors.DriverError
+        When the servo fails (the torque is off, the files are complete up to there).
+    """
+    loop = _LoopRun(
+        driver, session, start, model_file, [b for b in bounds if b.quantity == PLAY], rule, Path(out),
+        stop_on_alarm, wait, true_play, on_event, rebase,
+    )  # fmt: skip
+    loop.tracker.warm_up()
+    loop.start(metadata or {})
+    return loop.result(drive(driver, loop, inputs, session, on_progress))
+
+
+class _LoopRun:
+    """The state of one :func:`run_loop_monitor` run."""
+
+    def __init__(
+        self,
+        driver: Driver,
+        session: SessionConfig,
+        start: ServoLoopModel,
+        model_file: ModelFile,
+        bounds: list[Bound],
+        rule: AlarmRule,
+        out: Path,
+        stop_on_alarm: bool,
+        wait: bool,
+        true_play: Callable[[int], float] | None,
+        on_event: Callable[[str, str], None] | None,
+        rebase: bool,
+    ) -> None:
+        self.driver, self.session, self.model_file, self.out = driver, session, model_file, out
+        self.bounds, self.rule, self.stop_on_alarm = bounds, rule, stop_on_alarm
+        self.true_play, self.on_event = true_play, on_event
+        self.tracker = LoopWearTracker(start, bounds, rule, wait=wait, rebase=rebase)
+        self.based = False
+        self.rows_seen = self.events_seen = 0
+        self.stop = self.stopped_on_alarm = False
+        self.last: Sample | None = None
+        self.n = 0
+        self.files: dict[str, Path] = {}
+        self._csv: RecordingWriter | None = None
+        self._events: IO[str] | None = None
+
+    def start(self, metadata: Mapping[str, Any]) -> None:
+        self.out.mkdir(parents=True, exist_ok=True)
+        cfg = self.tracker.window.config
+        meta = {
+            "servoid monitor": "estimates (servo-loop model, window refit)",
+            "source": self.driver.describe(), "unit": self.driver.position_unit.unit,
+            "period_s": repr(self.session.period_s), "window_s": repr(cfg.window_s), "every_s": repr(cfg.every_s),
+            "baseline_s": repr(self.tracker.baseline_s),
+            "bounds": "; ".join(f"{b.label} {b.describe()}" for b in self.bounds) or "none",
+            "rule": f"persist={self.rule.persist} refits, z={self.rule.z:g}, hysteresis={self.rule.hysteresis:g}",
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **metadata,
+        }  # fmt: skip
+        columns = LOOP_COLUMNS + (("true_play",) if self.true_play is not None else ())
+        self.files["estimates"] = self.out / "estimates.csv"
+        self._csv = RecordingWriter(self.files["estimates"], columns, metadata=meta)
+        self.files["events"] = self.out / "events.jsonl"
+        self._events = open(self.files["events"], "w", encoding="utf-8")
+        self.files["model"] = self.out / "model.json"
+        self._event("start", 0, source=self.driver.describe(), estimator="window", window=cfg.to_dict(),
+                    bounds=[b.to_dict() for b in self.bounds])  # fmt: skip
+
+    def close(self) -> None:
+        self.tracker.window.close()
+        if self._csv is not None:
+            self._csv.close()
+        if self._events is not None:
+            self._events.close()
+
+    def _event(self, kind: str, k: int, **data: Any) -> None:
+        assert self._events is not None
+        t = k * self.session.period_s
+        self._events.write(dumps({"event": kind, "k": k, "t": round(t, 9), **data}) + "\n")
+        self._events.flush()
+
+    def on_sample(self, sample: Sample, usable: bool) -> None:
+        """A session listener: the tracker takes the usable samples and skips the others; new refits are written."""
+        if usable:
+            self.tracker.update(sample.u, sample.y)
+        else:
+            self.tracker.skip(sample.u)
+        self.n += 1
+        self.last = sample
+        self._drain()
+
+    def _drain(self) -> None:
+        new = self.tracker.window.rows_since(self.rows_seen)
+        for row in new:
+            self._row(row)
+        self.rows_seen += len(new)
+        if not self.based and not math.isnan(self.tracker.std):
+            self.based = True
+            self._event("baseline", self.last.k if self.last else 0, play_std=self.tracker.std,
+                        bounds=[b.to_dict() for b in self.tracker.bounds])  # fmt: skip
+        for event in self.tracker.events[self.events_seen :]:
+            self._event("alarm" if event.raised else "clear", event.sample, **event.to_dict())
+            if self.on_event is not None:
+                self.on_event("alarm" if event.raised else "clear", event.message())
+            if event.raised:
+                self._save_model()
+                if self.stop_on_alarm:
+                    self.stop = self.stopped_on_alarm = True
+        self.events_seen = len(self.tracker.events)
+
+    def _row(self, row: WindowRow) -> None:
+        k = int(round(row.t_s / self.session.period_s))
+        model = self.tracker.window.model
+        active = "+".join(e.bound.quantity for e in self.tracker.alarms.active.values())
+        values: list[Any] = [k, row.t_s, row.play, self.tracker.std, model.kp if model else math.nan,
+                             model.kv if model else math.nan, row.nrmse, row.floor, row.seconds, active]  # fmt: skip
+        if self.true_play is not None:
+            values.append(self.true_play(k))
+        assert self._csv is not None
+        self._csv.append(*values)
+
+    def _save_model(self) -> None:
+        model = self.tracker.window.model
+        if model is None:
+            return
+        content = dataclasses.replace(
+            self.model_file, loop=model.params(), play=model.play, play_interval=(None, None),
+            method=METHOD, source=self.driver.describe(), samples=self.n, identified_at="",
+        )  # fmt: skip
+        path = self.files["model"]
+        tmp = path.with_suffix(".json.tmp")
+        tmp.write_text(content.to_json(), encoding="utf-8")
+        os.replace(tmp, path)
+
+    def finish(self, reason: str) -> None:
+        """Collect the last refit, write the final model and the stop event."""
+        self.tracker.result()
+        self._drain()
+        self._save_model()
+        k = -1 if self.last is None else self.last.k
+        self._event("stop", k, samples=self.n, reason=reason)
+
+    def result(self, session: SessionResult) -> LoopMonitorResult:
+        w = self.tracker.window
+        last = w.rows_since(max(self.rows_seen - 1, 0))
+        return LoopMonitorResult(
+            samples=len(session), counts=session.counts, play=last[-1].play if last else math.nan,
+            play_std=self.tracker.std, refits=self.rows_seen, dropped=w.dropped, events=tuple(self.tracker.events),
+            active=tuple(self.tracker.alarms.active.values()),
+            stopped="alarm" if self.stopped_on_alarm else session.stopped, files=dict(self.files), session=session,
+        )  # fmt: skip
