@@ -156,6 +156,9 @@ def test_bad_input_is_named():
         with pytest.raises(ConfigError, match=r"excitation\[3\] \(=nan\) is not finite"):
             run_session(s, [0.0, 0.1, 0.2, math.nan], SessionConfig(period_s=T))
         assert not s.torque_enabled
+        with pytest.raises(ConfigError, match=r"excitation\[2\] \(=inf\) is not finite"):
+            run_session(s, np.array([0.0, 0.1, math.inf]), SessionConfig(period_s=T))  # an array: checked before
+        assert not s.torque_enabled
 
 
 def test_a_streaming_session_hands_out_every_sample_and_keeps_none():

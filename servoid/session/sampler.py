@@ -477,6 +477,10 @@ def _plain(excitation: Iterable[Any]) -> Iterable[Any]:
     return excitation
 
 
+def _not_finite(k: int, value: Any) -> ConfigError:
+    return ConfigError(f"excitation[{k}] (={value!r}) is not finite")
+
+
 class _Sampler:
     """The loop of :func:`run_session` and its state."""
 
@@ -519,19 +523,20 @@ class _Sampler:
         driver, clock, period = self.driver, self.clock, self.period_ns
         if self.feed is not None and self.feed.estimator is not None:
             self.feed.estimator.warm_up()
+        values, reference_of = self._values(excitation)  # before the servo moves: an array is checked whole
         driver.set_sample_period(self.config.period_s)
         driver.enable()
         give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
         # bound once: the loop runs per sample, and its own work is what the session adds to the exchange
         now, sleep_until, half = clock.now_ns, clock.sleep_until_ns, period // 2
         exchange, measured, command_filter = driver.exchange, self._measured, self.command_filter
-        reference_of, usable, counts, notify = self._reference, self.usable, self.counts, self.notify
+        usable, counts, notify = self.usable.__call__, self.counts, self.notify  # __call__: a bound method is quicker
         keep, keep_sample, keep_flag = self.keep_samples, self.samples.append, self.flags.append
         self.t0 = t0 = now()
         last_reply = t0
         self._next_progress = t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
-        for k, value in enumerate(_plain(excitation)):
-            reference = reference_of(k, value)
+        for k, value in enumerate(values):
+            reference = value if reference_of is None else reference_of(k, value)
             scheduled = t0 + k * period
             sleep_until(scheduled)  # returns at once when the slot has passed
             start = end = now()
@@ -578,11 +583,26 @@ class _Sampler:
                 self._maybe_progress(end)
         self._progress(clock.now_ns())
 
+    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
+        """The excitation's values in order, and the check each needs in the loop (None: checked here, whole).
+
+        A one-dimensional array is checked at once (and before the servo moves)
+        and handed over as Python floats a chunk at a time; anything else is
+        checked value by value (:meth:`_reference`).
+        """
+        if isinstance(excitation, np.ndarray) and excitation.ndim == 1:
+            values = np.asarray(excitation, dtype=np.float64)
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                raise _not_finite(int(bad[0]), float(values[bad[0]]))
+            return _plain(values), None
+        return excitation, self._reference
+
     def _reference(self, k: int, value: Any) -> Any:
         """The excitation's value for slot ``k``, checked."""
         reference = float(value)
         if not math.isfinite(reference):
-            raise ConfigError(f"excitation[{k}] (={reference!r}) is not finite")
+            raise _not_finite(k, reference)
         return reference
 
     def _missed(self, k: int, scheduled: int, reference: float) -> Sample:
@@ -670,13 +690,16 @@ class _Sampler:
 class BusSampler(_Sampler):
     """The sampling loop over a :class:`~servoid.drivers.bus.BusDriver`: one :class:`JointsSample` per slot."""
 
+    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
+        return _plain(excitation), self._reference  # every row checked for its shape too
+
     def _reference(self, k: int, value: Any) -> Any:
         reference = np.asarray(value, dtype=np.float64)
         joints = len(self.driver.joints)  # type: ignore[attr-defined]
         if reference.shape != (joints,):
             raise ConfigError(f"excitation[{k}] has shape {reference.shape}; the bus has {joints} joints")
         if not np.all(np.isfinite(reference)):
-            raise ConfigError(f"excitation[{k}] (={reference.tolist()}) is not finite")
+            raise _not_finite(k, reference.tolist())
         return tuple(float(v) for v in reference)
 
     def _missed(self, k: int, scheduled: int, reference: Any) -> Any:
