@@ -528,9 +528,15 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
     state[osc + SC_PRIMED] = 1.0
     state[osc + SC_T] = t
     state[osc + SC_SINCE_RESET] += 1.0
-    if state[oc + CFG_STUCK_BELOW] > 0.0 and state[osc + SC_SINCE_RESET] > state[oc + CFG_WARMUP]:
-        cov_up, cov_down = line_coverage(state, na, nb, d)
-        if min(cov_up, cov_down) < state[oc + CFG_STUCK_BELOW]:
+    below = state[oc + CFG_STUCK_BELOW]
+    if below > 0.0 and state[osc + SC_SINCE_RESET] > state[oc + CFG_WARMUP]:
+        # min(line_coverage) < below, multiplied out: no division per sample (a side that moved in too
+        # few samples reports 1, never below the threshold)
+        move_up = state[osc + SC_MOVE_UP]
+        move_down = state[osc + SC_MOVE_DOWN]
+        if (move_up > MIN_MOVE_SHARE and state[osc + SC_LINE_UP] < below * move_up) or (
+            move_down > MIN_MOVE_SHARE and state[osc + SC_LINE_DOWN] < below * move_down
+        ):
             code += STEP_STUCK
     return code
 
