@@ -547,9 +547,24 @@ class RecordingWriter:
         if self._fsync_every and self.rows % self._fsync_every == 0:
             os.fsync(self._fd)
 
+    def append_line(self, line: str) -> None:
+        """Write one row already formatted as a CSV line ending in a newline (:meth:`Sample.line <servoid.session.Sample.line>`) and flush it.
+
+        Parameters
+        ----------
+        line : str
+            The row's text, as :meth:`append` would write it.
+        """
+        if self._fd is None:
+            raise DataError(f"{self.path}: the recording is closed")
+        self._write(line)
+        self.rows += 1
+        if self._fsync_every and self.rows % self._fsync_every == 0:
+            os.fsync(self._fd)
+
     def _write(self, text: str) -> None:
         assert self._fd is not None
-        data = text.encode("utf-8")
+        data = text.encode()
         written = os.write(self._fd, data)
         while written < len(data):  # a short write (a signal, a nearly full disk): the rest, in order
             data = data[written:]

@@ -96,6 +96,19 @@ def test_the_recording_is_written_as_samples_arrive_and_reads_back(tmp_path):
     assert rec.metadata["unit"] == "rad" and rec.metadata["period_s"] == "0.001"
 
 
+def test_a_samples_line_is_the_text_the_writer_writes_for_its_row(tmp_path):
+    from servoid.recording import RecordingWriter
+    from servoid.session import Sample
+
+    samples = [Sample(7, 0.007, 0.0071234567891, 0.1, 0.30000000000000004, math.nan, "late", 1e-5, 2.5e16, True),
+               Sample(8, np.float64(1 / 3), -0.0, -np.float64(2.0) ** -40, 1e300, 5e-324, "ok")]  # fmt: skip
+    with RecordingWriter(tmp_path / "a.csv", COLUMNS) as w:
+        for sample in samples:
+            w.append(*sample.row())
+    rows = (tmp_path / "a.csv").read_text().splitlines(keepends=True)[1:]
+    assert rows == [sample.line() for sample in samples]
+
+
 def test_ctrl_c_stops_keeps_the_file_and_switches_the_torque_off(tmp_path):
     path = tmp_path / "live.csv"
     calls = iter(range(10**6))
@@ -142,6 +155,9 @@ def test_bad_input_is_named():
     with servo() as s:
         with pytest.raises(ConfigError, match=r"excitation\[3\] \(=nan\) is not finite"):
             run_session(s, [0.0, 0.1, 0.2, math.nan], SessionConfig(period_s=T))
+        assert not s.torque_enabled
+        with pytest.raises(ConfigError, match=r"excitation\[2\] \(=inf\) is not finite"):
+            run_session(s, np.array([0.0, 0.1, math.inf]), SessionConfig(period_s=T))  # an array: checked before
         assert not s.torque_enabled
 
 

@@ -216,14 +216,15 @@ _offsets = jit_inline(offsets)
 def work_size(na: int, nb: int) -> int:
     """Length of the scratch vector :func:`mrgia_step` needs for these orders.
 
-    ``h``, ``P h``, ``K``, the candidate theta (``n`` each), the candidate ``P``
-    (``n^2``) and the stability test's polynomial (``na + 1``): kept by the
+    ``h``, ``P h``, ``K``, the candidate theta, the candidate ``P``'s diagonal
+    and the cap's scales (``n`` each; ``P`` itself is updated in place once
+    the update is taken) and the stability test's polynomial (``na + 1``): kept by the
     caller, so that an update allocates nothing (an allocation costs as much
     as the arithmetic of a small model's update). Its contents between calls
     mean nothing.
     """
     n = na + nb + 4
-    return 4 * n + n * n + na + 1
+    return 6 * n + na + 1
 
 
 @jit_inline
@@ -242,7 +243,29 @@ def _feasible(buf: np.ndarray, at: int, na: int, nb: int, poly: int) -> bool:
     im2 = at + _backlash_at(na, nb)
     if not (1.0 + buf[im2] > 0.0 and buf[im2 + 1] >= 0.0 and buf[im2 + 2] >= 0.0):
         return False
+    if na == 2:
+        # the Schur-Cohn test of order 2 in closed form (the stability triangle), no division
+        return bool(abs(buf[at + 1]) < 1.0 and abs(buf[at]) < 1.0 + buf[at + 1])
     return schur_stable_in(buf, at, na, poly)  # scratch at buf[poly:]
+
+
+@jit_inline
+def _neg_power(x: float, r: float) -> float:
+    """``x^-r`` for rho(t) of eq. (30): by square roots for the exponents servoid uses (quarters), else ``pow``.
+
+    A ``pow`` cost 16 % of an update; two square roots and a division cost
+    a fraction of it, within an ulp or two of ``pow``.
+    """
+    if r == 0.75:
+        sq = math.sqrt(x)
+        return 1.0 / (sq * math.sqrt(sq))
+    if r == 0.25:
+        return 1.0 / math.sqrt(math.sqrt(x))
+    if r == 0.5:
+        return 1.0 / math.sqrt(x)
+    if r == 1.0:
+        return 1.0 / x
+    return float(x ** (-r))
 
 
 @jit_inline
@@ -369,7 +392,9 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
     * eq. (21) in Joseph form ``[I - K h^T] P [I - K h^T]^T / mu + K Sigma K^T``,
       evaluated in O(n^2) from ``P h`` and mirrored so that P stays exactly
       symmetric: the algebraically equal short form ``(P - K h^T P)/mu``
-      loses positive definiteness from ``P(0) = 1e6 I``;
+      loses positive definiteness from ``P(0) = 1e6 I``; its diagonal is
+      computed first (it alone decides a divergence and the tracking cap),
+      then ``P`` in place, only for an update that is taken;
     * eq. (18) read as ``theta(k) = theta(k-1) + K(k) Phi(k) e-hat(k)``, the
       form of the appendix's (50);
     * eq. (30): ``mu(k) = rho(t-1)/rho(t) (1 - rho(t))`` with
@@ -380,13 +405,13 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
     n, op, ok, oxh, ouh, osc = _offsets(na, nb, d)
     r = state[oc + CFG_RHO_EXPONENT]
     eps = state[oc + CFG_EPSILON]
-    # the scratch: h, P h, K, the candidate theta and P, the stability test's polynomial
+    # the scratch: h, P h, K, the candidate theta, P's candidate diagonal and scales, the stability test's polynomial
     oh = ow
     oph = ow + n
     okg = ow + 2 * n
     oth = ow + 3 * n
     opn = ow + 4 * n
-    opoly = ow + 4 * n + n * n
+    opoly = ow + 6 * n
 
     xk = _predict_x(state, na, nb, d, oxh, ouh)  # eq. (27)
 
@@ -406,8 +431,8 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
                 e -= state[oh + i] * state[i]  # eq. (17)
 
             floor = state[oc + CFG_RHO_FLOOR]
-            raw = (t + 1.0) ** (-r)
-            raw_prev = state[osc + SC_RHO] if state[osc + SC_RHO_AT] == t else t ** (-r)
+            raw = _neg_power(t + 1.0, r)
+            raw_prev = state[osc + SC_RHO] if state[osc + SC_RHO_AT] == t else _neg_power(t, r)
             rho = max(raw, floor)
             rho_prev = max(raw_prev, floor)
             mu = rho_prev / rho * (1.0 - rho)  # eq. (30); constant 1 - floor once at the floor
@@ -424,37 +449,21 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
             s = hph + mu * sigma  # eq. (19)
             if not (s > 0.0) or not math.isfinite(s):
                 return STEP_DIVERGED
+            inv_s = 1.0 / s  # one division, n multiplications
             for i in range(n):
-                state[okg + i] = state[oph + i] / s  # eq. (20)
+                state[okg + i] = state[oph + i] * inv_s  # eq. (20)
 
-            # eq. (21), Joseph form, upper triangle then mirrored
+            # eq. (21)'s diagonal first, into the scratch: it alone decides a divergence and the cap, so
+            # that P itself is written in place, once, and only when the update is taken
+            inv_mu = 1.0 / mu
             q = state[oc + CFG_PROCESS_NOISE]
-            for i in range(n):
-                ki = state[okg + i]
-                phi_i = state[oph + i]
-                for j in range(i, n):
-                    kj = state[okg + j]
-                    v = (
-                        state[op + i * n + j] - ki * state[oph + j] - phi_i * kj + hph * ki * kj
-                    ) / mu + sigma * ki * kj
-                    if i == j:
-                        v += q  # tracking: parameters as a random walk of variance q per update
-                    state[opn + i * n + j] = v
-                    state[opn + j * n + i] = v
-            # tracking: cap P's diagonal by a congruence D P D with D diagonal,
-            # which keeps P symmetric positive definite (unexcited directions
-            # would otherwise grow without bound under forgetting)
-            p_max = state[oc + CFG_P_MAX]
-            for i in range(n):
-                pii = state[opn + i * n + i]
-                if pii > p_max:
-                    sc = math.sqrt(p_max / pii)
-                    for j in range(n):
-                        state[opn + i * n + j] *= sc
-                        state[opn + j * n + i] *= sc
             ok_flag = True
             for i in range(n):
-                if not math.isfinite(state[opn + i * n + i]) or state[opn + i * n + i] <= 0.0:
+                ki = state[okg + i]
+                v = (state[op + i * n + i] - 2.0 * ki * state[oph + i] + hph * ki * ki) * inv_mu + sigma * ki * ki
+                v += q  # tracking: parameters as a random walk of variance q per update
+                state[opn + i] = v
+                if not math.isfinite(v) or v <= 0.0:
                     ok_flag = False
             for i in range(n):
                 state[oth + i] = state[i] + state[okg + i] * e  # eq. (18) as in (50)
@@ -467,11 +476,29 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
             if state[oc + CFG_PROJECT] != 0.0 and not _feasible(state, oth, na, nb, opoly):
                 code = STEP_REFUSED
             else:
+                # tracking: cap P's diagonal by a congruence D P D with D diagonal, which keeps P
+                # symmetric positive definite (unexcited directions would otherwise grow without bound
+                # under forgetting); d_i = 1 for a diagonal element within the cap
+                p_max = state[oc + CFG_P_MAX]
+                for i in range(n):
+                    pii = state[opn + i]
+                    state[opn + n + i] = math.sqrt(p_max / pii) if pii > p_max else 1.0
+                # eq. (21), Joseph form [I - K h^T] P [I - K h^T]^T / mu + K Sigma K^T, in place: each
+                # P_ij is read once, before it is written; the upper triangle, mirrored
+                for i in range(n):
+                    ki = state[okg + i]
+                    phi_i = state[oph + i]
+                    di = state[opn + n + i]
+                    state[op + i * n + i] = state[opn + i] * di * di
+                    for j in range(i + 1, n):
+                        kj = state[okg + j]
+                        v = (state[op + i * n + j] - ki * state[oph + j] - phi_i * kj + hph * ki * kj) * inv_mu
+                        v = (v + sigma * ki * kj) * (di * state[opn + n + j])
+                        state[op + i * n + j] = v
+                        state[op + j * n + i] = v
                 for i in range(n):
                     state[i] = state[oth + i]
                     state[ok + i] = state[okg + i]
-                for i in range(n * n):
-                    state[op + i] = state[opn + i]
                 state[osc + SC_S] = s
                 state[osc + SC_SIGMA] = sigma
                 state[osc + SC_ERROR] = e
@@ -501,9 +528,15 @@ def mrgia_step(state: np.ndarray, oc: int, ow: int, na: int, nb: int, d: int, u:
     state[osc + SC_PRIMED] = 1.0
     state[osc + SC_T] = t
     state[osc + SC_SINCE_RESET] += 1.0
-    if state[oc + CFG_STUCK_BELOW] > 0.0 and state[osc + SC_SINCE_RESET] > state[oc + CFG_WARMUP]:
-        cov_up, cov_down = line_coverage(state, na, nb, d)
-        if min(cov_up, cov_down) < state[oc + CFG_STUCK_BELOW]:
+    below = state[oc + CFG_STUCK_BELOW]
+    if below > 0.0 and state[osc + SC_SINCE_RESET] > state[oc + CFG_WARMUP]:
+        # min(line_coverage) < below, multiplied out: no division per sample (a side that moved in too
+        # few samples reports 1, never below the threshold)
+        move_up = state[osc + SC_MOVE_UP]
+        move_down = state[osc + SC_MOVE_DOWN]
+        if (move_up > MIN_MOVE_SHARE and state[osc + SC_LINE_UP] < below * move_up) or (
+            move_down > MIN_MOVE_SHARE and state[osc + SC_LINE_DOWN] < below * move_down
+        ):
             code += STEP_STUCK
     return code
 

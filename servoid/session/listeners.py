@@ -47,9 +47,13 @@ class RecordingListener:
 
     def __init__(self, writer: RecordingWriter) -> None:
         self.writer = writer
+        self._append_line = writer.append_line
 
     def on_sample(self, sample: Sample, usable: bool) -> None:  # noqa: ARG002 - every sample is recorded
-        self.writer.append(*sample.row())
+        if type(sample) is Sample:
+            self._append_line(sample.line())  # one format per row: this runs at every sample
+        else:
+            self.writer.append(*sample.row())
 
     def close(self) -> None:
         """Close the recording."""

@@ -58,6 +58,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from itertools import chain
 from pathlib import Path
 from typing import Any
 
@@ -462,6 +463,24 @@ def run_session(
     return sampler.result(recording)
 
 
+_new_sample = tuple.__new__
+
+#: Values an array excitation hands over at a time as Python floats (one ``tolist`` per chunk instead of
+#: a NumPy scalar per sample, which costs its creation and its ``float()``).
+_CHUNK = 4096
+
+
+def _plain(excitation: Iterable[Any]) -> Iterable[Any]:
+    """``excitation``'s values in order; an array's as Python objects, converted a chunk at a time."""
+    if isinstance(excitation, np.ndarray):
+        return chain.from_iterable(excitation[i : i + _CHUNK].tolist() for i in range(0, len(excitation), _CHUNK))
+    return excitation
+
+
+def _not_finite(k: int, value: Any) -> ConfigError:
+    return ConfigError(f"excitation[{k}] (={value!r}) is not finite")
+
+
 class _Sampler:
     """The loop of :func:`run_session` and its state."""
 
@@ -494,9 +513,9 @@ class _Sampler:
         self.t0 = 0
         self._shut = False
         self._next_progress = 0
-        self._last_device: tuple[int, float] | None = None  # (slot, device time) of the last reading
+        self._last_device_k, self._last_device_t = -1, math.nan  # slot and device time of the last reading (-1: none)
+        self._period_s = config.period_s
         self.keep_samples = keep_samples
-        self.slots = 0
         self._slack_s = config.period_s / 2 + driver.clock_resolution_s
 
     # ---- the loop -----------------------------------------------------------------
@@ -504,103 +523,128 @@ class _Sampler:
         driver, clock, period = self.driver, self.clock, self.period_ns
         if self.feed is not None and self.feed.estimator is not None:
             self.feed.estimator.warm_up()
+        values, reference_of = self._values(excitation)  # before the servo moves: an array is checked whole
         driver.set_sample_period(self.config.period_s)
         driver.enable()
         give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
         # bound once: the loop runs per sample, and its own work is what the session adds to the exchange
         now, sleep_until, half = clock.now_ns, clock.sleep_until_ns, period // 2
         exchange, measured, command_filter = driver.exchange, self._measured, self.command_filter
+        usable, counts, notify = self.usable.__call__, self.counts, self.notify  # __call__: a bound method is quicker
+        keep, keep_sample, keep_flag = self.keep_samples, self.samples.append, self.flags.append
         self.t0 = t0 = now()
         last_reply = t0
         self._next_progress = t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
-        for k, value in enumerate(excitation):
-            reference = self._reference(k, value)
+        for k, value in enumerate(values):
+            reference = value if reference_of is None else reference_of(k, value)
             scheduled = t0 + k * period
-            if k > 0 and now() - scheduled >= half:
-                self._missed(k, scheduled, reference)
-                continue
-            sleep_until(scheduled)
-            if k > 0 and now() - scheduled >= half:
-                # the sleep overshot (a loaded host): sent now, the command would reach a servo that runs
-                # on its own clock in another sample than its slot, and the record would say otherwise
-                self._missed(k, scheduled, reference)
-                continue
-            command = command_filter(reference) if command_filter is not None else reference
-            start = now()  # after the filter: a slow filter makes the exchange late, and that shows
-            try:
-                m = exchange(command, slot=k)
-            except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
-                end = now()
-                self._timeout(k, scheduled, start, end, reference, command)
-                if end - last_reply > give_up_ns:
-                    raise DriverTimeout(
-                        f"{driver.describe()} stopped answering: no usable reply for "
-                        f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})"
-                    ) from exc
+            sleep_until(scheduled)  # returns at once when the slot has passed
+            start = end = now()
+            gave_up: DriverTimeout | None = None
+            if k > 0 and start - scheduled >= half:
+                # half a period behind, or the sleep overshot (a loaded host): sent now, the command would
+                # reach a servo that runs on its own clock in another sample than its slot, and the record
+                # would say otherwise
+                sample = self._missed(k, scheduled, reference)
             else:
-                end = now()
-                last_reply = end
-                measured(k, scheduled, start, end, reference, m)
+                if command_filter is None:
+                    command = reference
+                else:
+                    command = command_filter(reference)
+                    start = now()  # after the filter: a slow filter makes the exchange late, and that shows
+                try:
+                    m = exchange(command, slot=k)
+                except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
+                    end = now()
+                    sample = self._timeout(k, scheduled, start, end, reference, command)
+                    if end - last_reply > give_up_ns:
+                        gave_up = DriverTimeout(
+                            f"{driver.describe()} stopped answering: no usable reply for "
+                            f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})"
+                        )
+                        gave_up.__cause__ = exc
+                else:
+                    end = now()
+                    last_reply = end
+                    sample = measured(k, scheduled, start, end, reference, m)
+            # here, not in a method: this runs per sample. The one verdict every listener gets (it arms
+            # the guard window), then the listeners in order.
+            status = sample.status
+            ok = usable(status)
+            if keep:
+                keep_sample(sample)
+                keep_flag(ok)
+            counts[status] += 1
+            for listener in notify:
+                listener(sample, ok)
+            if gave_up is not None:
+                raise gave_up
             if end >= self._next_progress:
                 self._maybe_progress(end)
         self._progress(clock.now_ns())
+
+    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
+        """The excitation's values in order, and the check each needs in the loop (None: checked here, whole).
+
+        A one-dimensional array is checked at once (and before the servo moves)
+        and handed over as Python floats a chunk at a time; anything else is
+        checked value by value (:meth:`_reference`).
+        """
+        if isinstance(excitation, np.ndarray) and excitation.ndim == 1:
+            values = np.asarray(excitation, dtype=np.float64)
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                raise _not_finite(int(bad[0]), float(values[bad[0]]))
+            return _plain(values), None
+        return excitation, self._reference
 
     def _reference(self, k: int, value: Any) -> Any:
         """The excitation's value for slot ``k``, checked."""
         reference = float(value)
         if not math.isfinite(reference):
-            raise ConfigError(f"excitation[{k}] (={reference!r}) is not finite")
+            raise _not_finite(k, reference)
         return reference
 
-    def _missed(self, k: int, scheduled: int, reference: float) -> None:
+    def _missed(self, k: int, scheduled: int, reference: float) -> Sample:
         held = self.driver.last_command
         u = held if held is not None else 0.0  # before any command the servo holds where it was enabled
-        self._add(Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, MISSED))
+        return Sample(k, self._s(scheduled), math.nan, reference, u, math.nan, MISSED)
 
-    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> None:
+    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: float, command: float) -> Sample:
         # whether the servo applied the command is unknown (a lost reply or a lost request); the
         # driver takes a lost reply as the likelier (its last command) and keeps the next command
         # within reach of both
         u = self.driver.last_command
         assert u is not None  # the exchange got as far as sending
-        self._add(Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, TIMEOUT,
-                         exchange_s=(end - start) / NS_PER_S, clamped=u != command))  # fmt: skip
+        return Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, TIMEOUT,
+                      exchange_s=(end - start) / NS_PER_S, clamped=u != command)  # fmt: skip
 
-    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> None:
+    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> Sample:
         status, device_time = self._status_of(k, scheduled, start, end, m.device_time)
         t0 = self.t0
-        self._add(Sample(k, (scheduled - t0) / NS_PER_S, (start - t0) / NS_PER_S, reference, m.command, m.position,
-                         status, device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+        # tuple.__new__ skips the named tuple's own __new__, a Python frame per sample
+        return _new_sample(Sample, (k, (scheduled - t0) / NS_PER_S, (start - t0) / NS_PER_S, reference, m.command,
+                                    m.position, status, device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
 
     def _status_of(self, k: int, scheduled: int, start: int, end: int, device: float | None) -> tuple[str, float]:
         """Whether an answered exchange was on time (``ok``) or ``late``; and its device time (NaN: none)."""
         # started late, or answered after the next slot began: a device without a clock of its own to
         # show may have taken the reading in a later sample (a host stalled between request and reply)
         late = start - scheduled > self.tolerance_ns or end - scheduled > self.period_ns
-        device_time = math.nan if device is None else float(device)
-        if device is not None:
-            if self._last_device is not None:
-                prev_k, prev_t = self._last_device
-                expected = (k - prev_k) * self.config.period_s
-                # the request reached the device in another sample than its slot (a device clock
-                # that counts whole milliseconds may be off by one count without that): _slack_s
-                late = late or abs((device_time - prev_t) - expected) >= self._slack_s
-            self._last_device = (k, device_time)
+        if device is None:
+            return (LATE if late else OK), math.nan
+        device_time = float(device)
+        if self._last_device_k >= 0:
+            expected = (k - self._last_device_k) * self._period_s
+            # the request reached the device in another sample than its slot (a device clock
+            # that counts whole milliseconds may be off by one count without that): _slack_s
+            late = late or abs((device_time - self._last_device_t) - expected) >= self._slack_s
+        self._last_device_k, self._last_device_t = k, device_time
         return (LATE if late else OK), device_time
 
     # ---- bookkeeping ----------------------------------------------------------------
     def _s(self, t_ns: int) -> float:
         return (t_ns - self.t0) / NS_PER_S
-
-    def _add(self, sample: Sample) -> None:
-        ok = self.usable(sample.status)  # the one verdict every listener gets (it arms the guard window)
-        if self.keep_samples:
-            self.samples.append(sample)
-            self.flags.append(ok)
-        self.slots += 1
-        self.counts[sample.status] += 1
-        for notify in self.notify:
-            notify(sample, ok)
 
     def _maybe_progress(self, now: int) -> None:
         if self.on_progress is not None and now >= self._next_progress:
@@ -611,7 +655,7 @@ class _Sampler:
         if self.on_progress is None:
             return
         estimate = None if self.feed is None else self.feed.current()
-        self.on_progress(SessionProgress(self.slots, self.total, dict(self.counts),
+        self.on_progress(SessionProgress(sum(self.counts.values()), self.total, dict(self.counts),
                                          (now - self.t0) / NS_PER_S, estimate))  # fmt: skip
 
     def shutdown(self) -> None:
@@ -646,30 +690,33 @@ class _Sampler:
 class BusSampler(_Sampler):
     """The sampling loop over a :class:`~servoid.drivers.bus.BusDriver`: one :class:`JointsSample` per slot."""
 
+    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
+        return _plain(excitation), self._reference  # every row checked for its shape too
+
     def _reference(self, k: int, value: Any) -> Any:
         reference = np.asarray(value, dtype=np.float64)
         joints = len(self.driver.joints)  # type: ignore[attr-defined]
         if reference.shape != (joints,):
             raise ConfigError(f"excitation[{k}] has shape {reference.shape}; the bus has {joints} joints")
         if not np.all(np.isfinite(reference)):
-            raise ConfigError(f"excitation[{k}] (={reference.tolist()}) is not finite")
+            raise _not_finite(k, reference.tolist())
         return tuple(float(v) for v in reference)
 
-    def _missed(self, k: int, scheduled: int, reference: Any) -> None:
+    def _missed(self, k: int, scheduled: int, reference: Any) -> Any:
         u = tuple(0.0 if held is None else held for held in self.driver.last_command)  # type: ignore[union-attr]
         nan = (math.nan,) * len(u)
-        self._add(JointsSample(k, self._s(scheduled), math.nan, reference, u, nan, MISSED))  # type: ignore[arg-type]
+        return JointsSample(k, self._s(scheduled), math.nan, reference, u, nan, MISSED)
 
-    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: Any, command: Any) -> None:
+    def _timeout(self, k: int, scheduled: int, start: int, end: int, reference: Any, command: Any) -> Any:
         bus: Any = self.driver
         u: tuple[float, ...] = tuple(bus.last_command)
         clamped = tuple(a != b for a, b in zip(u, command))
-        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference, u, (math.nan,) * len(u),  # type: ignore[arg-type]
-                               TIMEOUT, exchange_s=(end - start) / NS_PER_S, clamped=clamped))  # fmt: skip
+        return JointsSample(k, self._s(scheduled), self._s(start), reference, u, (math.nan,) * len(u),
+                            TIMEOUT, exchange_s=(end - start) / NS_PER_S, clamped=clamped)  # fmt: skip
 
-    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any) -> None:
+    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any) -> Any:
         ms: tuple[Measurement, ...] = m
         status, device_time = self._status_of(k, scheduled, start, end, ms[0].device_time)
-        self._add(JointsSample(k, self._s(scheduled), self._s(start), reference,  # type: ignore[arg-type]
-                               tuple(x.command for x in ms), tuple(x.position for x in ms), status, device_time,
-                               (end - start) / NS_PER_S, tuple(x.clamped for x in ms)))  # fmt: skip
+        return JointsSample(k, self._s(scheduled), self._s(start), reference,
+                            tuple(x.command for x in ms), tuple(x.position for x in ms), status, device_time,
+                            (end - start) / NS_PER_S, tuple(x.clamped for x in ms))  # fmt: skip

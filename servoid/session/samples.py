@@ -44,6 +44,9 @@ class Status(str, enum.Enum):
 
 
 OK, LATE, MISSED, TIMEOUT = "ok", "late", "missed", "timeout"
+
+#: :meth:`Sample.line`'s format: the fields in the order of :data:`COLUMNS`.
+_LINE = "%d,%s,%s,%s,%s,%s,%s,%s,%s,%d\n"
 STATUSES = (OK, LATE, MISSED, TIMEOUT)
 
 #: Columns of a live recording, in order. Times in seconds from the first slot;
@@ -96,6 +99,17 @@ class Sample(NamedTuple):
         """The recording row, in the order of :data:`COLUMNS`."""
         return (self.k, self.t_scheduled, self.t_actual, self.reference, self.u, self.y, self.status,
                 self.device_time, self.exchange_s, int(self.clamped))  # fmt: skip
+
+    def line(self) -> str:
+        """The recording row as one CSV line, the text :meth:`RecordingWriter.append <servoid.recording.RecordingWriter.append>` writes for :meth:`row`.
+
+        One ``%`` format of the tuple itself: the session writes a row per
+        sample, and this costs a third less than formatting value by value.
+        ``%s`` of a float is its ``repr`` (the shortest text that reads back
+        exactly; NumPy's float64 prints the same digits); ``%d`` writes
+        ``clamped`` as 0 or 1.
+        """
+        return _LINE % self
 
 
 def joint_columns(ids: Sequence[int]) -> tuple[str, ...]:
