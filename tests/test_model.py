@@ -77,3 +77,17 @@ def test_max_relative_error():
     assert other.max_relative_error(PAPER_PLANT) == pytest.approx(0.1)
     assert PAPER_PLANT.dc_gain == pytest.approx(0.8 / 2.0)
     assert PAPER_PLANT.dead_zone == pytest.approx(1.5)
+
+
+@pytest.mark.parametrize("pole", [-1.0 + 1e-10, 1.0 - 5e-10, 0.999, -0.9])
+def test_the_fits_stability_test_accepts_exactly_what_the_model_accepts(pole):
+    # a refinement tested plain |p| < 1 and stopped at a pole of -1 + 9e-10, which the model then refused
+    from servoid.ident.models.pseudo_wiener import within_stability_margin
+
+    a = np.array([-(pole + 0.68), pole * 0.68])  # poles at `pole` and 0.68
+    try:
+        BacklashModel(a=tuple(a), b=(1.0,), delay=1, m2=1.0, c1=0.1, c2=0.1)
+        accepted = True
+    except ModelError:
+        accepted = False
+    assert within_stability_margin(a) == accepted == (abs(pole) < 1.0 - 1e-9)

@@ -38,14 +38,33 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ModelError
+from servoid.ident.models.kernels import schur_stable
 
-__all__ = ["BacklashModel", "M1", "ThetaLayout", "backlash_offset"]
+__all__ = ["BacklashModel", "M1", "ThetaLayout", "backlash_offset", "within_stability_margin"]
 
 #: Slope of the up line; fixed to one to normalise the model (text after eq. 11).
 M1 = 1.0
 
 #: A linear block whose largest pole magnitude reaches this bound is rejected as unstable.
 _STABILITY_MARGIN = 1.0 - 1e-9
+
+
+def within_stability_margin(a: np.ndarray) -> bool:
+    """Whether :class:`BacklashModel` accepts the linear block ``a``: every pole inside ``|p| < 1 - 1e-9``.
+
+    The roots of ``z^na + a_1 z^(na-1) + ... + a_na`` lie inside radius ``r``
+    exactly when those of the polynomial scaled by ``a_i / r^i`` lie inside the
+    unit circle, so the Schur-Cohn test of the scaled coefficients decides it
+    without root finding. A fit that tests plain ``|p| < 1`` can stop in
+    between, a pole at ``-1 + 1e-10``, and then cannot be made a model.
+
+    Parameters
+    ----------
+    a : ndarray
+        The denominator's coefficients ``a_1 .. a_na``.
+    """
+    scaled = np.asarray(a, dtype=np.float64) / _STABILITY_MARGIN ** np.arange(1, len(a) + 1)
+    return bool(schur_stable(np.ascontiguousarray(scaled)))
 
 
 def backlash_offset(na: int, nb: int) -> int:

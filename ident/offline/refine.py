@@ -20,8 +20,8 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.metrics import residual_nrmse
-from servoid.ident.models.kernels import rest_kernel, schur_stable, simulate_kernel
-from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout
+from servoid.ident.models.kernels import rest_kernel, simulate_kernel
+from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout, within_stability_margin
 from servoid.ident.offline._oefit import covariance_from_jacobian, failure_level, fit_output_error, fit_record
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
@@ -170,7 +170,7 @@ class _OutputError:
     def simulate(self, p: np.ndarray) -> bool:
         """Fill :attr:`y_hat` for ``p``; False where the model is not valid (unstable, negative dead zone)."""
         a, b, m2, c1, c2, delta0 = self.split(p)
-        if not schur_stable(np.ascontiguousarray(a)) or c2 <= 0.0:
+        if not within_stability_margin(a) or c2 <= 0.0:  # what BacklashModel accepts, no more
             return False
         a_c, b_c = np.ascontiguousarray(a), np.ascontiguousarray(b)
         if self.initial_state:
