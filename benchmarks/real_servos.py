@@ -209,9 +209,12 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
           cols, rows)  # fmt: skip
     print(f"intervals covering the true play: {covered} of {judged}")
     for name, seen in by_preset.items():
-        halves = [h for _, h in seen]
-        print(f"  {name}: {sum(c for c, _ in seen)} of {len(seen)}, half-width relative to the play: median "
-              f"{100 * float(np.median(halves)):.1f} %, largest {100 * max(halves):.1f} %")  # fmt: skip
+        halves = [h for _, h in seen if np.isfinite(h)]
+        none = f" ({len(seen) - len(halves)} without one)" if len(halves) < len(seen) else ""
+        spread = (
+            f"median {100 * float(np.median(halves)):.1f} %, largest {100 * max(halves):.1f} %" if halves else "none"
+        )
+        print(f"  {name}: {sum(c for c, _ in seen)} of {len(seen)}, half-width relative to the play: {spread}{none}")
     print("\nThe verdict's calibration (right = the true structure and |gap| within the issue's target:")
     print(f"{100 * TARGET[OUTPUT_BACKLASH]:g} % motor side, {100 * TARGET[PLAY_IN_LOOP]:g} % play in the loop, "
           f"{100 * STEPS_TARGET:g} % on held steps)")  # fmt: skip
