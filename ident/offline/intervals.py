@@ -7,8 +7,10 @@ drops below 0.05. Quantisation and model error make the residuals of a servo
 correlated; the white ``s^2 (J^T J)^-1`` then covers 74 % instead of 95 %
 (research study Q5: HAC 90-96 % on the paper's plant with white, AR(1) and
 quantised noise). It measures noise only: on a physical servo the error is
-dominated by model error, which is why the verdict rests on rules as well
-as on the interval's width.
+dominated by model error, so the reported interval adds on each side the
+model error's bound (:func:`model_error_halfwidth`: twice what the fit leaves
+above the floor the record guarantees, :func:`resolution_floor_nrmse`), and
+the verdict rests on rules as well as on the interval's width.
 
 The rules (:func:`verdict`) take plain numbers, so that they apply to any
 model form (the pseudo-Wiener black box, the servo-loop model); each one
