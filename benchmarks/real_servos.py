@@ -170,6 +170,7 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     rows = []
     loop_rows: list[list[str]] = []
     covered = judged = 0
+    by_preset: dict[str, list[tuple[bool, float]]] = {}
     confusion: dict[tuple[str, str], list[str]] = {}
     for name, mult, friction, kind in grid:
         for seed in seeds:
@@ -185,6 +186,8 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
             covers = bool(np.isfinite(lo) and lo <= play <= hi)
             judged += 1
             covered += covers
+            half = 0.5 * (hi - lo) / result.play if np.isfinite(lo) and result.play > 0.0 else np.inf
+            by_preset.setdefault(name, []).append((covers, float(half)))
             label = f"{name} {kind} {mult:g}x x{friction:g} s{seed}"
             cell = (
                 "identifiable" if result.identifiable else "withheld",
@@ -205,6 +208,13 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     table("Twins: identify with no structure flags (gap = play / true play - 1; fit against the twin's floor)",
           cols, rows)  # fmt: skip
     print(f"intervals covering the true play: {covered} of {judged}")
+    for name, seen in by_preset.items():
+        halves = [h for _, h in seen if np.isfinite(h)]
+        none = f" ({len(seen) - len(halves)} without one)" if len(halves) < len(seen) else ""
+        spread = (
+            f"median {100 * float(np.median(halves)):.1f} %, largest {100 * max(halves):.1f} %" if halves else "none"
+        )
+        print(f"  {name}: {sum(c for c, _ in seen)} of {len(seen)}, half-width relative to the play: {spread}{none}")
     print("\nThe verdict's calibration (right = the true structure and |gap| within the issue's target:")
     print(f"{100 * TARGET[OUTPUT_BACKLASH]:g} % motor side, {100 * TARGET[PLAY_IN_LOOP]:g} % play in the loop, "
           f"{100 * STEPS_TARGET:g} % on held steps)")  # fmt: skip

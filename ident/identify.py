@@ -37,11 +37,14 @@ from servoid.ident.offline.intervals import (
     Verdict,
     floor_nrmse,
     hac_stderr,
+    model_error_halfwidth,
     play_interval,
     quantum,
+    resolution_floor_nrmse,
     reversals,
     streamed_stderr,
     verdict,
+    with_model_error,
 )
 from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
 from servoid.ident.offline.refine import Refinement, arx_start, refine
@@ -532,7 +535,11 @@ def identify(
         else:  # a long record's fit streamed without a Jacobian
             stderr = streamed_stderr(refinement.covariance, refinement.residual, refinement.play_gradient())
         lines_cross = _lines_cross_inside(refinement, u_c, y0 - centre.y)
-    interval = play_interval(play, stderr)
+    # the HAC interval measures the noise; the fit's excess over the floor the record guarantees
+    # bounds the model error, which on a physical servo dominates (intervals.model_error_halfwidth)
+    guaranteed = resolution_floor_nrmse(y_arr, keep)
+    scale = float(np.std(y_valid))
+    interval = with_model_error(play_interval(play, stderr), model_error_halfwidth(fit, guaranteed, scale))
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
     # times the fit's residual RMS (the noise, where the model is right; more where it is not)
     residual_rms = fit * float(np.std(y_valid))
@@ -562,7 +569,8 @@ def identify(
             loop = None  # the black box fits clearly better than the play in either place of a loop
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
-        interval = (float(loop.play_interval[0]), float(loop.play_interval[1]))
+        noise = (float(loop.play_interval[0]), float(loop.play_interval[1]))
+        interval = with_model_error(noise, model_error_halfwidth(float(loop.fit_nrmse), guaranteed, scale))
         evidence = Evidence(
             play=play, interval=(float(interval[0]), float(interval[1])),
             reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,

@@ -253,3 +253,26 @@ def test_the_floor_of_an_encoder_record_is_not_rounded_to_whole_counts():
     ramp = 0.05 * np.arange(20_000)  # a twentieth of a count per sample, back and forth
     counts = np.round(np.abs((ramp % 200.0) - 100.0) + rng.normal(0.0, 0.3, ramp.size))
     assert noise_std(counts) == pytest.approx(np.sqrt(1 / 12 + 0.09), rel=0.05)
+
+
+def test_the_model_error_term_is_zero_at_the_floor_and_grows_with_the_fit_above_it():
+    from servoid.ident.offline.intervals import model_error_halfwidth, with_model_error
+
+    assert model_error_halfwidth(0.01, 0.01, 2.0) == 0.0
+    assert model_error_halfwidth(0.009, 0.01, 2.0) == 0.0  # below the floor: noise, not model error
+    # noise and model error add in variance: a fit at 1.25x the floor leaves 0.75 floor of model error
+    assert model_error_halfwidth(0.0125, 0.01, 2.0) == pytest.approx(2.0 * 0.0075 * 2.0)
+    assert with_model_error((1.0, 2.0), 0.5) == (0.5, 2.5)
+    assert all(np.isnan(with_model_error((1.0, 2.0), model_error_halfwidth(np.nan, 0.01, 1.0))))
+
+
+def test_an_encoder_guarantees_only_its_rounding_as_the_floor():
+    from servoid.ident.offline.intervals import resolution_floor_nrmse
+
+    rng = np.random.default_rng(3)
+    t = np.arange(3000)
+    smooth = np.sin(t / 40.0) + rng.normal(0.0, 0.01, t.size)
+    counts = np.round(smooth / 1e-3) * 1e-3
+    assert resolution_floor_nrmse(counts) == pytest.approx(1e-3 / np.sqrt(12.0) / np.std(counts))
+    assert resolution_floor_nrmse(counts) < floor_nrmse(counts)  # the noise estimate holds the 0.01 noise too
+    assert resolution_floor_nrmse(smooth) == floor_nrmse(smooth)  # no lattice: the noise estimate
