@@ -429,14 +429,18 @@ def residual_tests(
         raise ConfigError(f"{n} samples are too few for max_lag={max_lag}: at least {2 * max_lag + 1} are needed")
     level = validation.in_unit_interval("confidence", confidence)
     # A left-out sample's residual is zero after centring: it adds nothing to any product.
+    # the input's spread before the residual is centred: one temporary of the record's length at a time
+    u_mean = float(u_arr.mean())
+    u_ss = float(np.var(u_arr)) * u_arr.size
     rc = r - r.mean() if keep is None else np.where(keep, r - r[keep].mean(), 0.0)
-    uc = u_arr - u_arr.mean()
     n_all = r.size
     denom_r = float(rc @ rc)
-    denom_ru = float(np.sqrt(denom_r * float(uc @ uc)))
+    denom_ru = float(np.sqrt(denom_r * u_ss))
     lags = np.arange(max_lag + 1)
     auto = autocorrelation(rc, max_lag)
-    cross = np.array([float(rc[k:] @ uc[: n_all - k]) for k in lags]) / (denom_ru if denom_ru > 0 else 1.0)
+    # rc[k:] @ (u - mean u)[:n-k] without the centred copy of u: the mean's part is mean(u) sum(rc[k:])
+    cross = np.array([float(rc[k:] @ u_arr[: n_all - k]) - u_mean * float(rc[k:].sum()) for k in lags])
+    cross /= denom_ru if denom_ru > 0 else 1.0
     band = float(norm.ppf(0.5 + level / 2.0) / np.sqrt(n))
     return ResidualTests(
         lags=lags, autocorrelation=auto, cross_correlation=cross, band=band, confidence=level, samples=n

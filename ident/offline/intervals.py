@@ -221,15 +221,21 @@ def quantum(y: np.ndarray) -> float:
     An encoder's count, a scale's last digit: every nonzero ``|diff y|`` is a
     whole multiple of the smallest one (within 1e-6), for all but 1 % of them.
     """
-    d = np.abs(np.diff(np.asarray(y, dtype=np.float64)))
-    scale = float(np.max(np.abs(y))) if y.size else 0.0
-    d = d[d > 1e-12 * max(scale, 1e-300)]
-    if d.size < 10:
+    y = np.asarray(y, dtype=np.float64)
+    # in place, two arrays of the record's length at a time (identify's peak memory per sample counts them)
+    d = np.diff(y)
+    np.abs(d, out=d)
+    scale = float(max(np.max(y), -np.min(y))) if y.size else 0.0
+    moved = d > 1e-12 * max(scale, 1e-300)
+    changes = int(np.count_nonzero(moved))
+    if changes < 10:
         return 0.0
-    q = float(np.min(d))
-    ratio = d / q
-    off = np.abs(ratio - np.round(ratio)) > 1e-6 * np.maximum(ratio, 1.0)
-    return q if float(np.mean(off)) <= 0.01 else 0.0
+    q = float(np.min(d, where=moved, initial=np.inf))
+    ratio = np.divide(d, q, out=d)
+    off = np.round(ratio)
+    np.abs(np.subtract(ratio, off, out=off), out=off)  # |ratio - round(ratio)|
+    tolerance = np.multiply(np.maximum(ratio, 1.0, out=ratio), 1e-6, out=ratio)
+    return q if np.count_nonzero((off > tolerance) & moved) <= 0.01 * changes else 0.0
 
 
 def noise_std(y: np.ndarray, valid: np.ndarray | None = None) -> float:
@@ -273,10 +279,11 @@ def noise_std(y: np.ndarray, valid: np.ndarray | None = None) -> float:
         d4 = d4[whole]
     if d4.size < MIN_NOISE_WINDOWS:
         return 0.0
-    d4 = d4 - np.median(d4)
-    size = np.abs(d4)
-    inner = d4[size <= np.quantile(size, _TRIM_KEEP)]
-    return float(np.sqrt(np.mean(inner * inner) / _TRIM_VARIANCE / 70.0))
+    # in place, one array of the record's length at a time (identify's peak memory per sample counts it)
+    size = np.abs(np.subtract(d4, np.median(d4), out=d4), out=d4)
+    inner = size <= np.quantile(size, _TRIM_KEEP)
+    squares = np.square(size, out=size)
+    return float(np.sqrt(np.sum(squares, where=inner) / np.count_nonzero(inner) / _TRIM_VARIANCE / 70.0))
 
 
 #: Share of the fourth differences :func:`noise_std` keeps, and the variance of a unit Gaussian
