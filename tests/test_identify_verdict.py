@@ -276,3 +276,15 @@ def test_an_encoder_guarantees_only_its_rounding_as_the_floor():
     assert resolution_floor_nrmse(counts) == pytest.approx(1e-3 / np.sqrt(12.0) / np.std(counts))
     assert resolution_floor_nrmse(counts) < floor_nrmse(counts)  # the noise estimate holds the 0.01 noise too
     assert resolution_floor_nrmse(smooth) == floor_nrmse(smooth)  # no lattice: the noise estimate
+
+
+def test_a_servo_loop_answer_needs_twice_the_reversals_of_the_black_box():
+    from servoid.ident.offline.intervals import MIN_LOOP_REVERSALS, MIN_REVERSALS, Evidence, verdict
+
+    common = dict(play=1.0, interval=(0.99, 1.01), fit_nrmse=0.01, floor=0.01, residual_white=True)
+    between = (MIN_REVERSALS + MIN_LOOP_REVERSALS) // 2
+    assert verdict(Evidence(reversals=between, **common)).identifiable  # the black box: enough
+    loop = verdict(Evidence(reversals=between, margin=0.5, dead_time_samples=3.0, stall_band=0.0, **common))
+    assert not loop.identifiable and f"at least {MIN_LOOP_REVERSALS} needed" in loop.reason
+    assert verdict(Evidence(reversals=MIN_LOOP_REVERSALS, margin=0.5, dead_time_samples=3.0, stall_band=0.0,
+                            **common)).identifiable  # fmt: skip
