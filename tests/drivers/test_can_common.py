@@ -21,6 +21,7 @@ from servoid.errors import ConfigError, DriverError, DriverTimeout
 from servoid.ident.models.simulate import simulate
 from servoid.recording import read_recording
 
+from . import ctrl_c_reaches_it
 from .can_helpers import (
     PATIENT_S,
     bench_input,
@@ -116,7 +117,9 @@ def test_the_emulator_in_another_process_over_udp_multicast(protocol):
     # --rate 0: one sample per input, since the exchanges below come as fast as they can, not at a rate
     cmd = [sys.executable, "-m", "servoid", "emulate", "can", "--protocol", protocol, "--port", str(port), "--quiet",
            "--rate", "0", "--servo", "model"]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_reaches_it
+    )
     try:
         url = proc.stdout.readline().strip()
         assert url.startswith("can://udp_multicast/239.74.163.2?") and f"port={port}" in url, proc.stderr.read()

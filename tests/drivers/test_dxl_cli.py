@@ -11,6 +11,7 @@ import pytest
 
 from servoid.drivers import driver_from_url
 
+from . import ctrl_c_reaches_it
 from .dxl_helpers import TEST_LATENCY_MS
 
 
@@ -20,7 +21,7 @@ def test_emulate_dxl_prints_the_port_and_serves_until_interrupted(tmp_path):
     link = tmp_path / "ttyDXL"
     proc = subprocess.Popen(
         [sys.executable, "-m", "servoid", "emulate", "dxl", "--ids", "1,4", "--link", str(link)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=ctrl_c_reaches_it,
     )  # fmt: skip
     try:
         lines = []
