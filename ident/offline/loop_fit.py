@@ -664,11 +664,32 @@ def _with_rivals(interval: tuple[float, float], candidates: list[LoopCandidate],
     interval and the structure rule say the same thing: models the record cannot separate bound
     what it knows about the play. A statistical interval that is not finite stays so.
     """
+    return widened_to_rivals(interval, [(c.model.play, c.validation_nrmse) for c in candidates], best)
+
+
+def widened_to_rivals(
+    interval: tuple[float, float], rivals: list[tuple[float, float]], best: float
+) -> tuple[float, float]:
+    """The hull of ``interval`` and the plays of the ``(play, nrmse)`` rivals within the structure margin of ``best``.
+
+    The one rule of :func:`_with_rivals` (validation fits) and of the online refinement's reach
+    (:mod:`servoid.ident.online.refinement`, fits on the whole record). A statistical interval
+    that is not finite stays so.
+
+    Parameters
+    ----------
+    interval : tuple of float
+        The statistical interval.
+    rivals : list of (float, float)
+        Each rival's play and its NRMSE, on the same data as ``best``.
+    best : float
+        The answer's NRMSE.
+    """
     low, high = interval
     if not (math.isfinite(low) and math.isfinite(high)):
         return interval
-    rivals = [c.model.play for c in candidates if c.validation_nrmse <= (1.0 + MIN_STRUCTURE_MARGIN) * best]
-    return (min([low, *rivals]), max([high, *rivals]))
+    plays = [play for play, nrmse in rivals if nrmse <= (1.0 + MIN_STRUCTURE_MARGIN) * best]
+    return (min([low, *plays]), max([high, *plays]))
 
 
 def _dead_time_samples(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float:

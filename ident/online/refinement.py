@@ -55,7 +55,7 @@ from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
-from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, quantum
+from servoid.ident.offline.intervals import quantum
 from servoid.ident.offline.loop_fit import (
     FINAL_NFEV,
     MIN_SAMPLES,
@@ -67,6 +67,7 @@ from servoid.ident.offline.loop_fit import (
     _with_rivals,
     block_mask,
     refit_loop,
+    widened_to_rivals,
 )
 from servoid.ident.online.window import WindowResult
 
@@ -199,12 +200,5 @@ def _scaled(model: ServoLoopModel, factor: float) -> ServoLoopModel:
 def _reach(interval: tuple[float, float], refits: list[LoopRefit], final: LoopRefit) -> tuple[float, float]:
     """``interval`` widened to the plays of the refits of one place that fit within the structure margin of the answer
     (step 3; a refit of the other place than the answer's says nothing of its play; an unbounded interval stays so)."""
-    low, high = interval
-    if not (math.isfinite(low) and math.isfinite(high)):
-        return interval
-    plays = [
-        r.model.play
-        for r in refits
-        if r.model.structure == final.model.structure and r.fit_nrmse <= (1.0 + MIN_STRUCTURE_MARGIN) * final.fit_nrmse
-    ]
-    return (min([low, *plays]), max([high, *plays]))
+    same_place = [(r.model.play, r.fit_nrmse) for r in refits if r.model.structure == final.model.structure]
+    return widened_to_rivals(interval, same_place, final.fit_nrmse)
