@@ -295,7 +295,8 @@ def real() -> None:
         o = result.orders.chosen if result.orders else None
         rows.append([
             label, str(rec.u.size), f"{result.structure} ({result.form})" + (f" {o.orders}" if o else ""),
-            f"{result.play:.4g} {rec.metadata.get('unit', '')}", f"[{lo:.3g}, {hi:.3g}]",
+            f"{result.play:.4g} {rec.metadata.get('unit', '')}",
+            f"[{lo:.3g}, {hi:.3g}]" if np.isfinite(lo) and np.isfinite(hi) else "none",
             f"{reasons(result)} (reversals {result.reversals}, fit/floor "
             f"{result.fit_nrmse / result.floor_nrmse:.2g})", f"{seconds:.1f}",
         ])  # fmt: skip
