@@ -111,3 +111,14 @@ def test_an_impact_keeps_momentum_and_applies_the_restitution(e: float) -> None:
     assert w - v == pytest.approx(e * 1.0, rel=1e-6, abs=1e-9)
     if e > 0.0:  # the load bounced off: it is ahead of the flank
         assert state[0] - state[1] < model.c1
+
+
+def test_a_massless_model_writes_no_load_and_old_files_read_as_massless() -> None:
+    model = _model(PLAY_IN_LOOP)
+    assert tuple(model.params()) == PARAM_NAMES
+    old = {k: v for k, v in model.to_dict().items() if k not in ("mu", "e", "al")}
+    assert ServoLoopModel.from_dict(old) == model
+    heavy = _model(PLAY_IN_LOOP, mu=0.1, e=0.5, al=3.0)
+    assert tuple(heavy.params())[-3:] == ("mu", "e", "al")
+    with pytest.raises(ConfigError, match="e"):
+        _model(PLAY_IN_LOOP, mu=0.1, e=1.5)

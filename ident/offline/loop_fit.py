@@ -25,6 +25,11 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    candidates that validate as well as the winner (within the structure margin): the model
    error the record cannot resolve.
 
+7. **The load stage (opt-in, ``load=``)**: the massless winner extended by a load of its own
+   inertia that meets the flanks in rigid impacts (:func:`_load_stage`), kept only when it
+   validates :data:`LOAD_MARGIN` better. Off by default: on the horn twins it never did, and it
+   did not recover its own simulation's ``mu, e`` from the massless optimum (README, "what we learned").
+
 What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
 contact is the play operator, so the free-run output is continuous in the parameters;
 rates and the play are fitted as ``ln(p / p_start)`` with a 3 % finite-difference step,
@@ -186,6 +191,8 @@ class LoopChoice:
         The validation NRMSE of the load stage (:func:`_load_stage`) when it ran, else NaN; the
         massless winner's is ``validation_nrmse[structure]`` unless the stage replaced it
         (``model.massive``).
+    load_candidate : LoopCandidate or None
+        The load stage's fit (estimation blocks), kept or not; None when it did not run.
     """
 
     structure: str
@@ -204,6 +211,7 @@ class LoopChoice:
     seconds: float
     evaluations: int
     load_validation: float = math.nan
+    load_candidate: LoopCandidate | None = field(default=None, repr=False)
 
     @property
     def determined(self) -> bool:
@@ -542,6 +550,7 @@ def fit_loop(
     margin = per_structure[other] / best.validation_nrmse - 1.0 if best.validation_nrmse > 0.0 else math.inf
 
     load_val = math.nan
+    heavy = None
     if load or (load is None and best.validation_nrmse > LOAD_FIT_TO_FLOOR * floor_nrmse(yc, kept)):
         heavy, heavy_d, used = _load_stage(uc, yc, period, best, best_d, est, val, a_scale)
         evaluations += used
@@ -588,6 +597,7 @@ def fit_loop(
         seconds=time.perf_counter() - t0,
         evaluations=evaluations,
         load_validation=load_val,
+        load_candidate=heavy,
     )
 
 
