@@ -164,11 +164,12 @@ def grid_of(
     return grid
 
 
-def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
+def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: bool = False) -> None:
     cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "gap", "fit/floor",
             "95 % / truth", "covers", "white", "loop fit", "verdict", "s"]  # fmt: skip
     rows = []
     loop_rows: list[list[str]] = []
+    load_rows: list[list[str]] = []
     covered = judged = 0
     by_preset: dict[str, list[tuple[bool, float]]] = {}
     confusion: dict[tuple[str, str], list[str]] = {}
@@ -205,6 +206,9 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
             print(" | ".join(rows[-1]), flush=True)
             loop_rows.append(loop_row(rec, result, [name, kind, f"{mult:g}x", f"x{friction:g}", str(seed)]))
             print(" | ".join(loop_rows[-1]), flush=True)
+            if load:
+                load_rows.append(load_row(rec, [name, kind, f"{mult:g}x", f"x{friction:g}", str(seed)]))
+                print(" | ".join(load_rows[-1]), flush=True)
     table("Twins: identify with no structure flags (gap = play / true play - 1; fit against the twin's floor)",
           cols, rows)  # fmt: skip
     print(f"intervals covering the true play: {covered} of {judged}")
@@ -224,6 +228,31 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int]) -> None:
     table("Twins: the servo-loop model alone (fit_loop; from identify when it ran there, else fitted here)",
           ["preset", "excitation", "rate", "fric", "seed", "true", "loop's choice", "margin", "gap", "fit/floor",
            "95 % / truth", "dead time (samples)", "simulations", "s"], loop_rows)  # fmt: skip
+    if load:
+        table("Twins: the load stage (fit_loop load=True: a load of its own inertia meeting the flanks in impacts)",
+              ["preset", "excitation", "rate", "fric", "seed", "massless gap", "massless val/floor", "s",
+               "stage gap", "stage val/floor", "mu", "e", "al", "kept", "answer gap", "s"], load_rows)  # fmt: skip
+
+
+def load_row(rec: dict[str, object], head: list[str]) -> list[str]:
+    """The servo-loop fit without and with the load stage on a twin record (the stage's own answer even when not kept)."""
+    u, y, period = rec["u"], rec["y"], float(rec["period"])  # type: ignore[arg-type]
+    play, floor = float(rec["play"]), float(rec["floor"])  # type: ignore[arg-type]
+    started = time.perf_counter()
+    massless = fit_loop(u, y, period)
+    plain_s = time.perf_counter() - started
+    started = time.perf_counter()
+    staged = fit_loop(u, y, period, load=True)
+    staged_s = time.perf_counter() - started
+    stage = staged.load_candidate.model if staged.load_candidate is not None else None
+    tried = staged.load_validation
+    return [
+        *head, f"{100 * (massless.play / play - 1):+.1f} %",
+        f"{massless.validation_nrmse[massless.structure] / floor:.3f}", f"{plain_s:.1f}",
+        f"{100 * (stage.play / play - 1):+.1f} %" if stage is not None else "", f"{tried / floor:.3f}",
+        f"{stage.mu:.3g}" if stage else "", f"{stage.e:.2f}" if stage else "", f"{stage.al:.3g}" if stage else "",
+        "yes" if staged.model.massive else "no", f"{100 * (staged.play / play - 1):+.1f} %", f"{staged_s:.1f}",
+    ]  # fmt: skip
 
 
 def loop_row(rec: dict[str, object], result: Identification, head: list[str]) -> list[str]:
@@ -316,6 +345,7 @@ def main() -> None:
     ap.add_argument("--kinds", default="sines,steps", help="excitations: sines (gentle), steps (held)")
     ap.add_argument("--no-paper", action="store_true", help="skip the paper's example")
     ap.add_argument("--no-real", action="store_true", help="skip the real recordings")
+    ap.add_argument("--load", action="store_true", help="also fit each twin record with the opt-in load stage")
     args = ap.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else ([1, 2, 3] if args.full else [1])
     presets = args.presets.split(",")
@@ -329,7 +359,7 @@ def main() -> None:
         paper()
     if not args.no_real:
         real()
-    twins(grid_of(args.full, presets, rates, args.kinds.split(","), frictions), seeds)
+    twins(grid_of(args.full, presets, rates, args.kinds.split(","), frictions), seeds, load=args.load)
 
 
 if __name__ == "__main__":

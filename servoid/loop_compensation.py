@@ -46,11 +46,12 @@ def loop_model(content: ModelFile) -> ServoLoopModel:
         The file holds no servo-loop model, or its parameters are not one.
     """
     from servoid.errors import ConfigError
-    from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel
+    from servoid.ident.models.servo_loop import KERNEL_NAMES, PARAM_NAMES, ServoLoopModel
 
     if not has_loop(content) or content.loop is None:
         raise ModelError("the model file holds no servo-loop model (structure.form is not servo_loop)")
-    values = {name: content.loop[name] for name in PARAM_NAMES if name in content.loop}
+    # the load's parameters (mu, e, al) are optional: absent, the load is massless
+    values = {name: content.loop[name] for name in KERNEL_NAMES if name in content.loop}
     missing = [name for name in PARAM_NAMES if name not in values]
     if missing:
         raise ModelError(f"structure.loop lacks {', '.join(missing)}")

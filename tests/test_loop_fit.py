@@ -12,7 +12,7 @@ from servoid.excitation.specs import GentleSpec
 from servoid.ident import MRGIAConfig, identify
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, SERVO_LOOP
-from servoid.ident.offline.loop_fit import MIN_SAMPLES, LoopChoice, block_mask, fit_loop
+from servoid.ident.offline.loop_fit import LOAD_MARGIN, MIN_SAMPLES, LoopChoice, block_mask, fit_loop
 
 #: The presets' loop bandwidths, Hz (measured in the issue-12 study): only to set the host rate.
 BANDWIDTH_HZ = {"xm430": 3.5, "cia402": 20.0}
@@ -144,3 +144,20 @@ def test_an_output_that_never_moves_where_it_is_validated_is_named_not_a_crash()
     y = np.where(block_mask(n), np.round(30.0 * np.cumsum(u)) * 1e-3, 0.0)
     with pytest.raises(ModelError, match="never moves in the validation blocks"):
         fit_loop(u, y, 0.01)
+
+
+def test_the_load_stage_stands_only_when_it_validates_better() -> None:
+    # a massless loop: the opt-in load stage runs, but the massless answer stands unless the stage
+    # validates LOAD_MARGIN better; off by default (not run)
+    period = 0.01
+    truth = _loop(PLAY_IN_LOOP, period)
+    u = _gentle(0.1, period, 2000, seed=3)
+    y = truth.simulate(u, y0=0.0)
+    plain = fit_loop(u, y, period)
+    assert np.isnan(plain.load_validation) and plain.load_candidate is None
+    tried = fit_loop(u, y, period, load=True)
+    assert tried.load_candidate is not None and np.isfinite(tried.load_validation)
+    if tried.model.massive:
+        assert tried.load_validation < (1.0 - LOAD_MARGIN) * plain.validation_nrmse[plain.structure]
+    else:
+        assert tried.play == plain.play

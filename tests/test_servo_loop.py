@@ -7,7 +7,14 @@ import pytest
 
 from servoid.errors import ConfigError
 from servoid.ident._jit import python_version
-from servoid.ident.models.servo_loop import PARAM_NAMES, ServoLoopModel, simulate_kernel
+from servoid.ident.models.servo_loop import (
+    PARAM_NAMES,
+    STATE_SIZE,
+    ServoLoopModel,
+    advance,
+    initial_state,
+    simulate_kernel,
+)
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 
 
@@ -72,3 +79,46 @@ def test_parameters_round_trip_and_are_checked() -> None:
         _model(PLAY_IN_LOOP, kv=0.0)
     with pytest.raises(ConfigError, match="unknown"):
         ServoLoopModel.from_dict({**model.to_dict(), "mass": 1.0})
+
+
+def _light(structure: str, **kw: float) -> ServoLoopModel:
+    return _model(structure, **{"ki": 0.0, "a0": 0.0, **kw})
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_a_vanishing_plastic_load_is_the_massless_play(structure: str) -> None:
+    # mu -> 0, e = 0 and a load its friction stops at once: the play operator of the massless load
+    u = 0.1 * np.sin(np.arange(600) * 0.03)
+    massless = _light(structure)
+    heavy = _light(structure, mu=1e-9, e=0.0, al=1e6)  # the load's friction force mu al -> 0 too
+    gap = np.max(np.abs(heavy.simulate(u, y0=0.0) - massless.simulate(u, y0=0.0)))
+    assert gap < 1e-3 * massless.play
+    # and with the option off the kernel is the massless one, whatever the load's other numbers say
+    np.testing.assert_array_equal(_light(structure, e=0.7, al=5.0).simulate(u), massless.simulate(u))
+
+
+@pytest.mark.parametrize("e", [0.0, 0.6])
+def test_an_impact_keeps_momentum_and_applies_the_restitution(e: float) -> None:
+    # no loop force (kp tiny, no friction anywhere): the motor side coasts at 1 into a load at rest
+    model = _light(OUTPUT_BACKLASH, kp=1e-9, kv=1e-9, fc=0.0, fs=0.0, mu=0.5, e=e, al=0.0, c1=0.01, c2=0.01)
+    p = model.vector()
+    state = np.empty(STATE_SIZE)
+    initial_state(p, 0.0, state)
+    state[0], state[2] = 0.0, 1.0  # in the middle of the play, moving up
+    advance(p, False, state, 0.0, 0.02, 20)  # 20 ms: to the flank at 10 ms, and not yet across the play again
+    v, w = state[2], state[4]
+    assert v + model.mu * w == pytest.approx(1.0, rel=1e-6)
+    assert w - v == pytest.approx(e * 1.0, rel=1e-6, abs=1e-9)
+    if e > 0.0:  # the load bounced off: it is ahead of the flank
+        assert state[0] - state[1] < model.c1
+
+
+def test_a_massless_model_writes_no_load_and_old_files_read_as_massless() -> None:
+    model = _model(PLAY_IN_LOOP)
+    assert tuple(model.params()) == PARAM_NAMES
+    old = {k: v for k, v in model.to_dict().items() if k not in ("mu", "e", "al")}
+    assert ServoLoopModel.from_dict(old) == model
+    heavy = _model(PLAY_IN_LOOP, mu=0.1, e=0.5, al=3.0)
+    assert tuple(heavy.params())[-3:] == ("mu", "e", "al")
+    with pytest.raises(ConfigError, match="e"):
+        _model(PLAY_IN_LOOP, mu=0.1, e=1.5)

@@ -30,7 +30,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.ident._jit import jit
-from servoid.ident.models.servo_loop import ServoLoopModel, advance, initial_state
+from servoid.ident.models.servo_loop import STATE_SIZE, ServoLoopModel, advance, initial_state
 
 __all__ = [
     "ReversalLead",
@@ -164,7 +164,7 @@ def _lead_kernel(
     y_out: np.ndarray,
     u_out: np.ndarray,
 ) -> None:
-    state = np.empty(4)
+    state = np.empty(STATE_SIZE)
     initial_state(p, y0, state)
     lead = np.zeros(LEAD_STATE_SIZE)
     lead[0] = r[0]

@@ -9,6 +9,8 @@ simulator serves both places of the play (:mod:`~servoid.ident.models.structure_
     motor side:  dv/dt = kv (v_cmd - v) + z - F(v) + a0,   z' = ki (v_cmd - v),   x' = v
     friction:    F(v) = (fc + (fs - fc) exp(-(v/vs)^2)) tanh(v/veps)    (Coulomb + Stribeck, smoothed at v = 0)
     load:        massless -- the play operator of x: y = x - c1 pushed up, y = x + c2 pushed down, else held
+                 or (opt-in, mu > 0) its own inertia mu and friction al, meeting the flanks in rigid
+                 impacts of restitution e (:func:`_advance_load`)
     reading:     y_hat(k) = y(t_k), read at the host instant before the command u(k) is applied
 
 Why this form (physics, see the issue-12 study): a drive that closes its loop
@@ -53,6 +55,9 @@ from servoid.ident.models.structure_names import FEEDBACK, PLAY_IN_LOOP, STRUCTU
 
 __all__ = [
     "PARAM_NAMES",
+    "LOAD_NAMES",
+    "KERNEL_NAMES",
+    "STATE_SIZE",
     "ServoLoopModel",
     "simulate_kernel",
     "initial_state",
@@ -63,6 +68,18 @@ __all__ = [
 
 #: The parameter vector's layout for :func:`simulate_kernel` (the one place it is written).
 PARAM_NAMES: tuple[str, ...] = ("kp", "kv", "ki", "vmax", "fc", "fs", "vs", "veps", "a0", "c1", "c2", "s0")
+#: The load's own parameters (:func:`_advance_load`), after :data:`PARAM_NAMES` in the kernel's vector: the
+#: inertia ratio ``mu``, the restitution ``e`` of an impact on a flank and the load's friction ``al``.
+#: A vector without them, and ``mu = 0``, is the massless load (the play operator), as are model files
+#: written before they existed.
+LOAD_NAMES: tuple[str, ...] = ("mu", "e", "al")
+#: The kernel's parameter vector: :data:`PARAM_NAMES` then :data:`LOAD_NAMES`.
+KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES
+#: A rebound slower than this share of the speed the load's friction takes off in one sub-step ends in
+#: contact (:func:`_advance_load`): small, so that a small restitution still bounces (the fit needs its slope).
+REBOUND_SHARE = 0.01
+#: Floats in the simulation's state: ``[x, y, v, z, w, contact]`` (:func:`initial_state`).
+STATE_SIZE = 6
 
 #: Largest ``h kv`` of a sub-step: the implicit velocity step stays accurate (the study measured
 #: 0.7 count rms of model error on the XM430 at ``h kv = 0.8``, 0.35 at 0.1).
@@ -102,7 +119,7 @@ def _friction(v: float, fc: float, fs: float, vs: float, veps: float) -> tuple[f
 
 @jit
 def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
-    """The loop at rest with the load at ``y0``: fills ``state = [x, y, v, z]`` (motor side, load, speed, integrator).
+    """The loop at rest with the load at ``y0``: fills ``state`` (:data:`STATE_SIZE` floats, see below).
 
     Parameters
     ----------
@@ -111,7 +128,8 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     y0 : float
         The load's position.
     state : ndarray
-        Four floats, overwritten.
+        ``[x, y, v, z, w, contact]``, overwritten: motor side, load, motor speed, integrator, load speed
+        and the flank in contact (0 free, +1 the motor pushes up, -1 down; a massive load only).
     """
     c1, c2, s0 = p[9], p[10], p[11]
     state[0] = y0 - c2 + s0 * (c1 + c2)
@@ -119,6 +137,9 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     state[2] = 0.0
     # at rest with an integrator, it holds the constant force
     state[3] = -p[8] if p[2] > 0.0 else 0.0
+    # a massive load starts at rest, free inside the play (a flank it rests on is met at zero speed: contact)
+    state[4] = 0.0
+    state[5] = 0.0
 
 
 @jit
@@ -132,7 +153,7 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
     feedback_load : bool
         True: the position loop reads the load (play in the loop); False: the motor side.
     state : ndarray
-        ``[x, y, v, z]`` (:func:`initial_state`), advanced in place.
+        :data:`STATE_SIZE` floats (:func:`initial_state`), advanced in place.
     r : float
         The set point, held for the period.
     period : float
@@ -145,6 +166,8 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
     a0, c1, c2 = p[8], p[9], p[10]
     if veps <= 0.0:
         veps = 1e-300
+    if p.shape[0] > 12 and p[12] > 0.0:
+        return _advance_load(p, feedback_load, state, r, period, m, veps)
     h = period / m
     x, yl, v, z = state[0], state[1], state[2], state[3]
     for _ in range(m):
@@ -175,6 +198,138 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
 
 
 @jit
+def _motor_step(
+    v: float, vcmd: float, z: float, a0: float, kv: float, fc: float, fs: float, vs: float, veps: float, h: float
+) -> float:
+    """The motor side's implicit velocity step alone (the massless load's, :func:`advance`)."""
+    base = v + h * (kv * vcmd + z + a0)
+    vn = v
+    for _ in range(2):
+        f, df = _friction(vn, fc, fs, vs, veps)
+        vn -= (vn * (1.0 + h * kv) - base + h * f) / (1.0 + h * kv + h * df)
+    return vn
+
+
+@jit
+def _load_step(w: float, al: float, veps: float, h: float) -> float:
+    """The load coasting for ``h``: the implicit step of ``dw/dt = -al sat(w / veps)``, in closed form.
+
+    Coulomb friction smoothed by a linear ramp over ``|w| < veps`` (as the motor's is by a tanh):
+    implicit, so that a large ``al`` (the massless limit) stops the load within a step without
+    ringing; the two branches meet at ``|w| = veps + h al``, so the step is continuous in ``w``.
+    """
+    if abs(w) - h * al >= veps:
+        return w - h * al if w > 0.0 else w + h * al
+    return w / (1.0 + h * al / veps)
+
+
+@jit
+def _sat(v: float, veps: float) -> tuple[float, float]:
+    """``sat(v / veps)`` (the load's friction shape) and its slope in ``v``."""
+    if v >= veps:
+        return 1.0, 0.0
+    if v <= -veps:
+        return -1.0, 0.0
+    return v / veps, 1.0 / veps
+
+
+@jit
+def _advance_load(
+    p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, period: float, m: int, veps: float
+) -> float:
+    """:func:`advance` with a load of its own inertia that meets the flanks in rigid impacts (``mu > 0``).
+
+    Two bodies at the output, in accelerations per the motor side's inertia: the motor side
+    ``x`` (the loop's dynamics) and the load ``y`` (inertia ``mu`` times the motor's, friction
+    ``al sat(w / veps)`` as its own deceleration)::
+
+        free flight (x - c1 < y < x + c2):  each body its own dynamics;   dw/dt = -al sat(w / veps)
+        contact (a flank):                  one body, (1 + mu) dv/dt = kv (v_cmd - v) + z + a0 - F(v) - mu al sat(v / veps)
+        impact on a flank (Newton's law):   v+ + mu w+ = v + mu w,   v+ - w+ = -e (v - w)
+
+    The gear contact is stiff (the twins' ring at 785-909 rad/s, a period far below the loop's),
+    so at the loop's time scale a flank is rigid and its damping is a coefficient of restitution
+    ``e`` (``exp(-zeta pi / sqrt(1 - zeta^2))`` of a contact of damping ratio ``zeta``). The impact
+    is found within the sub-step by the gap's linear crossing; the rest of the sub-step runs with
+    the velocities after it. A rebound slower than a share (:data:`REBOUND_SHARE`) of the speed the
+    load's friction takes off in one sub-step (``h al``) ends in contact, so the bounces cannot
+    chatter without end. Contact ends
+    when it would have to pull: when the load's own friction alone would slow it less than the
+    motor side slows (the load coasts ahead, e.g. after a reversal of the motor). With ``e = 0``
+    and ``al`` large the load stops wherever the motor leaves it: the play operator of the
+    massless load, the limit ``mu -> 0``.
+    """
+    kp, kv, ki, vmax = p[0], p[1], p[2], p[3]
+    fc, fs, vs = p[4], p[5], p[6]
+    a0, c1, c2 = p[8], p[9], p[10]
+    mu, e, al = p[12], p[13], p[14]
+    h = period / m
+    x, yl, v, z, w, side = state[0], state[1], state[2], state[3], state[4], state[5]
+    for _ in range(m):
+        vcmd = kp * (r - (yl if feedback_load else x))
+        if vmax > 0.0:
+            if vcmd > vmax:
+                vcmd = vmax
+            elif vcmd < -vmax:
+                vcmd = -vmax
+        if side != 0.0:
+            # one body: the implicit step of the pair, two Newton steps on both frictions
+            base = (1.0 + mu) * v + h * (kv * vcmd + z + a0)
+            vc = v
+            for _ in range(2):
+                f, df = _friction(vc, fc, fs, vs, veps)
+                sl, dsl = _sat(vc, veps)
+                g = vc * (1.0 + mu + h * kv) + h * f + h * mu * al * sl - base
+                vc -= g / (1.0 + mu + h * kv + h * df + h * mu * al * dsl)
+            sl, _ = _sat(vc, veps)
+            # the flank's force on the load, mu (dv/dt + al sat): it pushes, it never pulls
+            if side * ((vc - v) / h + al * sl) >= 0.0:
+                if ki > 0.0:
+                    z += h * ki * (vcmd - vc)
+                v = vc
+                w = vc
+                x += h * vc
+                yl = x - c1 if side > 0.0 else x + c2
+                continue
+            side = 0.0
+        vn = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h)
+        if ki > 0.0:
+            z += h * ki * (vcmd - vn)
+        wn = _load_step(w, al, veps, h)
+        d0 = x - yl
+        xn = x + h * vn
+        yn = yl + h * wn
+        d1 = xn - yn
+        hit = 0.0
+        if d1 > c1:
+            hit = 1.0
+            tau = (c1 - d0) / (d1 - d0) if d1 > d0 else 0.0
+        elif d1 < -c2:
+            hit = -1.0
+            tau = (-c2 - d0) / (d1 - d0) if d1 < d0 else 0.0
+        if hit != 0.0:
+            tau = min(max(tau, 0.0), 1.0)
+            # Newton's impact law with the momentum of the pair kept
+            common = (vn + mu * wn) / (1.0 + mu)
+            rebound = e * (vn - wn)
+            if abs(rebound) <= REBOUND_SHARE * h * al:
+                vn = common
+                wn = common
+                side = hit
+            else:
+                vn = common - mu * rebound / (1.0 + mu)
+                wn = common + rebound / (1.0 + mu)
+            xi = x + tau * (xn - x)
+            xn = xi + (1.0 - tau) * h * vn
+            yn = (xi - c1 if hit > 0.0 else xi + c2) + (1.0 - tau) * h * wn
+            if side != 0.0:
+                yn = xn - c1 if side > 0.0 else xn + c2
+        x, yl, v, w = xn, yn, vn, wn
+    state[0], state[1], state[2], state[3], state[4], state[5] = x, yl, v, z, w, side
+    return float(yl)
+
+
+@jit
 def simulate_kernel(
     p: np.ndarray, feedback_load: bool, u: np.ndarray, y0: float, period: float, m: int, y_out: np.ndarray
 ) -> None:
@@ -197,7 +352,7 @@ def simulate_kernel(
     y_out : ndarray
         Output; ``y_out.shape[0] <= u.shape[0]`` samples are simulated (a fit stops at its last scored sample).
     """
-    state = np.empty(4)
+    state = np.empty(STATE_SIZE)
     initial_state(p, y0, state)
     for k in range(y_out.shape[0]):
         y_out[k] = state[1]
@@ -233,6 +388,13 @@ class ServoLoopModel:
         The play's two sides (the load lags by ``c1`` going up, by ``c2`` going down), unit.
     s0 : float
         Where in the play the motor side starts: 0 on the down flank, 1 on the up flank.
+    mu : float
+        The load's inertia over the motor side's, both at the output (0: the massless load, the
+        play operator; > 0: the load of :func:`_advance_load`).
+    e : float
+        The coefficient of restitution of an impact on a flank, 0..1 (with ``mu > 0``).
+    al : float
+        The load's own friction as a deceleration, unit/s^2 (with ``mu > 0``).
     """
 
     structure: str
@@ -249,6 +411,9 @@ class ServoLoopModel:
     c1: float = 0.0
     c2: float = 0.0
     s0: float = 0.5
+    mu: float = 0.0
+    e: float = 0.0
+    al: float = 0.0
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -256,8 +421,9 @@ class ServoLoopModel:
         validation.positive("sample_period_s", self.sample_period_s)
         for name in ("kp", "kv", "vs", "veps"):
             validation.positive(name, getattr(self, name))
-        for name in ("ki", "vmax", "fc", "fs", "c1", "c2"):
+        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al"):
             validation.non_negative(name, getattr(self, name))
+        validation.in_unit_interval("e", self.e, open_low=False, open_high=False)
         validation.real("a0", self.a0)
         validation.in_unit_interval("s0", self.s0, open_low=False, open_high=False)
 
@@ -276,13 +442,22 @@ class ServoLoopModel:
         """Sub-steps per host period of the simulation (:func:`substeps`)."""
         return substeps(self.sample_period_s, self.kv)
 
+    @property
+    def massive(self) -> bool:
+        """Whether the load has its own inertia (``mu > 0``: impacts on the flanks) rather than none."""
+        return self.mu > 0.0
+
+    def names(self) -> tuple[str, ...]:
+        """The model's parameter names: :data:`PARAM_NAMES`, and :data:`LOAD_NAMES` for a massive load."""
+        return KERNEL_NAMES if self.massive else PARAM_NAMES
+
     def vector(self) -> np.ndarray:
-        """The parameters in the order of :data:`PARAM_NAMES` (what :func:`simulate_kernel` takes)."""
-        return np.array([float(getattr(self, name)) for name in PARAM_NAMES])
+        """The parameters in the order of :data:`KERNEL_NAMES` (what :func:`simulate_kernel` takes)."""
+        return np.array([float(getattr(self, name)) for name in KERNEL_NAMES])
 
     @classmethod
     def from_vector(cls, structure: str, sample_period_s: float, p: np.ndarray) -> ServoLoopModel:
-        """The model of a parameter vector in the order of :data:`PARAM_NAMES`.
+        """The model of a parameter vector in the order of :data:`PARAM_NAMES` (and :data:`LOAD_NAMES`, optional).
 
         Parameters
         ----------
@@ -297,12 +472,14 @@ class ServoLoopModel:
         -------
         ServoLoopModel
         """
-        values = {name: float(v) for name, v in zip(PARAM_NAMES, np.asarray(p, dtype=np.float64), strict=True)}
+        p = np.asarray(p, dtype=np.float64)
+        names = KERNEL_NAMES if p.size == len(KERNEL_NAMES) else PARAM_NAMES
+        values = {name: float(v) for name, v in zip(names, p, strict=True)}
         return cls(structure=structure, sample_period_s=float(sample_period_s), **values)
 
     def params(self) -> dict[str, float]:
-        """The parameters by name (:data:`PARAM_NAMES`), in the record's units."""
-        return {name: float(getattr(self, name)) for name in PARAM_NAMES}
+        """The parameters by name (:meth:`names`: the load's only for a massive load), in the record's units."""
+        return {name: float(getattr(self, name)) for name in self.names()}
 
     def to_dict(self) -> dict[str, Any]:
         """Every field, JSON-ready (the model file's ``servo_loop`` object)."""
