@@ -58,7 +58,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from itertools import chain
+from itertools import chain, count
 from pathlib import Path
 from typing import Any
 
@@ -525,16 +525,16 @@ class _Sampler:
     def run(self, excitation: Iterable[float]) -> None:
         if self.feed is not None and self.feed.estimator is not None:
             self.feed.estimator.warm_up()
-        values, reference_of = self._values(excitation)  # before the servo moves: an array is checked whole
+        references = self._values(excitation)  # before the servo moves: an array is checked whole
         self.driver.set_sample_period(self.config.period_s)
         self.driver.enable()
         self.t0 = self.clock.now_ns()
         self._next_progress = self.t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
-        self._loop(values, reference_of)
+        self._loop(references)
         self._progress(self.clock.now_ns())
 
-    def _loop(self, values: Iterable[Any], reference_of: Callable[[int, Any], Any] | None) -> None:
-        """The slots, from slot 0 at ``self.t0``.
+    def _loop(self, references: Iterable[Any]) -> None:
+        """The slots, from slot 0 at ``self.t0``, one per reference (:meth:`_values`).
 
         Its own work is what the session adds to every exchange, so an answered
         slot's status and (for one servo) its sample are made here rather than
@@ -555,82 +555,92 @@ class _Sampler:
         period_s, slack_s, nan, new = self._period_s, self._slack_s, math.nan, _new_sample
         last_k, last_t = -1, nan  # slot and device time of the last reading (-1: none)
         last_reply, next_progress = t0, self._next_progress
-        for k, value in enumerate(values):
-            reference = value if reference_of is None else reference_of(k, value)
-            scheduled = t0 + k * period
-            start = end = sleep_until(scheduled)  # at once when the slot has passed; the time it returned
-            gave_up: DriverTimeout | None = None
-            if start - scheduled >= half and k:
-                # half a period behind, or the sleep overshot (a loaded host): sent now, the command would
-                # reach a servo that runs on its own clock in another sample than its slot, and the record
-                # would say otherwise
-                sample = missed(k, scheduled, reference)
-                status = sample.status
-            else:
-                if command_filter is None:
-                    command = reference
-                else:
-                    command = command_filter(reference)
-                    start = now()  # after the filter: a slow filter makes the exchange late, and that shows
-                try:
-                    m = exchange(command, slot=k)
-                except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
-                    end = now()
-                    sample, gave_up = lost(exc, k, scheduled, start, end, reference, command, last_reply)
+        oks = 0  # ok slots not yet in counts (added when the progress or the end reads counts)
+        offset = -period  # the slot's time from slot 0, k * period ns: one addition per slot
+        try:
+            for k, reference in enumerate(references):
+                offset += period
+                scheduled = t0 + offset
+                start = end = sleep_until(scheduled)  # at once when the slot has passed; the time it returned
+                behind = start - scheduled
+                gave_up: DriverTimeout | None = None
+                if behind >= half and k:
+                    # half a period behind, or the sleep overshot (a loaded host): sent now, the command would
+                    # reach a servo that runs on its own clock in another sample than its slot, and the record
+                    # would say otherwise
+                    sample = missed(k, scheduled, reference)
                     status = sample.status
                 else:
-                    end = last_reply = now()
-                    # late: started late, or answered after the next slot began (a device without a clock of its
-                    # own to show may have taken the reading in a later sample: a host stalled in between)
-                    late = start - scheduled > tolerance or end - scheduled > period
-                    device_time = m[0].device_time if joints else m.device_time  # a bus: the first joint's
-                    if device_time is None:
-                        device_time = nan
+                    if command_filter is None:
+                        command = reference
                     else:
-                        device_time = float(device_time)
-                        if last_k >= 0:
-                            # the request reached the device in another sample than its slot (a device clock
-                            # that counts whole milliseconds may be off by one count without that): slack_s
-                            late = late or abs((device_time - last_t) - (k - last_k) * period_s) >= slack_s
-                        last_k, last_t = k, device_time
-                    status = LATE if late else OK
-                    if joints:
-                        sample = answered(k, scheduled, start, end, reference, m, status, device_time)
-                    else:  # tuple.__new__ skips the named tuple's own __new__, a Python frame per sample
-                        sample = new(Sample, (k, (scheduled - t0) / NS_PER_S, (start - t0) / NS_PER_S, reference,
-                                              m.command, m.position, status, device_time, (end - start) / NS_PER_S,
-                                              m.clamped))  # fmt: skip
-            # the one verdict every listener gets (it arms the guard window), then the listeners in order
-            if status is OK and settled:
-                ok = True
-            else:
-                ok = usable(status)
-                settled = rule.settled
-            if keep:
-                keep_sample(sample)
-                keep_flag(ok)
-            counts[status] += 1
-            for listener in notify:
-                listener(sample, ok)
-            if gave_up is not None:
-                raise gave_up
-            if end >= next_progress:
-                next_progress = self._maybe_progress(end)
+                        command = command_filter(reference)
+                        start = now()  # after the filter: a slow filter makes the exchange late, and that shows
+                        behind = start - scheduled
+                    try:
+                        m = exchange(command, slot=k)
+                    except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
+                        end = now()
+                        sample, gave_up = lost(exc, k, scheduled, start, end, reference, command, last_reply)
+                        status = sample.status
+                    else:
+                        end = last_reply = now()
+                        # late: started late, or answered after the next slot began (a device without a clock
+                        # of its own to show may have taken the reading in a later sample: a host stalled between)
+                        late = behind > tolerance or end - scheduled > period
+                        device_time = m[0].device_time if joints else m.device_time  # a bus: the first joint's
+                        if device_time is None:
+                            device_time = nan
+                        else:
+                            device_time = float(device_time)
+                            if last_k >= 0:
+                                # the request reached the device in another sample than its slot (a device clock
+                                # that counts whole milliseconds may be off by one count without that): slack_s
+                                late = late or abs((device_time - last_t) - (k - last_k) * period_s) >= slack_s
+                            last_k, last_t = k, device_time
+                        status = LATE if late else OK
+                        if joints:
+                            sample = answered(k, scheduled, start, end, reference, m, status, device_time)
+                        else:  # tuple.__new__ skips the named tuple's own __new__, a Python frame per sample
+                            sample = new(Sample, (k, offset / NS_PER_S, (offset + behind) / NS_PER_S, reference,
+                                                  m.command, m.position, status, device_time,
+                                                  (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+                # the one verdict every listener gets (it arms the guard window), then the listeners in order
+                if status is OK and settled:
+                    ok = True
+                    oks += 1
+                else:
+                    ok = usable(status)
+                    settled = rule.settled
+                    counts[status] += 1
+                if keep:
+                    keep_sample(sample)
+                    keep_flag(ok)
+                for listener in notify:
+                    listener(sample, ok)
+                if gave_up is not None:
+                    raise gave_up
+                if end >= next_progress:
+                    counts[OK] += oks
+                    oks = 0
+                    next_progress = self._maybe_progress(end)
+        finally:
+            counts[OK] += oks
 
-    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
-        """The excitation's values in order, and the check each needs in the loop (None: checked here, whole).
+    def _values(self, excitation: Iterable[Any]) -> Iterable[Any]:
+        """The excitation's references in order, checked.
 
         A one-dimensional array is checked at once (and before the servo moves)
         and handed over as Python floats a chunk at a time; anything else is
-        checked value by value (:meth:`_reference`).
+        checked value by value as the loop takes it (:meth:`_reference`).
         """
         if isinstance(excitation, np.ndarray) and excitation.ndim == 1:
             values = np.asarray(excitation, dtype=np.float64)
             bad = np.flatnonzero(~np.isfinite(values))
             if bad.size:
                 raise _not_finite(int(bad[0]), float(values[bad[0]]))
-            return _plain(values), None
-        return excitation, self._reference
+            return _plain(values)
+        return map(self._reference, count(), excitation)
 
     def _reference(self, k: int, value: Any) -> Any:
         """The excitation's value for slot ``k``, checked."""
@@ -721,8 +731,8 @@ class BusSampler(_Sampler):
 
     _joints = True
 
-    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
-        return _plain(excitation), self._reference  # every row checked for its shape too
+    def _values(self, excitation: Iterable[Any]) -> Iterable[Any]:
+        return map(self._reference, count(), _plain(excitation))  # every row checked for its shape too
 
     def _reference(self, k: int, value: Any) -> Any:
         reference = np.asarray(value, dtype=np.float64)
