@@ -24,6 +24,14 @@ the session's own work
     exchange, about 1.4 us of physics a sample charged to the session) (us per sample): the
     sampler alone, with the MRGIA fed, and with the recording written too
     (a CSV row per sample, handed to the operating system as it arrives).
+    A diagnostic row repeats the first with a servo that answers at once
+    (a constant :class:`Measurement`, the device clock on time): the
+    session's own work without the simulated servo's Python beside it. The
+    session adds about 4 % to the simulated servo's instructions per
+    exchange (callgrind: 9.0k to 211.8k), but 10-15 % to its time: the
+    exchange itself runs slower inside the session than in the bare loop
+    (same calls, same physics; no hardware counters on the machine to say
+    why), and the target's row charges that to the session.
 identify()
     At 10^3 ... 10^6 samples (10^7 with ``--full``), each size in a fresh
     process, the MRGIA's history kept as ``servoid identify`` keeps it: CPU
@@ -50,6 +58,7 @@ import numpy as np
 from _table import table  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers import driver_from_url
+from servoid.drivers.base import Measurement
 from servoid.ident import MRGIA, PAPER_PLANT, MRGIAConfig, noise_epsilon, run_mrgia, simulate
 from servoid.ident._jit import direct_call
 from servoid.session import SessionConfig, run_session
@@ -147,7 +156,20 @@ def session_rows(samples: int, repeat: int) -> dict[str, float]:
                 exchange(v, slot=k)  # as the session calls it
             return (time.process_time_ns() - t0) / u.size / 1e3
 
-    def session(estimator: bool, recording: bool) -> Callable[[], float]:
+    def answer(u: float, *, slot: int) -> Measurement:  # a servo that answers at once, on time
+        return Measurement(u, u, False, 0.0, slot * PERIOD_S)
+
+    def answered() -> float:  # the exchange loop's floor with that servo
+        with driver_from_url(URL) as servo:
+            clock = servo.clock
+            period, start = round(PERIOD_S * 1e9), clock.now_ns()
+            t0 = time.process_time_ns()
+            for k, v in enumerate(u.tolist()):
+                clock.sleep_until_ns(start + k * period)
+                answer(v, slot=k)
+            return (time.process_time_ns() - t0) / u.size / 1e3
+
+    def session(estimator: bool, recording: bool, constant: bool = False) -> Callable[[], float]:
         def run() -> float:
             with tempfile.TemporaryDirectory() as tmp:
                 kwargs: dict[str, object] = {}
@@ -156,6 +178,8 @@ def session_rows(samples: int, repeat: int) -> dict[str, float]:
                 if recording:
                     kwargs["recording"] = Path(tmp) / "rec.csv"
                 with driver_from_url(URL) as servo:
+                    if constant:
+                        servo.exchange = answer  # type: ignore[method-assign]
                     t0 = time.process_time_ns()
                     run_session(servo, u, SessionConfig(period_s=PERIOD_S), **kwargs)  # type: ignore[arg-type]
                     return (time.process_time_ns() - t0) / u.size / 1e3
@@ -168,6 +192,8 @@ def session_rows(samples: int, repeat: int) -> dict[str, float]:
         "session": _best(session(False, False), repeat),
         "session+mrgia": _best(session(True, False), repeat),
         "session+mrgia+rec": _best(session(True, True), repeat),
+        "answered": _best(answered, repeat),
+        "session answered": _best(session(False, False, constant=True), repeat),
     }
 
 
@@ -253,6 +279,9 @@ def hot_paths(args: argparse.Namespace) -> None:
                       ("  + recording written", "session+mrgia+rec")):  # fmt: skip
         own = rows[key] - ex
         hot.append([name, f"{own:.2f}", f"{ex:.2f}", "driver.exchange loop", f"{rows[key] / ex:.2f}", "<= 5 us"])
+    own, ans = rows["session answered"] - rows["answered"], rows["answered"]
+    hot.append(["  (servo answering at once)", f"{own:.2f}", f"{ans:.2f}", "that servo's loop",
+                f"{rows['session answered'] / ans:.2f}", "diagnostic"])  # fmt: skip
     table(f"hot paths against their floors, best of {args.rounds} x {args.repeat} runs (load average {load:.2f} "
           f"on {os.cpu_count()} cores, a machine shared with others' runs; ratio: the slower over the faster)",
           ["path", "this", "floor", "floor is", "ratio", "target"], hot)  # fmt: skip

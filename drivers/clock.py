@@ -33,8 +33,12 @@ class Clock(Protocol):
     def now_ns(self) -> int:
         """Monotonic time in nanoseconds (arbitrary origin)."""
 
-    def sleep_until_ns(self, deadline_ns: int) -> None:
-        """Return at ``deadline_ns`` (at once if it has passed)."""
+    def sleep_until_ns(self, deadline_ns: int) -> int:
+        """Return at ``deadline_ns`` (at once if it has passed), with the time then (:meth:`now_ns`).
+
+        The time comes with the wake-up because a sampler reads it there at every
+        sample: a second read would cost as much again.
+        """
 
     def sleep_ns(self, duration_ns: int) -> None:
         """Wait ``duration_ns`` nanoseconds."""
@@ -58,12 +62,13 @@ class MonotonicClock:
     def now_ns(self) -> int:
         return time.perf_counter_ns()
 
-    def sleep_until_ns(self, deadline_ns: int) -> None:
+    def sleep_until_ns(self, deadline_ns: int) -> int:
         remaining = deadline_ns - time.perf_counter_ns()
         if remaining > self.spin_ns:
             time.sleep((remaining - self.spin_ns) / NS_PER_S)
-        while time.perf_counter_ns() < deadline_ns:
+        while (now := time.perf_counter_ns()) < deadline_ns:
             pass
+        return now
 
     def sleep_ns(self, duration_ns: int) -> None:
         self.sleep_until_ns(time.perf_counter_ns() + duration_ns)
@@ -90,8 +95,10 @@ class VirtualClock:
     def now_ns(self) -> int:
         return self.t_ns
 
-    def sleep_until_ns(self, deadline_ns: int) -> None:
-        self.t_ns = max(self.t_ns, int(deadline_ns))
+    def sleep_until_ns(self, deadline_ns: int) -> int:
+        if deadline_ns > self.t_ns:
+            self.t_ns = int(deadline_ns)
+        return self.t_ns
 
     def sleep_ns(self, duration_ns: int) -> None:
         self.advance_ns(duration_ns)

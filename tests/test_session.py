@@ -192,6 +192,20 @@ def test_usable_rule_leaves_a_guard_window_after_each_unusable_sample():
     assert [rule(s) for s in ("missed", "ok", "ok")] == [False, False, True]
 
 
+def test_an_ok_sample_skipped_while_the_rule_is_settled_gets_the_verdict_the_rule_gives():
+    from servoid.session.samples import OK, STATUSES, UsableRule
+
+    # the sampling loop asks the rule only when it is not settled or the status is not ok
+    status = np.random.default_rng(3).choice(STATUSES, 400, p=[0.85, 0.05, 0.05, 0.05]).tolist()
+    for kwargs in ({"guard": 3}, {"guard": 0}, {"guard": 2, "use_late": True, "after": ("timeout",)}):
+        asked, skipping = UsableRule(**kwargs), UsableRule(**kwargs)
+        verdicts = []
+        for s in status:
+            verdicts.append(True if s == OK and skipping.settled else skipping(s))
+        assert verdicts == [asked(s) for s in status], kwargs
+        assert 0 < sum(verdicts) < len(status)
+
+
 def test_the_guard_follows_timeouts_everywhere_and_late_slots_where_the_protocol_carries_no_slot():
     from servoid.drivers.can.odrive import OdriveDriver
     from servoid.drivers.dynamixel import DynamixelDriver

@@ -98,11 +98,12 @@ class EstimatorFeed:
                 return
         else:
             est.skip(sample.u)
-        self._seen += 1
-        if self.record_every is not None and self._seen % self.record_every == 0:
-            assert isinstance(est, MRGIA)
-            self._theta.append(est.theta)
-            self._coverage.append(est.coverage)
+        if self.record_every is not None:  # counted only for the history: this runs at every sample
+            self._seen += 1
+            if self._seen % self.record_every == 0:
+                assert isinstance(est, MRGIA)
+                self._theta.append(est.theta)
+                self._coverage.append(est.coverage)
 
     def current(self) -> Mapping[str, float] | None:
         """The estimate now by name (None once it diverged)."""

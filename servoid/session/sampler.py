@@ -58,7 +58,7 @@ import math
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from itertools import chain
+from itertools import chain, count
 from pathlib import Path
 from typing import Any
 
@@ -484,6 +484,9 @@ def _not_finite(k: int, value: Any) -> ConfigError:
 class _Sampler:
     """The loop of :func:`run_session` and its state."""
 
+    #: the driver is a bus (:class:`BusSampler`): one measurement per joint per exchange
+    _joints = False
+
     def __init__(
         self,
         driver: Driver,
@@ -513,90 +516,131 @@ class _Sampler:
         self.t0 = 0
         self._shut = False
         self._next_progress = 0
-        self._last_device_k, self._last_device_t = -1, math.nan  # slot and device time of the last reading (-1: none)
+        self._give_up_ns = int(config.give_up_after_s * NS_PER_S)
         self._period_s = config.period_s
         self.keep_samples = keep_samples
         self._slack_s = config.period_s / 2 + driver.clock_resolution_s
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
-        driver, clock, period = self.driver, self.clock, self.period_ns
         if self.feed is not None and self.feed.estimator is not None:
             self.feed.estimator.warm_up()
-        values, reference_of = self._values(excitation)  # before the servo moves: an array is checked whole
-        driver.set_sample_period(self.config.period_s)
-        driver.enable()
-        give_up_ns = int(self.config.give_up_after_s * NS_PER_S)
-        # bound once: the loop runs per sample, and its own work is what the session adds to the exchange
-        now, sleep_until, half = clock.now_ns, clock.sleep_until_ns, period // 2
-        exchange, measured, command_filter = driver.exchange, self._measured, self.command_filter
-        usable, counts, notify = self.usable.__call__, self.counts, self.notify  # __call__: a bound method is quicker
-        keep, keep_sample, keep_flag = self.keep_samples, self.samples.append, self.flags.append
-        self.t0 = t0 = now()
-        last_reply = t0
-        self._next_progress = t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
-        for k, value in enumerate(values):
-            reference = value if reference_of is None else reference_of(k, value)
-            scheduled = t0 + k * period
-            sleep_until(scheduled)  # returns at once when the slot has passed
-            start = end = now()
-            gave_up: DriverTimeout | None = None
-            if k > 0 and start - scheduled >= half:
-                # half a period behind, or the sleep overshot (a loaded host): sent now, the command would
-                # reach a servo that runs on its own clock in another sample than its slot, and the record
-                # would say otherwise
-                sample = self._missed(k, scheduled, reference)
-            else:
-                if command_filter is None:
-                    command = reference
-                else:
-                    command = command_filter(reference)
-                    start = now()  # after the filter: a slow filter makes the exchange late, and that shows
-                try:
-                    m = exchange(command, slot=k)
-                except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
-                    end = now()
-                    sample = self._timeout(k, scheduled, start, end, reference, command)
-                    if end - last_reply > give_up_ns:
-                        gave_up = DriverTimeout(
-                            f"{driver.describe()} stopped answering: no usable reply for "
-                            f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})"
-                        )
-                        gave_up.__cause__ = exc
-                else:
-                    end = now()
-                    last_reply = end
-                    sample = measured(k, scheduled, start, end, reference, m)
-            # here, not in a method: this runs per sample. The one verdict every listener gets (it arms
-            # the guard window), then the listeners in order.
-            status = sample.status
-            ok = usable(status)
-            if keep:
-                keep_sample(sample)
-                keep_flag(ok)
-            counts[status] += 1
-            for listener in notify:
-                listener(sample, ok)
-            if gave_up is not None:
-                raise gave_up
-            if end >= self._next_progress:
-                self._maybe_progress(end)
-        self._progress(clock.now_ns())
+        references = self._values(excitation)  # before the servo moves: an array is checked whole
+        self.driver.set_sample_period(self.config.period_s)
+        self.driver.enable()
+        self.t0 = self.clock.now_ns()
+        self._next_progress = self.t0 if self.on_progress is not None else 1 << 62  # never, without a progress call
+        self._loop(references)
+        self._progress(self.clock.now_ns())
 
-    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
-        """The excitation's values in order, and the check each needs in the loop (None: checked here, whole).
+    def _loop(self, references: Iterable[Any]) -> None:
+        """The slots, from slot 0 at ``self.t0``, one per reference (:meth:`_values`).
+
+        Its own work is what the session adds to every exchange, so an answered
+        slot's status and (for one servo) its sample are made here rather than
+        in methods, and the usable rule is asked only while its verdict is not
+        settled (:attr:`UsableRule.settled`). A bus's sample
+        (:meth:`BusSampler._answered`), missed and timed-out slots go through
+        methods.
+        """
+        clock, period, t0, tolerance = self.clock, self.period_ns, self.t0, self.tolerance_ns
+        # bound once: the loop runs per sample
+        now, sleep_until, half = clock.now_ns, clock.sleep_until_ns, period // 2
+        exchange: Callable[..., Any] = self.driver.exchange  # a bus's answers one measurement per joint
+        command_filter, missed, lost = self.command_filter, self._missed, self._lost
+        joints, answered = self._joints, self._answered
+        rule, counts, notify = self.usable, self.counts, self.notify
+        usable, settled = rule.__call__, rule.settled  # __call__: a bound method is quicker
+        keep, keep_sample, keep_flag = self.keep_samples, self.samples.append, self.flags.append
+        period_s, slack_s, nan, new = self._period_s, self._slack_s, math.nan, _new_sample
+        last_k, last_t = -1, nan  # slot and device time of the last reading (-1: none)
+        last_reply, next_progress = t0, self._next_progress
+        oks = 0  # ok slots not yet in counts (added when the progress or the end reads counts)
+        offset = -period  # the slot's time from slot 0, k * period ns: one addition per slot
+        try:
+            for k, reference in enumerate(references):
+                offset += period
+                scheduled = t0 + offset
+                start = end = sleep_until(scheduled)  # at once when the slot has passed; the time it returned
+                behind = start - scheduled
+                gave_up: DriverTimeout | None = None
+                if behind >= half and k:
+                    # half a period behind, or the sleep overshot (a loaded host): sent now, the command would
+                    # reach a servo that runs on its own clock in another sample than its slot, and the record
+                    # would say otherwise
+                    sample = missed(k, scheduled, reference)
+                    status = sample.status
+                else:
+                    if command_filter is None:
+                        command = reference
+                    else:
+                        command = command_filter(reference)
+                        start = now()  # after the filter: a slow filter makes the exchange late, and that shows
+                        behind = start - scheduled
+                    try:
+                        m = exchange(command, slot=k)
+                    except (DriverTimeout, ProtocolError) as exc:  # this sample is lost; the run goes on
+                        end = now()
+                        sample, gave_up = lost(exc, k, scheduled, start, end, reference, command, last_reply)
+                        status = sample.status
+                    else:
+                        end = last_reply = now()
+                        # late: started late, or answered after the next slot began (a device without a clock
+                        # of its own to show may have taken the reading in a later sample: a host stalled between)
+                        late = behind > tolerance or end - scheduled > period
+                        device_time = m[0].device_time if joints else m.device_time  # a bus: the first joint's
+                        if device_time is None:
+                            device_time = nan
+                        else:
+                            device_time = float(device_time)
+                            if last_k >= 0:
+                                # the request reached the device in another sample than its slot (a device clock
+                                # that counts whole milliseconds may be off by one count without that): slack_s
+                                late = late or abs((device_time - last_t) - (k - last_k) * period_s) >= slack_s
+                            last_k, last_t = k, device_time
+                        status = LATE if late else OK
+                        if joints:
+                            sample = answered(k, scheduled, start, end, reference, m, status, device_time)
+                        else:  # tuple.__new__ skips the named tuple's own __new__, a Python frame per sample
+                            sample = new(Sample, (k, offset / NS_PER_S, (offset + behind) / NS_PER_S, reference,
+                                                  m.command, m.position, status, device_time,
+                                                  (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+                # the one verdict every listener gets (it arms the guard window), then the listeners in order
+                if status is OK and settled:
+                    ok = True
+                    oks += 1
+                else:
+                    ok = usable(status)
+                    settled = rule.settled
+                    counts[status] += 1
+                if keep:
+                    keep_sample(sample)
+                    keep_flag(ok)
+                for listener in notify:
+                    listener(sample, ok)
+                if gave_up is not None:
+                    raise gave_up
+                if end >= next_progress:
+                    counts[OK] += oks
+                    oks = 0
+                    next_progress = self._maybe_progress(end)
+        finally:
+            counts[OK] += oks
+
+    def _values(self, excitation: Iterable[Any]) -> Iterable[Any]:
+        """The excitation's references in order, checked.
 
         A one-dimensional array is checked at once (and before the servo moves)
         and handed over as Python floats a chunk at a time; anything else is
-        checked value by value (:meth:`_reference`).
+        checked value by value as the loop takes it (:meth:`_reference`).
         """
         if isinstance(excitation, np.ndarray) and excitation.ndim == 1:
             values = np.asarray(excitation, dtype=np.float64)
             bad = np.flatnonzero(~np.isfinite(values))
             if bad.size:
                 raise _not_finite(int(bad[0]), float(values[bad[0]]))
-            return _plain(values), None
-        return excitation, self._reference
+            return _plain(values)
+        return map(self._reference, count(), excitation)
 
     def _reference(self, k: int, value: Any) -> Any:
         """The excitation's value for slot ``k``, checked."""
@@ -619,37 +663,32 @@ class _Sampler:
         return Sample(k, self._s(scheduled), self._s(start), reference, u, math.nan, TIMEOUT,
                       exchange_s=(end - start) / NS_PER_S, clamped=u != command)  # fmt: skip
 
-    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: float, m: Measurement) -> Sample:
-        status, device_time = self._status_of(k, scheduled, start, end, m.device_time)
-        t0 = self.t0
-        # tuple.__new__ skips the named tuple's own __new__, a Python frame per sample
-        return _new_sample(Sample, (k, (scheduled - t0) / NS_PER_S, (start - t0) / NS_PER_S, reference, m.command,
-                                    m.position, status, device_time, (end - start) / NS_PER_S, m.clamped))  # fmt: skip
+    def _answered(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any, status: str,
+                  device_time: float) -> Any:  # fmt: skip
+        """An answered slot's sample, for a bus (:class:`BusSampler`); one servo's is made in :meth:`_loop`."""
+        raise NotImplementedError
 
-    def _status_of(self, k: int, scheduled: int, start: int, end: int, device: float | None) -> tuple[str, float]:
-        """Whether an answered exchange was on time (``ok``) or ``late``; and its device time (NaN: none)."""
-        # started late, or answered after the next slot began: a device without a clock of its own to
-        # show may have taken the reading in a later sample (a host stalled between request and reply)
-        late = start - scheduled > self.tolerance_ns or end - scheduled > self.period_ns
-        if device is None:
-            return (LATE if late else OK), math.nan
-        device_time = float(device)
-        if self._last_device_k >= 0:
-            expected = (k - self._last_device_k) * self._period_s
-            # the request reached the device in another sample than its slot (a device clock
-            # that counts whole milliseconds may be off by one count without that): _slack_s
-            late = late or abs((device_time - self._last_device_t) - expected) >= self._slack_s
-        self._last_device_k, self._last_device_t = k, device_time
-        return (LATE if late else OK), device_time
+    def _lost(self, exc: ServoidError, k: int, scheduled: int, start: int, end: int, reference: Any, command: Any,
+              last_reply: int) -> tuple[Any, DriverTimeout | None]:  # fmt: skip
+        """A timed-out slot's sample, and the error to stop with when no reply came for ``give_up_after_s``."""
+        sample = self._timeout(k, scheduled, start, end, reference, command)
+        if end - last_reply <= self._give_up_ns:
+            return sample, None
+        gave_up = DriverTimeout(f"{self.driver.describe()} stopped answering: no usable reply for "
+                                f"{(end - last_reply) / NS_PER_S:.3g} s (last: {exc})")  # fmt: skip
+        gave_up.__cause__ = exc
+        return sample, gave_up
 
     # ---- bookkeeping ----------------------------------------------------------------
     def _s(self, t_ns: int) -> float:
         return (t_ns - self.t0) / NS_PER_S
 
-    def _maybe_progress(self, now: int) -> None:
+    def _maybe_progress(self, now: int) -> int:
+        """Call the progress callback when it is due; when it is due next (ns)."""
         if self.on_progress is not None and now >= self._next_progress:
             self._progress(now)
             self._next_progress = now + int(self.config.progress_every_s * NS_PER_S)
+        return self._next_progress
 
     def _progress(self, now: int) -> None:
         if self.on_progress is None:
@@ -690,8 +729,10 @@ class _Sampler:
 class BusSampler(_Sampler):
     """The sampling loop over a :class:`~servoid.drivers.bus.BusDriver`: one :class:`JointsSample` per slot."""
 
-    def _values(self, excitation: Iterable[Any]) -> tuple[Iterable[Any], Callable[[int, Any], Any] | None]:
-        return _plain(excitation), self._reference  # every row checked for its shape too
+    _joints = True
+
+    def _values(self, excitation: Iterable[Any]) -> Iterable[Any]:
+        return map(self._reference, count(), _plain(excitation))  # every row checked for its shape too
 
     def _reference(self, k: int, value: Any) -> Any:
         reference = np.asarray(value, dtype=np.float64)
@@ -714,9 +755,9 @@ class BusSampler(_Sampler):
         return JointsSample(k, self._s(scheduled), self._s(start), reference, u, (math.nan,) * len(u),
                             TIMEOUT, exchange_s=(end - start) / NS_PER_S, clamped=clamped)  # fmt: skip
 
-    def _measured(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any) -> Any:
+    def _answered(self, k: int, scheduled: int, start: int, end: int, reference: Any, m: Any, status: str,
+                  device_time: float) -> Any:  # fmt: skip
         ms: tuple[Measurement, ...] = m
-        status, device_time = self._status_of(k, scheduled, start, end, ms[0].device_time)
         return JointsSample(k, self._s(scheduled), self._s(start), reference,
                             tuple(x.command for x in ms), tuple(x.position for x in ms), status, device_time,
                             (end - start) / NS_PER_S, tuple(x.clamped for x in ms))  # fmt: skip

@@ -236,15 +236,21 @@ class UsableRule:
         if unknown:
             raise ConfigError(f"after (={sorted(unknown)}) must hold statuses among {', '.join(STATUSES)}")
         self._left = 0
+        #: No guard window is open: the verdict on an ``ok`` sample is True, and asking the rule for it
+        #: changes nothing. A loop that runs per sample may take that verdict without the call while this
+        #: holds (the sampling loop does) and ask again after any other status.
+        self.settled = True
 
     def __call__(self, status: str) -> bool:
         """Whether the next sample, of this status, is usable."""
         if not (status == OK or (self.use_late and status == LATE)):
             if status in self.after:
                 self._left = self.guard
+            self.settled = self._left == 0
             return False
         if self._left > 0:
             self._left -= 1
+            self.settled = self._left == 0
             return False
         return True
 
