@@ -27,8 +27,10 @@ virtual, so a run is as fast as the refits.
 2. Step: the play x1.2 at 40 s: servo seconds from the step to the alarm
    (``none`` when there was none in 20 s), and alarms before the step.
 3. False alarms: ``--quiet`` samples (default 100 000; ``--full`` 1 000 000) without wear:
-   alarms raised; beside it the mean samples between false alarms the CUSUM's
-   threshold implies for that run (Siegmund, the module text of ``cusum.py``).
+   alarms raised; beside it that run's baseline: the scatter of the window plays
+   (and the CUSUM's sigma, its upper 95 % bound), their correlation time tau in
+   estimates, the threshold h and the mean samples between false alarms it
+   implies (Siegmund, the module text of ``cusum.py``).
 
 Also the wall time per estimate (median / largest: what the worker thread spends;
 it must stay under 0.25 s). The machine may be shared.
@@ -125,14 +127,15 @@ def main() -> None:
         base = calm.baseline()
         rows.append([name, f"{model.play / at[0] - 1:+.1%}", f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
-                     f"{base['std'] / base['median']:.1%} / {base['tau']:.1f} / {base['h']:.1f} / "
+                     f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
+                     f"{base['tau']:.1f} / {base['h']:.1f} / "
                      f"{base['false_alarm_samples']:.1e}",
                      f"{1e3 * np.median(cost):.1f} / {1e3 * np.max(cost):.0f}", f"{time.perf_counter() - started:.0f}"])  # fmt: skip
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
         ["preset", "model play vs truth", "track RMS raw", "track RMS growth", "window RMS raw",
-         "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: sigma / tau / h / ARL0 samples",
+         "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "estimate ms med/max", "wall s"],
         rows,
     )  # fmt: skip

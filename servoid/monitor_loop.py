@@ -11,15 +11,16 @@ later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``
 
 ``estimates.csv``
     One row per estimate (the first: the whole loop's refit): ``k``, ``t``,
-    the window's play (``dead_zone``: the CUSUM's input) and the scatter of
-    the baseline's (``dead_zone_std``, empty before it is known), the tracking
+    the window's play (``dead_zone``: the CUSUM's input) and the CUSUM's
+    ``sigma`` (``dead_zone_std``: the upper 95 % bound on the scatter of the
+    baseline's window plays; empty before it is known), the tracking
     estimate (``dead_zone_mean``: the mean of the last 5 s of window plays), the
     CUSUM's statistic in standard deviations (``cusum``; the alarm is raised
     above the threshold the ``baseline`` event gives), the loop gains ``kp``,
     ``kv`` (held after the first row), the window's free-run NRMSE and floor, the
     estimate's wall time, the active alarms (and ``true_play`` for a simulated twin).
 ``events.jsonl``
-    Start and stop; ``baseline`` (the median play, its scatter, the correlation
+    Start and stop; ``baseline`` (the median play, its scatter and the bound on it, the correlation
     of the estimates, the threshold and the mean samples between false alarms
     it implies, the bounds where they went); alarms raised and cleared.
 ``model.json``
@@ -274,7 +275,8 @@ class _LoopRun:
         if not self.based and not math.isnan(self.tracker.std):
             self.based = True
             self._event("baseline", self.last.k if self.last else 0,
-                        **{f"play_{k}" if k in ("median", "std") else k: v for k, v in self.tracker.baseline().items()},
+                        **{f"play_{k}" if k in ("median", "scatter", "std") else k: v
+                           for k, v in self.tracker.baseline().items()},
                         bounds=[b.to_dict() for b in self.tracker.bounds])  # fmt: skip
         for event in self.tracker.events[self.events_seen :]:
             self._event("alarm" if event.raised else "clear", event.sample, **event.to_dict())

@@ -24,6 +24,8 @@ An alarm is cleared by the mirror statistic: the sum of ``(high - x) / sigma``
 evidence that the mean is back inside is asked as much as the evidence that it
 left (a rule of a few estimates in a row back inside cleared and raised again
 on a noisy estimate that sat just past the bound). Clearing restarts the sums.
+An event's ``since`` is the check after the sum last stood at 0: the CUSUM's
+estimate of when the change began (it may precede the change by a few checks).
 """
 
 from __future__ import annotations
