@@ -234,10 +234,17 @@ class LoopWearTracker:
 
     @property
     def kappa(self) -> float:
-        """The nearest bound's distance from the baseline's median play, in its scatter (at least 0.25; NaN before)."""
-        sides = [abs(s - self._median) for b in self.bounds for s in (b.low, b.high) if math.isfinite(s)]
-        # a median already beyond a bound: the CUSUM still adds up, at a threshold set for a near bound
-        return max(min(sides) / self._std, 0.25) if sides and not math.isnan(self._std) else math.nan
+        """The nearest bound's distance inside from the baseline's median play, in ``sigma`` (NaN before).
+
+        A median already on or beyond a bound takes 0.25: the CUSUM then adds up at every check
+        and raises soon whatever the threshold. No floor otherwise: a floor set the odrive
+        twin's threshold (its window plays scatter by 58 %) for a bound 2x as far as it was,
+        and it raised a false alarm in 10^6 samples.
+        """
+        sides = [d for b in self.bounds for d in (self._median - b.low, b.high - self._median) if math.isfinite(d)]
+        if not sides or math.isnan(self._std):
+            return math.nan
+        return min(sides) / self._std if min(sides) > 0.0 else 0.25
 
     @property
     def false_alarm_checks(self) -> float:
