@@ -1,36 +1,39 @@
-"""The monitor's servo-loop estimate on a wearing twin: tracking a growing play, the alarm after a step, false alarms.
+"""The monitor's play estimate of a servo loop on the wearing twins: tracking a growing play, the alarm after a step, false alarms.
 
-Run: ``.venv/bin/python benchmarks/monitor_loop.py [--presets xm430 ...] [--full]`` (about 8 minutes
-for the two default presets on a shared 2-core machine).
+Run: ``.venv/bin/python benchmarks/monitor_loop.py [--presets xm430 ...] [--full]`` (one table, every
+twin preset by default; about 10 minutes, 40 with ``--full``, on a shared 2-core machine).
 
-What ``servoid monitor`` runs for a model whose play sits in the loop: the
-moving-window refit of the servo-loop model (:class:`servoid.ident.online.window.WindowRefit`),
-started from the model file's loop (here: :func:`~servoid.ident.offline.loop_fit.fit_loop`
-on 20 s of the unworn twin, as ``servoid identify`` would write it), on every
-sample at the host's default rate (200 Hz), refitting the last ``--window`` s
-every ``--every`` s; the alarm rule of ``servoid monitor``
-(:class:`~servoid.ident.monitoring.alarms.Alarms`, ``--persist`` checks in a row,
-2 standard deviations) on the play, one check per refit, against a bound at
-+10 % of the median window play over the first 20 s of monitoring (the
-monitor's own baseline: the model's play on a physical servo carries the
-structure's bias, the same in every window, which an alarm on wear must not
-see); the standard deviation is the scatter of those first window plays
-(the estimate's own noise) -- the rule of
-:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`, replayed here on
-the refits so that one run gives the alarm times of every rule setting. The twin is the physical one (``drivers/twin``),
-driven by gentle sines (the excitation servoid designs for a play in the
-loop), its play changed while it runs (:meth:`~servoid.drivers.twin.servo.Twin.set_play`)
-every 0.05 s; servo time is virtual, so the run is as fast as the refits.
+What ``servoid monitor`` runs for a model whose play sits in the loop, the
+same object: :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`
+(here with ``background=False``: each refit inside the feed, as on a virtual
+clock), started from the model file's loop (here:
+:func:`~servoid.ident.offline.loop_fit.fit_loop` on 20 s of the unworn twin, as
+``servoid identify`` would write it), fed every sample at the host's default
+rate (200 Hz): the whole loop refitted on the first 10 s, then the play alone
+on 1.6 s windows every 0.25 s, their scatter over the next 20 s, then the
+CUSUM against the bounds ``--dead-zone 10%`` sets (+/- 10 % of the model
+file's play, moved to the median estimate). The twin is the physical one
+(``drivers/twin``), driven by gentle sines (the excitation servoid designs
+for a play in the loop), its play changed while it runs
+(:meth:`~servoid.drivers.twin.servo.Twin.set_play`) every 0.05 s; servo time is
+virtual, so a run is as fast as the refits.
 
 1. Tracking: the play grows by 50 % over the run (``--track`` s). RMS error of the
-   window plays against the true play at each window's end, relative to the true
-   play: raw (the model's bias on the twin included) and of the growth
-   (estimate / first estimate against truth / first truth: what wear tracking needs).
-2. Step: the play x1.2 at 30 s: servo seconds until the alarm.
-3. False alarms: ``--quiet`` samples (default 100 000; ``--full`` 1 000 000) without wear: alarms raised.
+   tracking estimate (the mean of the last 5 s of window plays) against the true
+   play at each estimate, from the end of the baseline (30 s) on, relative to the
+   true play: raw (the model's structural bias on the twin included) and of the
+   growth (estimate / first estimate against truth / first truth: what wear
+   tracking needs); and the raw RMS of the single window plays.
+2. Step: the play x1.2 at 40 s: servo seconds from the step to the alarm
+   (``none`` when there was none in 20 s), and alarms before the step.
+3. False alarms: ``--quiet`` samples (default 100 000; ``--full`` 1 000 000) without wear:
+   alarms raised; beside it that run's baseline: the scatter of the window plays
+   (and the CUSUM's sigma, its upper 95 % bound), their correlation time tau in
+   estimates, the threshold h and the mean samples between false alarms it
+   implies (Siegmund, the module text of ``cusum.py``).
 
-Also the refit's cost (median and largest wall time per refit: what the worker
-thread spends; it must stay under ``--every``). The machine may be shared.
+Also the wall time per estimate (median / largest: what the worker thread spends;
+it must stay under 0.25 s). The machine may be shared.
 """
 
 from __future__ import annotations
@@ -39,26 +42,29 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Callable
 
 import numpy as np
 from _table import table
 from real_servos import SINE_AMPLITUDE  # benchmarks/, on the path when a benchmark runs as a script
 
 from servoid.drivers.twin import Twin, preset
+from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
-from servoid.ident.monitoring.alarms import AlarmRule, Alarms, Bound
-from servoid.ident.monitoring.loop_wear import MONITOR_EVERY_S, MONITOR_WINDOW_S
+from servoid.ident.monitoring.alarms import Bound
+from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
 from servoid.ident.offline.loop_fit import fit_loop
-from servoid.ident.online.window import WindowConfig, WindowRefit
 
 RATE = 200.0
 CHUNK_S = 0.05
 REFERENCE_S = 20.0
-STEP_AT_S = 30.0
+STEP_AT_S = 40.0
+#: The tracking estimate is scored from here on (the first fit and the scatter's baseline done).
+SCORED_FROM_S = 30.0
 
 
-def _run(name: str, seconds: float, factor, args: argparse.Namespace, seed: int):  # type: ignore[no-untyped-def]
+def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, chunk_s: float = CHUNK_S):  # type: ignore[no-untyped-def]
     """The reference model, then ``seconds`` of monitoring with the play at ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
@@ -69,47 +75,31 @@ def _run(name: str, seconds: float, factor, args: argparse.Namespace, seed: int)
     u = sample(spec, n_ref + n, seed=seed + 1000)
     ref = twin.sample(u[:n_ref], 1.0 / RATE)
     model = fit_loop(np.asarray(ref.u), np.asarray(ref.y), 1.0 / RATE).model
-    config = WindowConfig(1.0 / RATE, window_s=args.window, every_s=args.every, first_s=args.window, burn_in_s=0.5)
-    est = WindowRefit(config, start=model, background=False)
-    chunk = int(CHUNK_S * RATE)
+    bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
+    tracker = LoopWearTracker(model, [bound], background=False, rebase=True)
+    chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
         f = factor(i / RATE)
         twin.set_play(play0 * f)
         rec = twin.sample(u[n_ref + i : n_ref + i + chunk], 1.0 / RATE)
         truth[i : i + chunk] = play0 * f
-        for ui, yi in zip(rec.u, rec.y, strict=True):
-            est.update(float(ui), float(yi))
-    result = est.result(final=False)
-    t = np.array([r.t_s for r in result.history])
-    plays = result.plays
+        for ui, yi in zip(rec.u.tolist(), rec.y.tolist(), strict=True):
+            tracker.update(ui, yi)
+    tracker.result()
+    rows: tuple[PlayRow, ...] = tracker.rows_since(0)
+    t = np.array([r.window.t_s for r in rows])
     at = truth[np.minimum((t * RATE).astype(int) - 1, n - 1)]
-    return model, t, plays, at, np.array([r.seconds for r in result.history])
+    return model, tracker, rows, t, at
 
 
-def _alarms(t: np.ndarray, plays: np.ndarray, persist: int) -> list[float]:
-    """Times the rule raised an alarm (bound +10 % of the first 20 s's median play, std their scatter)."""
-    first = plays[t <= REFERENCE_S]
-    std = float(np.std(first))
-    rule = Alarms([Bound(quantity="play", high=1.1 * float(np.median(first)))], AlarmRule(persist=persist))
-    raised = []
-    for ti, p in zip(t, plays, strict=True):
-        for ev in rule.check(int(ti * RATE), {"play": (float(p), std)}):
-            if ev.raised:
-                raised.append(float(ti))
-    return raised
+def _raised(tracker: LoopWearTracker) -> list[float]:
+    return [e.sample / RATE for e in tracker.events if e.raised]
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--presets", nargs="+", default=["xm430", "cia402"])
-    parser.add_argument(
-        "--window", type=float, default=MONITOR_WINDOW_S, help="window, servo s (default: the tracker's)"
-    )
-    parser.add_argument(
-        "--every", type=float, default=MONITOR_EVERY_S, help="refit period, servo s (default: the tracker's)"
-    )
-    parser.add_argument("--persist", type=int, default=3, help="checks in a row for an alarm (default 3)")
+    parser.add_argument("--presets", nargs="+", default=sorted(PRESETS), choices=sorted(PRESETS))
     parser.add_argument("--track", type=float, default=120.0, help="tracking run, servo s (default 120)")
     parser.add_argument("--quiet", type=int, default=100_000, help="samples of the run without wear")
     parser.add_argument("--full", action="store_true", help="1 000 000 samples without wear")
@@ -120,23 +110,33 @@ def main() -> None:
     rows = []
     for name in args.presets:
         started = time.perf_counter()
-        model, t, plays, at, cost = _run(name, args.track, lambda s: 1.0 + 0.5 * s / args.track, args, 1)
-        raw = float(np.sqrt(np.mean(((plays - at) / at) ** 2)))
-        growth = float(np.sqrt(np.mean((plays / plays[0] - at / at[0]) ** 2)))
-        _, ts, ps, _, _ = _run(name, 60.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, args, 2)
-        raised = _alarms(ts, ps, args.persist)
+        model, tracker, tr, t, at = _run(name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1)
+        sel = t >= SCORED_FROM_S
+        mean = np.array([r.mean for r in tr])[sel]
+        window = np.array([r.window.play for r in tr])[sel]
+        truth = at[sel]
+        raw = float(np.sqrt(np.mean((mean / truth - 1.0) ** 2)))
+        growth = float(np.sqrt(np.mean((mean / mean[0] - truth / truth[0]) ** 2)))
+        raw_window = float(np.sqrt(np.mean((window / truth - 1.0) ** 2)))
+        cost = np.array([r.window.seconds for r in tr[1:]])
+        _, step, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2)
+        raised = _raised(step)
         after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
         before = [x for x in raised if x < STEP_AT_S]
-        _, tq, pq, _, _ = _run(name, quiet / RATE, lambda s: 1.0, args, 3)
-        false = len(_alarms(tq, pq, args.persist))
-        rows.append([name, f"{model.play / at[0] - 1:+.1%}", f"{raw:.1%}", f"{growth:.1%}",
-                     f"{after[0]:.2f}" if after else "none", str(len(before)), f"{false} in {quiet}",
-                     f"{1e3 * np.median(cost):.0f} / {1e3 * np.max(cost):.0f}", f"{time.perf_counter() - started:.0f}"])  # fmt: skip
+        _, calm, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, chunk_s=1.0)
+        base = calm.baseline()
+        rows.append([name, f"{model.play / at[0] - 1:+.1%}", f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
+                     f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
+                     f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
+                     f"{base['tau']:.1f} / {base['h']:.1f} / "
+                     f"{base['false_alarm_samples']:.1e}",
+                     f"{1e3 * np.median(cost):.1f} / {1e3 * np.max(cost):.0f}", f"{time.perf_counter() - started:.0f}"])  # fmt: skip
     table(
-        f"monitor, servo-loop window refit (window {args.window:g} s, every {args.every:g} s, persist {args.persist}, "
-        f"{RATE:g} Hz)",
-        ["preset", "model play vs truth", "track RMS raw", "track RMS growth", "alarm after step s",
-         "alarms before step", "false alarms", "refit ms med/max", "wall s"],
+        f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
+        f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
+        ["preset", "model play vs truth", "track RMS raw", "track RMS growth", "window RMS raw",
+         "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
+         "estimate ms med/max", "wall s"],
         rows,
     )  # fmt: skip
 

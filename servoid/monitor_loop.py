@@ -4,24 +4,31 @@ The wear estimator of :mod:`servoid.monitor_run` is the MRGIA: it tracks the
 pseudo-Wiener model only. A model file whose answer is the servo-loop model
 (``structure.form`` ``servo_loop``: the play inside the position loop, or the
 loop model with the play at the output) is followed instead by
-:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`: the moving-window
-refit of live identification, started from the file's loop, with the alarm
-rule on its play. :func:`run_loop_monitor` runs the session with it and
-writes, in ``out``:
+:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`: the whole loop
+refitted once from the file's (the first 10 s), then the play alone on short
+windows (1.6 s every 0.25 s), a CUSUM on it once their scatter is known (20 s
+later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``:
 
 ``estimates.csv``
-    One row per window refit: ``k``, ``t``, the play with its scatter
-    (``dead_zone``, ``dead_zone_std``: the alarm rule's quantity), the loop
-    gains ``kp``, ``kv``, the window's free-run NRMSE and floor, the refit's
-    wall time, the active alarms (and ``true_play`` for a simulated twin).
+    One row per estimate (the first: the whole loop's refit): ``k``, ``t``,
+    the window's play (``dead_zone``: the CUSUM's input) and the CUSUM's
+    ``sigma`` (``dead_zone_std``: the upper 95 % bound on the scatter of the
+    baseline's window plays; empty before it is known), the tracking
+    estimate (``dead_zone_mean``: the mean of the last 5 s of window plays), the
+    CUSUM's statistic in standard deviations (``cusum``; the alarm is raised
+    above the threshold the ``baseline`` event gives), the loop gains ``kp``,
+    ``kv`` (held after the first row), the window's free-run NRMSE and floor, the
+    estimate's wall time, the active alarms (and ``true_play`` for a simulated twin).
 ``events.jsonl``
-    Start and stop, alarms raised and cleared.
+    Start and stop; ``baseline`` (the median play, its scatter and the bound on it, the correlation
+    of the estimates, the threshold and the mean samples between false alarms
+    it implies, the bounds where they went); alarms raised and cleared.
 ``model.json``
-    The model file with the latest refit's loop and play, rewritten at each
-    alarm and at the end.
+    The model file with the held loop and the tracking estimate's play,
+    rewritten at each alarm and at the end.
 
-Memory stays constant: the session keeps no samples and the tracker keeps two
-windows.
+Memory is bounded: the session keeps no samples, the tracker two windows
+(the first fit's 10 s) and its last 4096 rows.
 """
 
 from __future__ import annotations
@@ -37,9 +44,8 @@ from typing import IO, Any
 
 from servoid.drivers.base import Driver
 from servoid.ident.models.servo_loop import ServoLoopModel
-from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Bound
-from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker
-from servoid.ident.online.window import WindowRow
+from servoid.ident.monitoring.alarms import AlarmEvent, Bound
+from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
 from servoid.ident.serialise import dumps
 from servoid.modelfile import ModelFile
 from servoid.monitor_run import drive
@@ -52,7 +58,8 @@ __all__ = ["LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
 METHOD = "window-tracking"
 
 #: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
-LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "kp", "kv", "fit", "floor", "refit_s", "alarms")
+LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
+                "refit_s", "alarms")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -66,9 +73,10 @@ class LoopMonitorResult:
     counts : dict
         Slots per status (ok, late, missed, timeout).
     play, play_std : float
-        The last refit's play and the scatter of the baseline's plays (NaN before it is known).
+        The last tracking estimate (the mean of the last 5 s of window plays) and the scatter of
+        the baseline's window plays (NaN before it is known).
     refits : int
-        Window refits done.
+        Estimates done (the first: the whole loop's refit).
     dropped : int
         Windows left out because the previous refit still ran.
     events : tuple of AlarmEvent
@@ -118,7 +126,6 @@ def run_loop_monitor(
     start: ServoLoopModel,
     model_file: ModelFile,
     bounds: Sequence[Bound],
-    rule: AlarmRule,
     out: str | os.PathLike[str],
     stop_on_alarm: bool = False,
     wait: bool = False,
@@ -143,9 +150,9 @@ def run_loop_monitor(
     model_file : ModelFile
         The servo's model file (rewritten with the latest loop into ``model.json``).
     bounds : sequence of Bound
-        Bounds on the play (quantity ``dead_zone``); others are not checked here.
-    rule : AlarmRule
-        The alarm rule.
+        Bounds on the play (quantity ``dead_zone``); others are not checked here. The CUSUM of
+        :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker` watches them (its threshold
+        from a false-alarm rate, not the MRGIA monitor's rule).
     out : path
         Folder of the outputs.
     stop_on_alarm : bool
@@ -175,7 +182,7 @@ def run_loop_monitor(
         When the servo fails (the torque is off, the files are complete up to there).
     """
     loop = _LoopRun(
-        driver, session, start, model_file, [b for b in bounds if b.quantity == PLAY], rule, Path(out),
+        driver, session, start, model_file, [b for b in bounds if b.quantity == PLAY], Path(out),
         stop_on_alarm, wait, true_play, on_event, rebase,
     )  # fmt: skip
     loop.tracker.warm_up()
@@ -193,7 +200,6 @@ class _LoopRun:
         start: ServoLoopModel,
         model_file: ModelFile,
         bounds: list[Bound],
-        rule: AlarmRule,
         out: Path,
         stop_on_alarm: bool,
         wait: bool,
@@ -202,14 +208,15 @@ class _LoopRun:
         rebase: bool,
     ) -> None:
         self.driver, self.session, self.model_file, self.out = driver, session, model_file, out
-        self.bounds, self.rule, self.stop_on_alarm = bounds, rule, stop_on_alarm
+        self.bounds, self.stop_on_alarm = bounds, stop_on_alarm
         self.true_play, self.on_event = true_play, on_event
-        self.tracker = LoopWearTracker(start, bounds, rule, wait=wait, rebase=rebase)
+        self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase)
         self.based = False
         self.rows_seen = self.events_seen = 0
         self.stop = self.stopped_on_alarm = False
         self.last: Sample | None = None
         self.n = 0
+        self.mean = math.nan  # the last tracking estimate
         self.files: dict[str, Path] = {}
         self._csv: RecordingWriter | None = None
         self._events: IO[str] | None = None
@@ -223,7 +230,8 @@ class _LoopRun:
             "period_s": repr(self.session.period_s), "window_s": repr(cfg.window_s), "every_s": repr(cfg.every_s),
             "baseline_s": repr(self.tracker.baseline_s),
             "bounds": "; ".join(f"{b.label} {b.describe()}" for b in self.bounds) or "none",
-            "rule": f"persist={self.rule.persist} refits, z={self.rule.z:g}, hysteresis={self.rule.hysteresis:g}",
+            "first_s": repr(cfg.first_s), "burn_in_s": repr(cfg.burn_in_s),
+            "rule": f"CUSUM at the bounds, threshold for {self.tracker.false_alarm_samples:g} samples between false alarms",
             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **metadata,
         }  # fmt: skip
         columns = LOOP_COLUMNS + (("true_play",) if self.true_play is not None else ())
@@ -259,13 +267,16 @@ class _LoopRun:
         self._drain()
 
     def _drain(self) -> None:
-        new = self.tracker.window.rows_since(self.rows_seen)
+        new = self.tracker.rows_since(self.rows_seen)
         for row in new:
             self._row(row)
+            self.mean = row.mean
         self.rows_seen += len(new)
         if not self.based and not math.isnan(self.tracker.std):
             self.based = True
-            self._event("baseline", self.last.k if self.last else 0, play_std=self.tracker.std,
+            self._event("baseline", self.last.k if self.last else 0,
+                        **{f"play_{k}" if k in ("median", "scatter", "std") else k: v
+                           for k, v in self.tracker.baseline().items()},
                         bounds=[b.to_dict() for b in self.tracker.bounds])  # fmt: skip
         for event in self.tracker.events[self.events_seen :]:
             self._event("alarm" if event.raised else "clear", event.sample, **event.to_dict())
@@ -277,12 +288,14 @@ class _LoopRun:
                     self.stop = self.stopped_on_alarm = True
         self.events_seen = len(self.tracker.events)
 
-    def _row(self, row: WindowRow) -> None:
+    def _row(self, tracked: PlayRow) -> None:
+        row = tracked.window
         k = int(round(row.t_s / self.session.period_s))
         model = self.tracker.window.model
-        active = "+".join(e.bound.quantity for e in self.tracker.alarms.active.values())
-        values: list[Any] = [k, row.t_s, row.play, self.tracker.std, model.kp if model else math.nan,
-                             model.kv if model else math.nan, row.nrmse, row.floor, row.seconds, active]  # fmt: skip
+        active = "+".join(e.bound.quantity for e in self.tracker.active.values())
+        values: list[Any] = [k, row.t_s, row.play, self.tracker.std, tracked.mean, tracked.statistic,
+                             model.kp if model else math.nan, model.kv if model else math.nan, row.nrmse, row.floor,
+                             row.seconds, active]  # fmt: skip
         if self.true_play is not None:
             values.append(self.true_play(k))
         assert self._csv is not None
@@ -290,8 +303,10 @@ class _LoopRun:
 
     def _save_model(self) -> None:
         model = self.tracker.window.model
-        if model is None:
+        if model is None or not self.mean > 0.0 or not model.play > 0.0:
             return
+        scale = self.mean / model.play  # the held loop with the tracking estimate's play
+        model = dataclasses.replace(model, c1=model.c1 * scale, c2=model.c2 * scale)
         content = dataclasses.replace(
             self.model_file, loop=model.params(), play=model.play, play_interval=(None, None),
             method=METHOD, source=self.driver.describe(), samples=self.n, identified_at="",
@@ -311,10 +326,9 @@ class _LoopRun:
 
     def result(self, session: SessionResult) -> LoopMonitorResult:
         w = self.tracker.window
-        last = w.rows_since(max(self.rows_seen - 1, 0))
         return LoopMonitorResult(
-            samples=len(session), counts=session.counts, play=last[-1].play if last else math.nan,
+            samples=len(session), counts=session.counts, play=self.mean,
             play_std=self.tracker.std, refits=self.rows_seen, dropped=w.dropped, events=tuple(self.tracker.events),
-            active=tuple(self.tracker.alarms.active.values()),
+            active=tuple(self.tracker.active.values()),
             stopped="alarm" if self.stopped_on_alarm else session.stopped, files=dict(self.files), session=session,
         )  # fmt: skip

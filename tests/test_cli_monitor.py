@@ -132,16 +132,17 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
                  "--no-probe", "--excitation", sines, "--no-plots", "--json", "--out", str(ident)]) == 0  # fmt: skip
     saved = json.loads(capsys.readouterr().out)
     assert saved["form"] == "servo_loop"
-    # the wearing twin: its play x1.6 from 25 s on (sample 3500 at 140 Hz)
+    # the wearing twin: its play x1.6 from 40 s on (sample 5600 at 140 Hz), after the baseline (10 s of the whole
+    # loop, 20 s of the play alone)
     out = tmp_path / "watch"
-    code = main(["monitor", "--driver", "sim://xm430?clock=virtual&swap_at=3500&swap_factor=1.6", "--model",
-                 str(ident / "model.json"), "--duration", "55", "--excitation", sines, "--json", "--out", str(out)])  # fmt: skip
+    code = main(["monitor", "--driver", "sim://xm430?clock=virtual&swap_at=5600&swap_factor=1.6", "--model",
+                 str(ident / "model.json"), "--duration", "60", "--excitation", sines, "--json", "--out", str(out)])  # fmt: skip
     captured = capsys.readouterr()
     assert code == 0, captured.err
     summary = json.loads(captured.out)
     assert summary["estimator"] == "window" and summary["structure"] == saved["structure"]
     raised = [a for a in summary["alarms"] if a["raised"]]
-    assert len(raised) == 1 and raised[0]["since"] > 3500 and raised[0]["side"] == "above"
+    assert len(raised) == 1 and 5600 < raised[0]["sample"] < 5600 + 140 * 10 and raised[0]["side"] == "above"
     rows, meta = read_estimates(out / "estimates.csv")
     assert "window" in meta["servoid monitor"] and rows["true_play"][-1] == pytest.approx(1.6 * rows["true_play"][0])
     assert rows["dead_zone"][-1] > 1.2 * rows["dead_zone"][0]  # the window plays followed the step up

@@ -1,44 +1,128 @@
-"""Following the wear of a play inside the loop: the servo-loop model's window refit with the alarm rule on its play.
+"""Following the wear of a play inside the loop: the play alone refitted on short windows, a CUSUM on it.
 
 The wear estimator (:mod:`~servoid.ident.monitoring.wear_estimator`) is the
 MRGIA in random-walk mode: it tracks the pseudo-Wiener model only. For a
 model whose play sits in the loop (``play_in_loop``), or wherever the
-servo-loop model is the structure, :class:`LoopWearTracker` runs the same
-moving-window refit as live identification
-(:class:`~servoid.ident.online.window.WindowRefit`, started from the model
-file's loop, so no fit from scratch) and applies the monitor's alarm rule
-(:class:`~servoid.ident.monitoring.alarms.Alarms`) to the play at each refit.
+servo-loop model is the structure, :class:`LoopWearTracker` follows the play
+with :class:`~servoid.ident.online.window.WindowRefit`:
 
-The play's standard deviation, which the rule's margin needs, is the scatter
-of the window plays over the first ``baseline_s`` of monitoring (the estimate's
-own noise on the servo as it was when monitoring began); before that the rule
-is not applied. With ``rebase`` the bounds on the play are then moved to the
-median of those plays (``servoid monitor``'s ``--dead-zone P%``). Measured in ``benchmarks/monitor_loop.py``.
+1. **Baseline.** The first :data:`FIRST_FIT_S` of servo time refit the whole
+   model file's loop (every parameter free, from the file's values): the
+   servo as it is when monitoring begins.
+2. **Play only.** Wear changes the play, not the loop: every
+   :data:`PLAY_EVERY_S` the last :data:`PLAY_WINDOW_S` (its first
+   :data:`PLAY_BURN_IN_S` simulated, not scored) are refitted with every
+   parameter but the play held at the baseline's
+   (:func:`~servoid.ident.monitoring.play_fit.fit_play`, a search over a grid of
+   plays): one unknown, a few milliseconds, on a window short enough to see a
+   step within a second. Each is a row (:class:`PlayRow`);
+   the tracking estimate is the mean of the last :data:`TRACK_S` of them
+   (the window plays scatter; the mean lags a growth by ``TRACK_S / 2``).
+3. **Scatter.** The play-only estimates of the next ``baseline_s`` give the
+   median play, their scatter and the correlation time ``tau`` of the
+   overlapping windows. The CUSUM's ``sigma`` is the upper
+   :data:`SIGMA_CONFIDENCE` bound of that scatter given ``n / tau`` independent
+   estimates (chi-squared): a threshold set with a scatter that came out
+   small by chance gave 3 false alarms in 10^6 samples on the STS3215 twin
+   where it promised one in 10^8; with ``rebase`` the bounds on the play are moved by the
+   median over the model file's play (``servoid monitor``'s ``--dead-zone P%``:
+   the structure's bias on a physical servo is the same in every window, and
+   an alarm on wear must not see it).
+4. **Alarm.** From then on each estimate feeds a CUSUM with its reference at
+   the bound (:class:`~servoid.ident.monitoring.cusum.Cusum`), its threshold
+   from one false alarm per :data:`FALSE_ALARM_SAMPLES` samples on average
+   (:func:`~servoid.ident.monitoring.cusum.threshold` with ``sigma`` and ``tau``).
+
+Memory is bounded: the window keeps at most two windows of samples (the first
+fit's ``FIRST_FIT_S``) and :data:`~servoid.ident.online.window.HISTORY_ROWS`
+refits; the tracker keeps its last :data:`ROWS_KEPT` rows and the
+``baseline_s`` of plays. Measured in ``benchmarks/monitor_loop.py``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+from collections import deque
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from servoid import validation
 from servoid.ident.models.servo_loop import ServoLoopModel
-from servoid.ident.monitoring.alarms import AlarmEvent, AlarmRule, Alarms, Bound
-from servoid.ident.online.window import WindowConfig, WindowRefit, WindowResult
+from servoid.ident.monitoring.alarms import AlarmEvent, Bound
+from servoid.ident.monitoring.cusum import Cusum, correlation_time, false_alarm_checks, threshold
+from servoid.ident.monitoring.play_fit import fit_play
+from servoid.ident.online.window import WindowConfig, WindowRefit, WindowResult, WindowRow
 
-__all__ = ["LoopWearTracker", "PLAY", "BASELINE_S", "MONITOR_WINDOW_S", "MONITOR_EVERY_S"]
+__all__ = [
+    "LoopWearTracker",
+    "PlayRow",
+    "PLAY",
+    "BASELINE_S",
+    "FIRST_FIT_S",
+    "PLAY_WINDOW_S",
+    "PLAY_BURN_IN_S",
+    "PLAY_EVERY_S",
+    "TRACK_S",
+    "FALSE_ALARM_SAMPLES",
+    "SIGMA_CONFIDENCE",
+    "ROWS_KEPT",
+    "play_config",
+]
 
 #: The quantity name of the play in the alarm rule's readings and bounds.
 PLAY = "dead_zone"
-#: Servo seconds of monitoring whose window plays give the estimate's scatter.
+#: Servo seconds of the first fit: the whole loop refitted from the model file's (the baseline).
+FIRST_FIT_S = 10.0
+#: Servo seconds of play-only estimates after it that give the median, scatter and correlation.
 BASELINE_S = 20.0
-#: The monitor's window and refit period, servo s: shorter than identify's (30 s, 5 s) to
-#: follow wear, long enough to hold reversals of a working servo's motion.
-MONITOR_WINDOW_S = 10.0
-MONITOR_EVERY_S = 1.0
+#: Each play-only estimate's window, its burn-in and the period of the estimates, servo s: the
+#: window holds 3-6 reversals of gentle sines (2.5-5 a second on the twins), the burn-in lets the
+#: loop's state (started at rest) reach the servo's, and the short window sees a step within 1 s.
+PLAY_WINDOW_S = 1.6
+PLAY_BURN_IN_S = 0.4
+PLAY_EVERY_S = 0.25
+#: Servo seconds of window plays averaged into the tracking estimate.
+TRACK_S = 5.0
+#: Mean samples between false alarms the CUSUM's threshold is set for (100x the issue's 10^6).
+FALSE_ALARM_SAMPLES = 1e8
+#: The confidence of the upper bound on the baseline's scatter that the CUSUM uses.
+SIGMA_CONFIDENCE = 0.95
+#: Rows the tracker keeps (the last ones; a caller copies new ones with :meth:`LoopWearTracker.rows_since`).
+ROWS_KEPT = 4096
+
+
+def play_config(sample_period_s: float) -> WindowConfig:
+    """The window settings of the play-only estimate at a stream's period (the module's constants).
+
+    Parameters
+    ----------
+    sample_period_s : float
+        The stream's period, s.
+    """
+    return WindowConfig(sample_period_s, window_s=PLAY_WINDOW_S, every_s=PLAY_EVERY_S, first_s=FIRST_FIT_S,
+                        burn_in_s=PLAY_BURN_IN_S)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PlayRow:
+    """One estimate of :class:`LoopWearTracker`.
+
+    Attributes
+    ----------
+    window : WindowRow
+        The refit (the first: the whole loop; then the play alone).
+    mean : float
+        The tracking estimate: the mean window play over the last :data:`TRACK_S`.
+    statistic : float
+        The CUSUM after this estimate, in standard deviations (NaN before the baseline is known).
+    """
+
+    window: WindowRow
+    mean: float
+    statistic: float
 
 
 class LoopWearTracker:
@@ -49,49 +133,50 @@ class LoopWearTracker:
     start : ServoLoopModel
         The model the monitor starts from (a model file's loop).
     bounds : sequence of Bound
-        The alarm bounds; the play's quantity is :data:`PLAY`.
-    rule : AlarmRule, optional
-        The alarm rule (default: the monitor's).
+        The alarm bounds; the play's quantity is :data:`PLAY` (others are ignored).
     config : WindowConfig, optional
-        Window and refit period (default :data:`MONITOR_WINDOW_S`, :data:`MONITOR_EVERY_S`, at the start's period).
+        Windows and periods (default :func:`play_config` at the start's period); its ``first_s``
+        is the baseline fit of the whole loop.
     baseline_s : float
-        Servo seconds whose window plays give the scatter.
+        Servo seconds of estimates after the first fit that give the median, scatter and correlation.
     background, wait : bool
         As :class:`~servoid.ident.online.window.WindowRefit`.
     rebase : bool
-        Scale the bounds on the play, once the baseline is known, by the median baseline play
-        over the start's play: a bound given as a share of the model file's play then holds
-        around the play the windows see on this servo (its structure's bias is the same in
-        every window, and an alarm on wear must not see it; ``benchmarks/monitor_loop.py``'s
-        rule). The scaled bounds are :attr:`bounds`.
+        Scale the bounds on the play, once the baseline is known, by the median estimate over
+        the start's play (see the module docstring). The scaled bounds are :attr:`bounds`.
+    false_alarm_samples : float
+        Mean samples between false alarms the CUSUM's threshold is set for.
     """
 
     def __init__(
         self,
         start: ServoLoopModel,
         bounds: Sequence[Bound],
-        rule: AlarmRule | None = None,
         config: WindowConfig | None = None,
         *,
         baseline_s: float = BASELINE_S,
         background: bool = True,
         wait: bool = False,
         rebase: bool = False,
+        false_alarm_samples: float = FALSE_ALARM_SAMPLES,
     ) -> None:
-        if config is None:
-            config = WindowConfig(start.sample_period_s, window_s=MONITOR_WINDOW_S, every_s=MONITOR_EVERY_S,
-                                  first_s=MONITOR_WINDOW_S)  # fmt: skip
-        self.window = WindowRefit(config, start=start, background=background, wait=wait)
-        self.alarms = Alarms(bounds, rule)
-        self.bounds = tuple(bounds)
-        self._rule = rule
+        self.window = WindowRefit(config or play_config(start.sample_period_s), start=start, background=background,
+                                  wait=wait, later=fit_play)  # fmt: skip
+        cfg = self.window.config
+        self.bounds = tuple(b for b in bounds if b.quantity == PLAY)
         self._rebase = bool(rebase)
         self._start_play = start.play
         self.baseline_s = validation.positive("baseline_s", baseline_s)
+        self.false_alarm_samples = validation.positive("false_alarm_samples", false_alarm_samples)
         self.events: list[AlarmEvent] = []
+        self.alarms = Cusum(self.bounds, math.inf)  # replaced when the baseline is known
         self._seen = 0
+        self._first: WindowRow | None = None
         self._baseline: list[float] = []
-        self._std = math.nan
+        self._recent: deque[float] = deque(maxlen=max(1, round(TRACK_S / cfg.every_s)))
+        self._rows: list[PlayRow] = []
+        self._gone = 0
+        self._std = self._scatter = self._median = self._tau = self._h = math.nan
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -105,39 +190,108 @@ class LoopWearTracker:
 
     def _check(self) -> None:
         new = self.window.rows_since(self._seen)  # per sample: only the refits not seen yet are copied
-        if not new:
-            return
-        if math.isnan(self._std):
-            self._baseline += [r.play for r in new if r.t_s <= self.baseline_s]
-            if new[-1].t_s <= self.baseline_s or len(self._baseline) < 3:
-                self._seen += len(new)
-                return
-            self._std = float(np.std(self._baseline, ddof=1))
-            if self._rebase and self._start_play > 0.0:
-                scale = float(np.median(self._baseline)) / self._start_play
-                self.bounds = tuple(
-                    dataclasses.replace(b, low=b.low * scale, high=b.high * scale) if b.quantity == PLAY else b
-                    for b in self.bounds
-                )
-                self.alarms = Alarms(self.bounds, self._rule)
-        period = self.window.config.sample_period_s
-        for row in new:
-            self.events += self.alarms.check(int(round(row.t_s / period)), {PLAY: (row.play, self._std)})
         self._seen += len(new)
+        for row in new:
+            self._take(row)
+
+    def _take(self, row: WindowRow) -> None:
+        stat = math.nan
+        if self._first is None:  # the baseline fit of the whole loop
+            self._first = row
+            mean = row.play
+        else:
+            self._recent.append(row.play)
+            mean = float(np.mean(self._recent))
+            if math.isnan(self._std):
+                self._baseline.append(row.play)
+                if row.t_s - self._first.t_s >= self.baseline_s - 1e-9 and len(self._baseline) >= 4:
+                    self._set_baseline()
+            else:
+                k = int(round(row.t_s / self.window.config.sample_period_s))
+                self.events += self.alarms.check(k, {PLAY: (row.play, self._std)})
+                stat = self.alarms.statistic(PLAY) if self.bounds else math.nan
+        self._rows.append(PlayRow(row, mean, stat))
+        if len(self._rows) > 2 * ROWS_KEPT:
+            del self._rows[:-ROWS_KEPT]
+            self._gone += ROWS_KEPT
+
+    def _set_baseline(self) -> None:
+        plays = np.asarray(self._baseline)
+        from scipy.stats import chi2
+
+        self._median = float(np.median(plays))
+        self._scatter = max(float(np.std(plays, ddof=1)), 1e-9 * abs(self._median), 1e-300)
+        cfg = self.window.config
+        self._tau = correlation_time(plays, math.ceil((cfg.window_s - cfg.burn_in_s) / cfg.every_s))
+        dof = max(plays.size / self._tau - 1.0, 1.0)
+        self._std = self._scatter * math.sqrt(dof / float(chi2.ppf(1.0 - SIGMA_CONFIDENCE, dof)))
+        self._baseline = []
+        if self._rebase and self._start_play > 0.0:
+            scale = self._median / self._start_play
+            self.bounds = tuple(dataclasses.replace(b, low=b.low * scale, high=b.high * scale) for b in self.bounds)
+        self._h = threshold(self.kappa, self.false_alarm_checks, self._tau) if self.bounds else math.nan
+        self.alarms = Cusum(self.bounds, self._h if self.bounds else 0.0)
+
+    @property
+    def kappa(self) -> float:
+        """The nearest bound's distance inside from the baseline's median play, in ``sigma`` (NaN before).
+
+        A median already on or beyond a bound takes 0.25: the CUSUM then adds up at every check
+        and raises soon whatever the threshold. No floor otherwise: a floor set the odrive
+        twin's threshold (its window plays scatter by 58 %) for a bound 2x as far as it was,
+        and it raised a false alarm in 10^6 samples.
+        """
+        sides = [d for b in self.bounds for d in (self._median - b.low, b.high - self._median) if math.isfinite(d)]
+        if not sides or math.isnan(self._std):
+            return math.nan
+        return min(sides) / self._std if min(sides) > 0.0 else 0.25
+
+    @property
+    def false_alarm_checks(self) -> float:
+        """Mean estimates between false alarms the threshold is set for."""
+        return self.false_alarm_samples / self.window.config.samples(self.window.config.every_s)
 
     @property
     def std(self) -> float:
-        """The play's scatter over the baseline (NaN before it is known)."""
+        """The CUSUM's ``sigma``: the upper bound on the scatter of the baseline's play estimates (NaN before)."""
         return self._std
+
+    def baseline(self) -> Mapping[str, float]:
+        """The baseline's ``median`` play, the ``scatter`` of its estimates and the upper bound ``std`` the CUSUM uses, their correlation ``tau``, ``kappa``, the threshold ``h`` and the ``false_alarm_samples`` it implies (NaN before)."""
+        implied = (
+            false_alarm_checks(self.kappa, self._h, self._tau) * self.window.config.samples(self.window.config.every_s)
+            if math.isfinite(self._h) and math.isfinite(self.kappa)
+            else math.nan
+        )
+        return {"median": self._median, "scatter": self._scatter, "std": self._std, "tau": self._tau,
+                "kappa": self.kappa, "h": self._h, "false_alarm_samples": implied}  # fmt: skip
+
+    @property
+    def active(self) -> dict[str, AlarmEvent]:
+        """The alarms raised and not cleared, by quantity."""
+        return self.alarms.active
+
+    def rows_since(self, start: int) -> tuple[PlayRow, ...]:
+        """The estimates after the first ``start`` (the last :data:`ROWS_KEPT` at most).
+
+        Parameters
+        ----------
+        start : int
+            How many rows the caller has seen.
+        """
+        self._check()
+        return tuple(self._rows[max(0, start - self._gone) :])
 
     def warm_up(self) -> None:
         """Compile the servo-loop simulation now."""
         self.window.warm_up()
 
     def current(self) -> Mapping[str, float]:
-        """The last refit's play and loop gains, with the play's scatter."""
+        """The last estimate's play, the tracking estimate, the loop gains and the play's scatter."""
         now = dict(self.window.current())
-        return {**now, "play_std": self._std} if now else now
+        if not now:
+            return now
+        return {**now, "play_mean": self._rows[-1].mean if self._rows else math.nan, "play_std": self._std}
 
     def result(self) -> WindowResult:
         """Wait for a running refit, check it, and stop the worker (no extra final window)."""

@@ -50,7 +50,7 @@ import os
 import sys
 import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -71,6 +71,8 @@ __all__ = [
     "FIRST_S",
     "BURN_IN_S",
     "SWITCH_INTERVAL_S",
+    "HISTORY_ROWS",
+    "LaterFit",
 ]
 
 #: Servo seconds refitted each time: long enough for tens of reversals at a designed
@@ -89,6 +91,11 @@ MAX_NFEV = 10
 WORKER_NICENESS = 10
 #: Largest interpreter switch interval while a worker refits, s (the module's text).
 SWITCH_INTERVAL_S = 0.0005
+#: A window's fit after the first: ``(u, y, score, held) -> (model, nrmse)`` (:class:`WindowRefit`'s ``later``).
+LaterFit = Callable[[np.ndarray, np.ndarray, np.ndarray, ServoLoopModel], tuple[ServoLoopModel, float]]
+#: Refits :attr:`WindowResult.history` keeps (the last ones): a monitor refits for days, identify's
+#: refits every 5 s fill it in 5.7 h.
+HISTORY_ROWS = 4096
 
 
 @dataclass(frozen=True)
@@ -109,6 +116,9 @@ class WindowConfig:
         Servo seconds at a window's start simulated but not scored.
     max_nfev : int
         Evaluations of each warm refit.
+
+    The first refit fits the last ``max(window_s, first_s)`` (a monitor's first fit may be
+    longer than its windows), every later one the last ``window_s``.
     """
 
     sample_period_s: float
@@ -178,7 +188,7 @@ class WindowResult:
     model : ServoLoopModel or None
         The last refit's model (None: no window was fitted).
     history : tuple of WindowRow
-        Every refit, in order.
+        The refits in order, the last :data:`HISTORY_ROWS` of them.
     config : WindowConfig
         The settings.
     dropped : int
@@ -214,12 +224,19 @@ class WindowResult:
 
 
 def _refit(
-    u: np.ndarray, y: np.ndarray, keep: np.ndarray, start: ServoLoopModel | None, config: WindowConfig, t_s: float
+    u: np.ndarray,
+    y: np.ndarray,
+    keep: np.ndarray,
+    start: ServoLoopModel | None,
+    config: WindowConfig,
+    t_s: float,
+    later: LaterFit | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
     """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
 
-    Returns the model, its row, and from the first fit the best model of the other place of the
-    play (the rival the refinement of the whole record starts that place from; None after).
+    ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``).
+    Returns the model, its row, and from the first fit the best model of the other place of
+    the play (the rival the refinement of the whole record starts that place from; None after).
     """
     from servoid.ident.offline.intervals import floor_nrmse
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
@@ -238,10 +255,13 @@ def _refit(
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
         model, rival = start, None
-    fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
-    row = WindowRow(t_s, fit.model.play, fit.fit_nrmse, floor_nrmse(y[score]), time.perf_counter() - t0,
-                    fit.model.structure)  # fmt: skip
-    return fit.model, row, rival
+    if later is not None:
+        model, q = later(u, y, score, model)
+    else:
+        fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
+        model, q = fit.model, fit.fit_nrmse
+    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure)
+    return model, row, rival
 
 
 def _yield_cpu() -> None:
@@ -267,10 +287,21 @@ class WindowRefit:
     wait : bool
         When a window falls due while the last refit still runs, wait for it (a virtual
         clock) instead of leaving the window out (a live servo: the sampler must not wait).
+    later : callable, optional
+        The fit of every window after the first, ``later(u, y, score, held) -> (model, nrmse)``,
+        ``held`` the first fit's model (the monitor's play-only estimate,
+        :func:`servoid.ident.monitoring.play_fit.fit_play`); default
+        :func:`~servoid.ident.offline.loop_fit.refit_loop` from the last answer.
     """
 
     def __init__(
-        self, config: WindowConfig, *, start: ServoLoopModel | None = None, background: bool = True, wait: bool = False
+        self,
+        config: WindowConfig,
+        *,
+        start: ServoLoopModel | None = None,
+        background: bool = True,
+        wait: bool = False,
+        later: LaterFit | None = None,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -279,6 +310,8 @@ class WindowRefit:
                               f"({config.sample_period_s:g} s)")  # fmt: skip
         self.config = config
         self.model = start
+        self._later = later
+        self._held: ServoLoopModel | None = None  # the first fit's model, which ``later`` holds
         self._u: list[float] = []
         self._y: list[float] = []
         self._keep: list[bool] = []
@@ -287,6 +320,7 @@ class WindowRefit:
         self._every = config.samples(config.every_s)
         self._first = config.samples(config.first_s)
         self._history: list[WindowRow] = []
+        self._gone = 0  # refits dropped from the front of _history (bounded memory)
         self._errors: list[str] = []
         self._dropped = 0
         self._stall = 0.0
@@ -302,6 +336,10 @@ class WindowRefit:
         self._rival: ServoLoopModel | None = None
         self._wait = bool(wait)
         self._waited = 0.0  # of the current sample, on a virtual clock: not a stall of a real sampler
+
+    def _span(self) -> int:
+        """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
+        return self._window if self._history or self._gone else max(self._window, self._first)
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -319,8 +357,9 @@ class WindowRefit:
         self._keep.append(keep)
         self._n += 1
         n = self._n
-        if len(self._u) > 2 * self._window:  # constant memory: only the last window is ever fitted
-            del self._u[: -self._window], self._y[: -self._window], self._keep[: -self._window]
+        span = self._span()
+        if len(self._u) > 2 * span:  # constant memory: only the last window (the first: first_s) is ever fitted
+            del self._u[:-span], self._y[:-span], self._keep[:-span]
         if n >= self._first and (n - self._first) % self._every == 0:
             self._due(n)
         self._stall = max(self._stall, time.perf_counter() - t0 - self._waited)
@@ -333,7 +372,8 @@ class WindowRefit:
             self._dropped += 1
             return
         size = len(self._u)
-        lo = max(0, size - self._window)
+        first = not self._history and not self._gone
+        lo = max(0, size - self._span())
         keep = np.array(self._keep[lo:], dtype=np.bool_)
         if not keep.any():
             return
@@ -341,7 +381,8 @@ class WindowRefit:
         if size - lo < 4 * self.config.samples(self.config.burn_in_s) or int(np.sum(keep)) < 50:
             return
         job = (np.array(self._u[lo:]), np.array(self._y[lo:]), np.array(self._keep[lo:], dtype=np.bool_),
-               self.model, self.config, n * self.config.sample_period_s)  # fmt: skip
+               self.model if first or self._later is None else self._held, self.config,
+               n * self.config.sample_period_s, None if first else self._later)  # fmt: skip
         if self._pool is None:
             self._store(job)
         else:
@@ -351,12 +392,16 @@ class WindowRefit:
         try:
             self._keep_fit(*_refit(*job))
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
-            self._errors.append(f"window ending at {job[-1]:.1f} s: {exc}")
+            self._errors.append(f"window ending at {job[5]:.1f} s: {exc}")
 
     def _keep_fit(self, model: ServoLoopModel, row: WindowRow, rival: ServoLoopModel | None) -> None:
         self.model = model
+        self._held = model if self._held is None else self._held
         self._rival = rival if rival is not None else self._rival
         self._history.append(row)
+        if len(self._history) > 2 * HISTORY_ROWS:
+            del self._history[:-HISTORY_ROWS]
+            self._gone += HISTORY_ROWS
 
     def _collect(self, *, wait: bool) -> None:
         fut = self._future
@@ -371,9 +416,9 @@ class WindowRefit:
         self._keep_fit(*fitted)
 
     def rows(self) -> tuple[WindowRow, ...]:
-        """The refits finished so far (a finished background refit is collected, a running one not waited for)."""
+        """The refits finished so far, the last :data:`HISTORY_ROWS` of them (a finished background refit is collected, a running one not waited for)."""
         self._collect(wait=False)
-        return tuple(self._history)
+        return tuple(self._history[-HISTORY_ROWS:])
 
     def rows_since(self, start: int) -> tuple[WindowRow, ...]:
         """The refits finished after the first ``start`` (as :meth:`rows`; a caller per sample copies only new ones).
@@ -384,7 +429,7 @@ class WindowRefit:
             How many refits the caller has seen.
         """
         self._collect(wait=False)
-        return tuple(self._history[start:])
+        return tuple(self._history[max(0, start - self._gone) :])
 
     @property
     def dropped(self) -> int:
@@ -430,5 +475,5 @@ class WindowRefit:
             self._pool.shutdown(wait=True)
             self._pool = None
             sys.setswitchinterval(self._switch)
-        return WindowResult(self.model if self._history else None, tuple(self._history), self.config, self._dropped,
+        return WindowResult(self.model if self._history else None, tuple(self._history[-HISTORY_ROWS:]), self.config, self._dropped,
                             self._stall, tuple(self._errors), self._rival)  # fmt: skip

@@ -53,10 +53,12 @@ An alarm prints a line starting with ALARM on stderr; with --fail-on-alarm the
 run stops there and servoid exits with status {EXIT_ALARM}.
 
 A model file whose answer is the servo-loop model (the play inside the loop,
-structure.form servo_loop) is followed instead by a moving-window refit of that
-model (10 s windows every 1 s of servo time): --dead-zone bounds its play (a
-share P% is taken of the play its first 20 s of windows see), one check per
-refit; --m2 and --fit do not apply.
+structure.form servo_loop) is followed instead by its play alone: the whole
+loop is refitted on the first 10 s of servo time, then the play alone on 1.6 s
+windows every 0.25 s; their scatter over the next 20 s sets a CUSUM's threshold
+for one false alarm in 10^8 samples on average. --dead-zone bounds the play (a
+share P% is taken of the median play those windows see); --persist, --z, --m2
+and --fit do not apply (benchmarks/monitor_loop.py).
 
 The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
@@ -374,7 +376,7 @@ def run(args: argparse.Namespace) -> int:
     driver = driver_from_url(args.driver)
     if loop:
         with driver:
-            return _run_loop(args, driver, model_file, period, total, rule)
+            return _run_loop(args, driver, model_file, period, total)
     with driver:
         unit = driver.position_unit.unit
         noise_std, epsilon = _noise(args, model_file, driver.identity)
@@ -414,9 +416,7 @@ def _exit_status(result: Any) -> int:
     return 0
 
 
-def _run_loop(
-    args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float, total: int | None, rule: AlarmRule
-) -> int:
+def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float, total: int | None) -> int:
     """Monitor a servo-loop model file: its play followed by the window refit (:mod:`servoid.monitor_loop`)."""
     import dataclasses
 
@@ -445,8 +445,8 @@ def _run_loop(
     if not args.json:
         length = "until Ctrl-C" if total is None else f"{total} samples ({total * period:g} s)"
         _term.stderr.print(f"servoid monitor: {driver.describe()} at {1.0 / period:g} Hz, {length}; the servo-loop "
-                           f"model ({model_file.structure}), its play {start.play:.4g} {unit} followed by a window "
-                           f"refit; bound {bound.describe() if bound else 'none'}; writing to {args.out}/",
+                           f"model ({model_file.structure}), its play {start.play:.4g} {unit} followed on short "
+                           f"windows; bound {bound.describe() if bound else 'none'}; writing to {args.out}/",
                            markup=False, soft_wrap=True)  # fmt: skip
     started = time.perf_counter()
     with _term.live_progress("monitor", total) as bar:
@@ -456,7 +456,7 @@ def _run_loop(
 
         result = run_loop_monitor(
             driver, inputs, SessionConfig(period_s=period, use_late=args.use_late, guard_samples=args.guard),
-            start=start, model_file=model_file, bounds=() if bound is None else (bound,), rule=rule, out=args.out,
+            start=start, model_file=model_file, bounds=() if bound is None else (bound,), out=args.out,
             stop_on_alarm=args.fail_on_alarm, rebase=args.dead_zone.strip().endswith("%"),
             wait=simulated is not None and isinstance(simulated.clock, VirtualClock),
             true_play=true_play if twin else None, on_event=_print_event, on_progress=update, metadata=meta,
@@ -467,7 +467,7 @@ def _run_loop(
                           "start_play": start.play})  # fmt: skip
     else:
         _term.stderr.print(f"servoid monitor: {result.samples} samples ({elapsed:.1f} s of wall time), {result.refits} "
-                           f"window refits ({result.dropped} left out); play now {result.play:.4g} +/- "
+                           f"estimates ({result.dropped} left out); play now {result.play:.4g} +/- "
                            f"{result.play_std:.2g} {unit} (from {start.play:.4g}); alarms raised "
                            f"{sum(e.raised for e in result.events)}", markup=False, soft_wrap=True)  # fmt: skip
         for name, path in result.files.items():

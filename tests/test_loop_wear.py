@@ -1,0 +1,80 @@
+"""The play-inside-the-loop monitor's pieces: the play-only fit (exact recovery), the CUSUM's threshold and its false-alarm rate."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from servoid.errors import ConfigError
+from servoid.excitation.generate import sample
+from servoid.excitation.specs import GentleSpec
+from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+from servoid.ident.monitoring.alarms import Bound
+from servoid.ident.monitoring.cusum import Cusum, correlation_time, false_alarm_checks, threshold
+from servoid.ident.monitoring.play_fit import STEP, fit_play
+
+RATE = 200.0
+LOOP = ServoLoopModel(PLAY_IN_LOOP, 1 / RATE, kp=12.0, kv=60.0, fc=0.3, fs=0.45, vs=0.05, veps=0.005, c1=0.01, c2=0.01)
+
+
+@pytest.mark.parametrize("structure", [PLAY_IN_LOOP, OUTPUT_BACKLASH])
+@pytest.mark.parametrize("worn", [0.8, 1.27])
+def test_the_play_alone_is_recovered_on_a_short_window_of_the_models_own_output(structure: str, worn: float) -> None:
+    # the estimator's exact-recovery case: the held loop is the truth, only its play changed
+    held = dataclasses.replace(LOOP, structure=structure, c1=0.012, c2=0.008)
+    truth = dataclasses.replace(held, c1=held.c1 * worn, c2=held.c2 * worn)
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), int(1.6 * RATE), seed=4)
+    y = truth.simulate(u) + 1e-5 * np.random.default_rng(5).standard_normal(u.size)
+    score = np.ones(u.size, dtype=bool)
+    score[:80] = False  # the burn-in: simulated from rest, not scored
+    model, q = fit_play(u, y, score, held)
+    assert model.play == pytest.approx(truth.play, rel=STEP)
+    assert model.c1 / model.c2 == pytest.approx(1.5) and model.kp == held.kp  # only the play moved
+    assert 0.0 <= q < 0.05
+
+
+def test_the_cusum_threshold_gives_the_false_alarm_rate_it_was_set_for_on_independent_checks() -> None:
+    kappa, arl = 1.0, 2000.0
+    h = threshold(kappa, arl)
+    assert false_alarm_checks(kappa, h) == pytest.approx(arl, rel=1e-6)
+    assert threshold(kappa, arl, tau=3.0) > 2.0 * h  # correlated checks: a higher threshold
+    assert threshold(5.0, 2.0) == 0.0  # far bound, short run: the plain comparison already does
+    # seeded normal checks, the bound kappa sigmas above their mean: restarted at each alarm
+    x = np.random.default_rng(7).standard_normal(200_000)
+    alarms, s = 0, 0.0
+    for xi in x:
+        s = max(0.0, s + xi - kappa)
+        if s > h:
+            alarms, s = alarms + 1, 0.0
+    assert 0.5 * x.size / arl < alarms < 1.5 * x.size / arl  # Siegmund's approximation, within its accuracy
+    with pytest.raises(ConfigError, match="kappa"):
+        threshold(0.0, arl)
+
+
+def test_the_cusum_raises_after_a_step_past_its_bound_and_clears_when_the_mean_comes_back() -> None:
+    sigma = 0.05
+    bound = Bound(quantity="dead_zone", low=0.9, high=1.1)
+    cusum = Cusum([bound], threshold(0.1 / sigma, 4e4))
+    rng = np.random.default_rng(8)
+    mean = np.r_[np.ones(400), np.full(100, 1.2), np.ones(200)]
+    events = []
+    for k, m in enumerate(mean):
+        events += [(k, e) for e in cusum.check(k, {"dead_zone": (float(m + sigma * rng.standard_normal()), sigma)})]
+    assert [(e.raised, e.side) for _, e in events] == [(True, "above"), (False, "above")]
+    (k_up, up), (k_down, _) = events
+    assert 400 <= k_up < 410 and up.since >= 395  # after the step and not before, within a few checks
+    assert 500 <= k_down < 515 and not cusum.active
+    with pytest.raises(ConfigError, match="one bound per quantity"):
+        Cusum([bound, bound], 1.0)
+
+
+def test_the_correlation_time_of_overlapping_estimates_is_above_one_and_of_independent_ones_about_one() -> None:
+    rng = np.random.default_rng(9)
+    white = rng.standard_normal(4000)
+    assert correlation_time(white, 4) == pytest.approx(1.0, abs=0.2)
+    smooth = np.convolve(white, np.ones(4) / 4, mode="valid")  # a moving mean over 4: tau = 4
+    assert correlation_time(smooth, 4) == pytest.approx(4.0, rel=0.2)
+    assert correlation_time([1.0, 1.0, 1.0], 2) == 1.0
