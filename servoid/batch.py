@@ -4,7 +4,9 @@
 :func:`servoid.readers.read`, identifies it (:func:`servoid.ident.identify.identify`)
 and returns a :class:`Done` -- the table's row and the model file's text --
 or the row with the error when the recording cannot be read or identified,
-so that one bad file never stops the others. The caller (the ``servoid
+so that one bad file never stops the others; it runs its fit on the calling
+thread only (:func:`servoid.ident.offline._threads.one_thread`), since the
+workers already use one core each. The caller (the ``servoid
 batch`` command, which distributes the jobs with Dask) writes what comes
 back: each row as ``rows/<key>.json`` the moment it arrives, which is what
 makes a run resumable (:func:`done_keys`), and each model as
@@ -172,6 +174,7 @@ def identify_file(path: str, options: ReadOptions, config: MRGIAConfig) -> Done:
         Orders and estimator settings.
     """
     from servoid.errors import ServoidError
+    from servoid.ident.offline._threads import one_thread
 
     key = recording_key(path)
     row: dict[str, Any] = dict.fromkeys(COLUMNS)
@@ -182,7 +185,9 @@ def identify_file(path: str, options: ReadOptions, config: MRGIAConfig) -> Done:
         rec = read(path, options)
         row["servo_id"] = servo_id_of(path, rec.metadata)
         row["time"] = time_of(path, rec.metadata)
-        result = _identify(rec, config)
+        # the fleet already runs one record per core: a fit's own threads would only oversubscribe it
+        with one_thread():
+            result = _identify(rec, config)
         row.update(_result_columns(rec, result))
         row["warnings"] = "; ".join([*rec.notes, *result.warnings])
         model_json = _model_json(path, rec, result)

@@ -111,3 +111,19 @@ def test_servo_id_and_time_from_metadata_or_name(tmp_path):
     f = tmp_path / "plain.csv"
     f.write_text("u,y\n", encoding="utf-8")
     assert time_of(f, {}).startswith(str(np.datetime64("today", "Y")))
+
+
+def test_each_job_fits_on_one_thread_whatever_servoid_threads_says(fleet, monkeypatch):
+    # the workers already run one recording per core: a fit's own threads would oversubscribe the fleet
+    from servoid import batch
+    from servoid.ident.offline import _threads
+    from servoid.readers import ReadOptions
+
+    def report(rec, config):
+        raise ValueError(f"threads {_threads.threads()}")
+
+    monkeypatch.setenv(_threads.ENV, "4")
+    monkeypatch.setattr(batch, "_identify", report)
+    done = batch.identify_file(str(fleet / "j2-night1.csv"), ReadOptions(), None)
+    assert done.row["error"] == "ValueError: threads 1"
+    assert _threads.threads() == 4  # only inside the job

@@ -161,3 +161,46 @@ def test_the_load_stage_stands_only_when_it_validates_better() -> None:
         assert tried.load_validation < (1.0 - LOAD_MARGIN) * plain.validation_nrmse[plain.structure]
     else:
         assert tried.play == plain.play
+
+
+def test_the_jacobians_columns_on_threads_equal_them_one_after_the_other(monkeypatch: pytest.MonkeyPatch) -> None:
+    # each column is its own simulation into its own buffer: on the pool it must give the same bits
+    from servoid.ident.offline import _threads
+    from servoid.ident.offline.loop_fit import _free, _Problem, _start
+
+    period = 0.01
+    u = _gentle(0.1, period, 800, seed=5)
+    y = _loop(OUTPUT_BACKLASH, period).simulate(u, y0=0.0) + np.random.default_rng(5).normal(0.0, 1e-4, u.size)
+    start = _start(30.0, 100.0, float(np.std(np.diff(u))) / period, 0.005, integrator=False, friction=1.0)
+    free = _free(OUTPUT_BACKLASH, False)
+    z = np.random.default_rng(6).uniform(-0.2, 0.2, len(free))
+    jacobians = []
+    for n in ("1", "3"):
+        monkeypatch.setenv(_threads.ENV, n)
+        prob = _Problem(u, y, period, OUTPUT_BACKLASH, free, start, block_mask(u.size), 0.01)
+        jacobians.append(prob.jacobian(z))
+        assert prob.evaluations == 1 + len(free)
+    assert _threads.pool() is not None  # three threads were asked for: two helpers
+    assert np.array_equal(jacobians[0], jacobians[1])
+    assert np.all(np.isfinite(jacobians[0])) and np.any(jacobians[0] != 0.0)
+    with _threads.one_thread():
+        assert _threads.threads() == 1 and _threads.pool() is None
+    monkeypatch.setenv(_threads.ENV, "two")
+    with pytest.raises(ConfigError, match="SERVOID_THREADS='two' is not a positive integer"):
+        _threads.threads()
+
+
+def test_each_task_runs_once_and_a_tasks_error_reaches_the_caller(monkeypatch: pytest.MonkeyPatch) -> None:
+    from servoid.ident.offline import _threads
+
+    monkeypatch.setenv(_threads.ENV, "3")
+    seen: list[int] = []
+    _threads.each(seen.append, 40)
+    assert sorted(seen) == list(range(40))
+
+    def fail(i: int) -> None:
+        if i == 7:
+            raise ModelError("task 7")
+
+    with pytest.raises(ModelError, match="task 7"):
+        _threads.each(fail, 12)

@@ -54,6 +54,7 @@ from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import KERNEL_NAMES, LOAD_NAMES, ServoLoopModel, simulate_kernel, substeps
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+from servoid.ident.offline import _threads
 from servoid.ident.offline._oefit import single_threaded_blas
 from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, Z95, floor_nrmse, hac_stderr, quantum
 
@@ -286,6 +287,7 @@ class _Problem:
         self.buffer = np.empty(self.stop)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
+        self._buffers: list[np.ndarray] = []  # one per Jacobian column: the columns run at once
 
     def values(self, z: np.ndarray) -> dict[str, float]:
         d = dict(self.start)
@@ -309,18 +311,24 @@ class _Problem:
         hi = [math.log(1e6) if n in _LOG else _BOUNDED.get(n, (-np.inf, np.inf))[1] for n in self.free]
         return np.array(lo), np.array(hi)
 
-    def simulate(self, p: np.ndarray) -> np.ndarray:
-        self.evaluations += 1
-        simulate_kernel(p, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, self.buffer)
-        return self.buffer
+    def simulate(self, p: np.ndarray, buffer: np.ndarray | None = None) -> np.ndarray:
+        out = self.buffer if buffer is None else buffer
+        simulate_kernel(p, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, out)
+        return out
 
-    def __call__(self, z: np.ndarray) -> np.ndarray:
-        y_hat = self.simulate(self.vector(z))
+    def residual(self, z: np.ndarray, buffer: np.ndarray | None = None) -> np.ndarray:
+        """The residual at ``z``, simulated into ``buffer`` (default: the problem's own)."""
+        y_hat = self.simulate(self.vector(z), buffer)
         r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
         # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
         limit = 10.0 * (float(np.ptp(self.y)) + 1.0)
         if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * limit):
             r = np.full(r.size, limit)
+        return r
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        self.evaluations += 1
+        r = self.residual(z)
         self._last = (z.copy(), r.copy())
         return r
 
@@ -329,17 +337,26 @@ class _Problem:
 
         scipy's relative ``diff_step`` shrinks with ``|z|``, and ``z`` starts at 0: its steps would
         be far below the sub-step roughness of the simulation, whose slope a 3 % step sees.
+        The columns are independent simulations, each into its own buffer: they run at once
+        (:func:`._threads.each`; the kernel releases the GIL) and give the same numbers as
+        one after the other.
         """
         z = np.asarray(z, dtype=np.float64)
         last = self._last
         r0 = last[1] if last is not None and np.array_equal(last[0], z) else self(z)
         lo, hi = self.bounds()
         jac = np.empty((r0.size, z.size))
-        for i in range(z.size):
+        if len(self._buffers) < z.size:
+            self._buffers = [np.empty(self.stop) for _ in range(z.size)]
+
+        def column(i: int) -> None:
             step = DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP
             zi = z.copy()
             zi[i] += step
-            jac[:, i] = (self(zi) - r0) / step
+            jac[:, i] = (self.residual(zi, self._buffers[i]) - r0) / step
+
+        self.evaluations += z.size  # here, not in the columns: ``+=`` from several threads could lose counts
+        _threads.each(column, z.size)
         return jac
 
 
