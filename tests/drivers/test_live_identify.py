@@ -42,8 +42,9 @@ the difference for a few periods. The session leaves those out (a guard
 window of ``DEFAULT_GUARD_SAMPLES`` after each unusable sample, for drivers
 that do not carry the slot); before it did, this test failed on 2 runs in 6.
 The ODrive's float32 bound is asserted when the session kept its schedule
-(under 1 % of the slots late or missed), the timing bound otherwise (both
-cores saturated). The CiA 402 drive follows the session's slots
+(no slot late or missed), the timing bound otherwise: a loaded machine with
+0.1-1 % of the slots late gave 1.1e-4 and 1.5e-4 (a late command the guard
+window does not catch whole moves a sample or two). The CiA 402 drive follows the session's slots
 through the SYNC counter, whatever the timing.
 """
 
@@ -123,7 +124,7 @@ def test_identify_driver_finds_the_emulated_servo_as_the_simulated_one(servo, to
         "counts"
     ]  # most slots on time, even on a busy machine
     assert load_model(tmp_path / "live" / "model.json").servo["driver"] == url.split(":")[0]
-    if servo is odrive and acquisition["late_share"] >= 0.01:
+    if servo is odrive and acquisition["late_share"] > 0.0:
         tolerance = TIMING_TOLERANCE  # see the module docstring
     # the simulated driver gives the plant to rounding error; the emulator, to its resolution
     assert max_relative_error(simulated) < 1e-9
