@@ -141,14 +141,18 @@ def main() -> None:
     parser.add_argument("--transports", nargs="+", default=None, choices=list(LIVE), help="default: sim (--full: all)")
     parser.add_argument("--full", action="store_true", help="every preset x every transport")
     parser.add_argument("--samples", type=int, default=12_000, help="samples per run (default 12000: 60 s at 200 Hz)")
+    parser.add_argument(
+        "--keep", type=Path, default=None, help="keep each run's outputs (recording.csv, model.json) here"
+    )
     args = parser.parse_args()
     if args.transports is None:
         args.transports = list(LIVE) if args.full else [next(iter(LIVE))]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     with tempfile.TemporaryDirectory() as tmp:
+        where = args.keep if args.keep is not None else Path(tmp)
         rows = [
-            row(name, transport, args.samples, Path(tmp) / f"{name}-{i}")
+            row(name, transport, args.samples, where / f"{name}-{i}")
             for name in args.presets
             for i, transport in enumerate(args.transports)
         ]

@@ -15,7 +15,7 @@ from servoid.ident.models.pseudo_wiener import BacklashModel
 from servoid.ident.models.simulate import free_run
 from servoid.ident.online.decimate import DecimatingEstimator, decimate_record, decimation_factor, slow_denominator
 from servoid.ident.online.mrgia import MRGIA, MRGIAConfig, convergence_margin, run_mrgia
-from servoid.ident.online.probe_design import design_live
+from servoid.ident.online.probe_design import GENTLE_SHARE, design_live
 from servoid.ident.online.verdict import judge_online
 from servoid.modelfile import ModelFile, save_model
 from servoid.session import SessionConfig
@@ -39,6 +39,11 @@ def test_probe_of_the_exact_plant_finds_its_play_and_a_safe_rate() -> None:
     assert design.factor >= decimation_factor(plant.a)  # the probe's model asks at least what the truth needs
     assert convergence_margin(slow_denominator(plant.a, design.factor)) >= 0
     assert design.hold % design.factor == 0 and design.hold >= 3 * design.factor
+    # gentle sines by default, their fastest full-amplitude segment at GENTLE_SHARE of the probe's bandwidth
+    f_top = np.sqrt(design.accel / design.amplitude) / (2 * np.pi) * RATE
+    assert design.shape == "gentle" and f_top == pytest.approx(GENTLE_SHARE * probe.bandwidth_hz)
+    held = design_live(probe, RATE, hold=5)
+    assert held.shape == "steps" and held.spec().startswith("steps:") and held.hold % held.factor == 0
 
 
 def test_the_design_never_saturates_a_drive_the_probe_saw_saturate(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
@@ -108,6 +113,14 @@ def test_identify_refuses_when_too_many_samples_are_lost(tmp_path, capsys, allow
         assert lost["share_unusable"] > 0.2 and lost["usable"] + lost["not_measured"] <= lost["samples"]
 
 
+def saved_cap(obj: dict) -> float:  # type: ignore[type-arg]
+    """The amplitude the probe in ``obj`` allows (the design's cap)."""
+    from servoid.ident.online.probe import ProbeResult
+    from servoid.ident.online.probe_design import amplitude_cap
+
+    return amplitude_cap(ProbeResult.from_dict(obj["probe"]))[0]
+
+
 def test_live_identify_probes_designs_and_judges_by_default(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     code = main(["identify", "--json", "--driver", "sim://model?clock=virtual&snr=40&seed=1", "--rate", "200",
                  "--samples", "6000", "--no-plots", "--out", str(tmp_path)])  # fmt: skip
@@ -115,7 +128,9 @@ def test_live_identify_probes_designs_and_judges_by_default(tmp_path, capsys) ->
     assert code == 0, err
     obj = json.loads(out)
     design, online = obj["design"], obj["online"]
-    assert obj["decimation"]["factor"] == design["factor"] > 1 and obj["decimation"]["unheld"] == 0
+    assert obj["decimation"]["factor"] == design["factor"] > 1
+    # gentle sines by default (they change inside a group: the estimator sees the group's anti-aliased mean)
+    assert design["shape"] == "gentle" and 0 < design["accel"] and design["amplitude"] <= saved_cap(obj)
     assert obj["samples"] == 6000 // design["factor"]
     assert online["settled"] == (not online["reasons"])
     saved = json.loads((tmp_path / "model.json").read_text())

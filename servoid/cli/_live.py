@@ -84,7 +84,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                       help="run the online estimator on every K-th sample (default: the smallest K at which its "
                            "convergence condition holds on the probe's model)")  # fmt: skip
     live.add_argument("--hold", type=int, metavar="N",
-                      help="samples each level of the designed excitation is held (default: from the probe)")  # fmt: skip
+                      help="held random levels of N samples instead of the designed gentle sines (whose fastest "
+                           "segment runs at 0.3x the probe's loop bandwidth)")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
@@ -93,18 +94,18 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 
 
 def excitation(
-    args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "", hold: int | None = None
+    args: argparse.Namespace, amplitude: float, limits: Limits, unit: str = "", designed: str | None = None
 ) -> np.ndarray:
     """The input of a live run.
 
     ``--excitation file:...`` replays a file's commands as they are, after
     checking them against the driver's ``limits``; a spec (``--excitation
-    SPEC``) runs around ``limits.centre``; else uniform noise ``centre +/-
-    amplitude``, its levels held ``hold`` samples when given (the design from
-    the probe). ``--samples`` long (a file: all of it by default; a design:
+    SPEC``) runs around ``limits.centre``; else the ``designed`` spec (the
+    design from the probe, :meth:`LiveDesign.spec`) or uniform noise ``centre +/-
+    amplitude``. ``--samples`` long (a file: all of it by default; a design:
     :data:`DEFAULT_LIVE_S` of servo time).
     """
-    from servoid.excitation import StepsSpec, UniformSpec, parse_spec, sample
+    from servoid.excitation import UniformSpec, parse_spec, sample
     from servoid.readers.excitation_file import is_file_spec, read_excitation
 
     if args.excitation is not None and args.amplitude is not None:
@@ -117,8 +118,8 @@ def excitation(
     if args.excitation is not None:
         spec = parse_spec(args.excitation)
     else:
-        spec = UniformSpec(amplitude=amplitude) if hold is None else StepsSpec(amplitude=amplitude, hold=hold)
-    default = DEFAULT_SAMPLES if hold is None else int(round(DEFAULT_LIVE_S * args.rate))
+        spec = UniformSpec(amplitude=amplitude) if designed is None else parse_spec(designed)
+    default = DEFAULT_SAMPLES if designed is None else int(round(DEFAULT_LIVE_S * args.rate))
     return limits.centre + sample(spec, args.samples or default, seed=args.seed)
 
 
@@ -172,12 +173,12 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         if not (math.isfinite(amplitude) and amplitude > 0):
             raise ConfigError(f"--amplitude (={amplitude:g}) must be > 0")
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
-        factor, hold = (args.decimate or 1), None
+        factor, designed = (args.decimate or 1), None
         if not args.no_probe:
             design = probe_and_design(args, driver, amplitude, config, quiet=quiet)
             live.update(probe=design[0].to_dict(), design=design[1].to_dict())
-            factor, hold, amplitude = design[1].factor, design[1].hold, design[1].amplitude
-        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit, hold=hold)
+            factor, designed, amplitude = design[1].factor, design[1].spec(), design[1].amplitude
+        u = excitation(args, amplitude, driver.limits, driver.command_unit.unit, designed=designed)
         estimator_config = make_config(epsilon)
         online = EstimatorFeed(
             DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
@@ -187,8 +188,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual)
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
-        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or
-                ("uniform" if hold is None else f"steps:amplitude={amplitude!r},hold={hold}"),
+        meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or designed or "uniform",
                 "servo": _flat(identity), "decimate": str(factor)}  # fmt: skip
         if not quiet:
             _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
@@ -223,7 +223,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
         live["decimation"] = est.stats.to_dict()
-        if est.stats.unheld:
+        if est.stats.unheld and not (designed or "").startswith("gentle"):  # designed sines change in a group
             _term.warn(f"the set point changed inside {est.stats.unheld} of {est.stats.groups} groups of {factor} "
                        "samples: the online estimator saw their mean (hold the excitation for whole groups)")  # fmt: skip
     truth = simulated.truth if simulated is not None else None
