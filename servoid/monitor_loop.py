@@ -52,7 +52,7 @@ from servoid.monitor_run import drive
 from servoid.recording import RecordingWriter
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult
 
-__all__ = ["LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
+__all__ = ["refusal", "LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
 
 #: ``method`` of the model files this monitor writes.
 METHOD = "window-tracking"
@@ -84,11 +84,14 @@ class LoopMonitorResult:
     active : tuple of AlarmEvent
         Alarms still raised at the end.
     stopped : str or None
-        ``"alarm"``, ``"interrupted"`` or None.
+        ``"alarm"``, ``"refused"`` (the model file's play is off and the bounds are absolute: see
+        :func:`run_loop_monitor`), ``"interrupted"`` or None.
     files : dict
         What was written, by name.
     session : SessionResult
         The session (counts only).
+    doubt : str or None
+        Why the model file's play is not the servo's (:attr:`LoopWearTracker.doubt`), or None.
     """
 
     samples: int
@@ -102,6 +105,7 @@ class LoopMonitorResult:
     stopped: str | None
     files: dict[str, Path]
     session: SessionResult
+    doubt: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON: slots, the play, refits, every alarm event, those still active, why it stopped, the files."""
@@ -110,6 +114,7 @@ class LoopMonitorResult:
             "estimate": {"dead_zone": self.play, "dead_zone_std": self.play_std},
             "refits": self.refits, "dropped": self.dropped, "alarms": [ev.to_dict() for ev in self.events],
             "active": [ev.bound.quantity for ev in self.active], "files": {k: str(v) for k, v in self.files.items()},
+            "doubt": self.doubt,
         }  # fmt: skip
 
     @property
@@ -163,6 +168,15 @@ def run_loop_monitor(
         The bounds are relative to the model file's play: move them to the baseline's median play
         (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``rebase``; a ``baseline``
         event says where they went).
+
+        When the first refit shows the file's play is not the servo's
+        (:attr:`~servoid.ident.monitoring.loop_wear.LoopWearTracker.doubt`), a ``doubt`` event
+        (and ``on_event("doubt", line)``) says so and what follows: with relative bounds (or none)
+        the run goes on **re-baselined** on the monitor's own refit -- wear is a change from the
+        servo as it is, which the refit and the baseline's median measure, whatever the file's
+        bias -- and the estimates' absolute play is the monitor's, not the file's; with absolute
+        bounds it **refuses** (stops, ``stopped="refused"``): an absolute bound compared with a play
+        the monitor has just shown it cannot place would raise, or miss, alarms with confidence.
     true_play : callable, optional
         ``true_play(k)`` the true play at sample ``k`` (a simulated twin): a column of the rows.
     on_event : callable, optional
@@ -190,6 +204,18 @@ def run_loop_monitor(
     return loop.result(drive(driver, loop, inputs, session, on_progress))
 
 
+def refusal(why: str) -> str:
+    """The one line of a run that refused the model file (``stopped == "refused"``), after ``why`` (its doubt).
+
+    Parameters
+    ----------
+    why : str
+        :attr:`LoopMonitorResult.doubt`.
+    """
+    return (f"refused to monitor: {why}; an absolute bound on the play needs a model file that places it "
+            "(identify the servo again, or give the bound in %, which follows the monitor's own baseline)")  # fmt: skip
+
+
 class _LoopRun:
     """The state of one :func:`run_loop_monitor` run."""
 
@@ -210,8 +236,11 @@ class _LoopRun:
         self.driver, self.session, self.model_file, self.out = driver, session, model_file, out
         self.bounds, self.stop_on_alarm = bounds, stop_on_alarm
         self.true_play, self.on_event = true_play, on_event
-        self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase)
-        self.based = False
+        interval = tuple(math.nan if v is None else float(v) for v in model_file.play_interval)
+        self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase, interval=(interval[0], interval[1]),
+                                       identifiable=model_file.identifiable)  # fmt: skip
+        self.rebase = rebase
+        self.based = self.doubted = self.refused = False
         self.rows_seen = self.events_seen = 0
         self.stop = self.stopped_on_alarm = False
         self.last: Sample | None = None
@@ -272,6 +301,8 @@ class _LoopRun:
             self._row(row)
             self.mean = row.mean
         self.rows_seen += len(new)
+        if not self.doubted and self.tracker.doubt is not None:
+            self._doubt(self.tracker.doubt)
         if not self.based and not math.isnan(self.tracker.std):
             self.based = True
             self._event("baseline", self.last.k if self.last else 0,
@@ -287,6 +318,20 @@ class _LoopRun:
                 if self.stop_on_alarm:
                     self.stop = self.stopped_on_alarm = True
         self.events_seen = len(self.tracker.events)
+
+    def _doubt(self, why: str) -> None:
+        """Say that the file's play is off and what the run does about it (:func:`run_loop_monitor`'s ``rebase``)."""
+        self.doubted = True
+        refuse = bool(self.bounds) and not self.rebase
+        action = "refuse" if refuse else "rebaseline"
+        first = self.tracker.rows_since(0)[0].window if self.rows_seen else None
+        self._event("doubt", self.last.k if self.last else 0, reason=why, action=action,
+                    file_play=self.tracker.start_play, refit_play=None if first is None else first.play)  # fmt: skip
+        if refuse:  # the caller says why in one line (:func:`refusal`)
+            self.stop = self.refused = True
+        elif self.on_event is not None:
+            self.on_event("doubt", f"servoid monitor: {why}: re-baselined on the monitor's own refit; the play it "
+                                   "reports is its own, and wear is judged as a change from it")  # fmt: skip
 
     def _row(self, tracked: PlayRow) -> None:
         row = tracked.window
@@ -330,5 +375,6 @@ class _LoopRun:
             samples=len(session), counts=session.counts, play=self.mean,
             play_std=self.tracker.std, refits=self.rows_seen, dropped=w.dropped, events=tuple(self.tracker.events),
             active=tuple(self.tracker.active.values()),
-            stopped="alarm" if self.stopped_on_alarm else session.stopped, files=dict(self.files), session=session,
+            stopped="refused" if self.refused else "alarm" if self.stopped_on_alarm else session.stopped,
+            files=dict(self.files), session=session, doubt=self.tracker.doubt,
         )  # fmt: skip

@@ -146,3 +146,19 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
     rows, meta = read_estimates(out / "estimates.csv")
     assert "window" in meta["servoid monitor"] and rows["true_play"][-1] == pytest.approx(1.6 * rows["true_play"][0])
     assert rows["dead_zone"][-1] > 1.2 * rows["dead_zone"][0]  # the window plays followed the step up
+    # the bound in % follows the monitor's own baseline: a doubt about the file's play re-baselines, and says so
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    doubts = [e for e in events if e["event"] == "doubt"]
+    assert [e["action"] for e in doubts] == (["rebaseline"] if summary["doubt"] else [])
+    # a file that says its play is not identifiable, with an absolute bound: refused in one line after the first refit
+    data = json.loads((ident / "model.json").read_text())
+    data["structure"]["identifiable"] = False
+    (tmp_path / "unplaced.json").write_text(json.dumps(data))
+    refused = tmp_path / "refused"
+    code = main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(tmp_path / "unplaced.json"),
+                 "--duration", "30", "--excitation", sines, "--dead-zone", "0.002,0.008", "--out", str(refused)])  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "refused to monitor: the model file says its play is not identifiable" in err[-1]
+    events = [json.loads(line) for line in (refused / "events.jsonl").read_text().splitlines()]
+    assert [e["action"] for e in events if e["event"] == "doubt"] == ["refuse"]
+    assert events[-1]["event"] == "stop" and events[-1]["t"] < 11.0  # stopped at the first refit (10 s)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.cusum import Cusum, correlation_time, false_alarm_checks, threshold
+from servoid.ident.monitoring.loop_wear import file_doubt
 from servoid.ident.monitoring.play_fit import STEP, fit_play
 
 RATE = 200.0
@@ -78,3 +80,12 @@ def test_the_correlation_time_of_overlapping_estimates_is_above_one_and_of_indep
     smooth = np.convolve(white, np.ones(4) / 4, mode="valid")  # a moving mean over 4: tau = 4
     assert correlation_time(smooth, 4) == pytest.approx(4.0, rel=0.2)
     assert correlation_time([1.0, 1.0, 1.0], 2) == 1.0
+
+
+def test_the_doubt_about_a_model_file_names_an_unidentifiable_play_and_a_refit_outside_its_interval() -> None:
+    assert file_doubt(0.004, 0.0041, (0.0035, 0.0045), True) is None
+    assert file_doubt(0.004, 0.0041, (math.nan, math.nan), None) is None  # no interval: nothing to judge by
+    moved = file_doubt(0.004, 0.002, (0.0035, 0.0045), True)
+    assert moved is not None and "-50%" in moved and "outside" in moved
+    both = file_doubt(0.004, 0.006, (0.0035, 0.0045), False)
+    assert both is not None and both.startswith("the model file says its play is not identifiable") and "+50%" in both

@@ -8,7 +8,14 @@ with :class:`~servoid.ident.online.window.WindowRefit`:
 
 1. **Baseline.** The first :data:`FIRST_FIT_S` of servo time refit the whole
    model file's loop (every parameter free, from the file's values): the
-   servo as it is when monitoring begins.
+   servo as it is when monitoring begins. Every later estimate holds this
+   refit's loop, so the monitor follows its own baseline, not the file's.
+   When that refit puts the play outside the file's 95 % interval, or the
+   file says its play is not identifiable, :attr:`LoopWearTracker.doubt`
+   says so: the file's play is not the servo's, and only changes from the
+   monitor's own baseline mean anything (the benchmark's model files were
+   +113 % and -90 % off; the play-only estimates holding a loop fitted with
+   them tracked the raw play to 58-84 % and its growth to 14-16 %).
 2. **Play only.** Wear changes the play, not the loop: every
    :data:`PLAY_EVERY_S` the last :data:`PLAY_WINDOW_S` (its first
    :data:`PLAY_BURN_IN_S` simulated, not scored) are refitted with every
@@ -70,6 +77,7 @@ __all__ = [
     "SIGMA_CONFIDENCE",
     "ROWS_KEPT",
     "play_config",
+    "file_doubt",
 ]
 
 #: The quantity name of the play in the alarm rule's readings and bounds.
@@ -104,6 +112,34 @@ def play_config(sample_period_s: float) -> WindowConfig:
     """
     return WindowConfig(sample_period_s, window_s=PLAY_WINDOW_S, every_s=PLAY_EVERY_S, first_s=FIRST_FIT_S,
                         burn_in_s=PLAY_BURN_IN_S)  # fmt: skip
+
+
+def file_doubt(
+    file_play: float, refit_play: float, interval: tuple[float, float] | None, identifiable: bool | None
+) -> str | None:
+    """Why a model file's play is not the servo's, from the monitor's first refit of the whole loop; None when no reason.
+
+    Parameters
+    ----------
+    file_play : float
+        The model file's play.
+    refit_play : float
+        The play of the first refit (from the file's loop, on the monitor's own first window).
+    interval : tuple of float, optional
+        The file's 95 % interval of the play (``None`` or a NaN end: none).
+    identifiable : bool, optional
+        Whether the file calls its play identifiable.
+    """
+    why = []
+    if identifiable is False:
+        why.append("the model file says its play is not identifiable")
+    if interval is not None and all(v is not None and math.isfinite(v) for v in interval):
+        low, high = float(interval[0]), float(interval[1])
+        if not low <= refit_play <= high:
+            why.append(f"the first {FIRST_FIT_S:g} s refit moved the play from {file_play:.4g} to {refit_play:.4g} "
+                       f"({refit_play / file_play - 1.0:+.0%}), outside the file's 95 % interval "
+                       f"[{low:.4g}, {high:.4g}]")  # fmt: skip
+    return "; ".join(why) or None
 
 
 @dataclass(frozen=True)
@@ -146,6 +182,10 @@ class LoopWearTracker:
         the start's play (see the module docstring). The scaled bounds are :attr:`bounds`.
     false_alarm_samples : float
         Mean samples between false alarms the CUSUM's threshold is set for.
+    interval : tuple of float, optional
+        The model file's 95 % interval of the play (``None`` or NaN where it has none).
+    identifiable : bool, optional
+        Whether the model file calls its play identifiable (``None``: it does not say).
     """
 
     def __init__(
@@ -159,6 +199,8 @@ class LoopWearTracker:
         wait: bool = False,
         rebase: bool = False,
         false_alarm_samples: float = FALSE_ALARM_SAMPLES,
+        interval: tuple[float, float] | None = None,
+        identifiable: bool | None = None,
     ) -> None:
         self.window = WindowRefit(config or play_config(start.sample_period_s), start=start, background=background,
                                   wait=wait, later=fit_play)  # fmt: skip
@@ -177,6 +219,10 @@ class LoopWearTracker:
         self._rows: list[PlayRow] = []
         self._gone = 0
         self._std = self._scatter = self._median = self._tau = self._h = math.nan
+        self._interval = interval
+        self._identifiable = identifiable
+        self.doubt: str | None = None
+        """Why the model file's play is not to be trusted, once the first refit shows it (else None)."""
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -199,6 +245,7 @@ class LoopWearTracker:
         if self._first is None:  # the baseline fit of the whole loop
             self._first = row
             mean = row.play
+            self.doubt = file_doubt(self._start_play, row.play, self._interval, self._identifiable)
         else:
             self._recent.append(row.play)
             mean = float(np.mean(self._recent))
@@ -250,6 +297,11 @@ class LoopWearTracker:
     def false_alarm_checks(self) -> float:
         """Mean estimates between false alarms the threshold is set for."""
         return self.false_alarm_samples / self.window.config.samples(self.window.config.every_s)
+
+    @property
+    def start_play(self) -> float:
+        """The play of the model the tracker started from (the model file's)."""
+        return self._start_play
 
     @property
     def std(self) -> float:

@@ -462,6 +462,10 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
             true_play=true_play if twin else None, on_event=_print_event, on_progress=update, metadata=meta,
         )  # fmt: skip
     elapsed = time.perf_counter() - started
+    if result.stopped == "refused":
+        from servoid.monitor_loop import refusal
+
+        raise ConfigError(refusal(result.doubt or "the model file's play is off"))
     if args.json:
         _term.print_json({**result.to_dict(), "unit": unit, "structure": model_file.structure,
                           "start_play": start.play})  # fmt: skip
@@ -501,7 +505,7 @@ def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorCon
 def _print_event(kind: str, line: str) -> None:
     if kind == "alarm":
         _term.stderr.print(line, style="bold red", markup=False, soft_wrap=True)
-    elif kind in ("clear", "recovery", "restart"):
+    elif kind in ("clear", "recovery", "restart", "doubt"):
         _term.stderr.print(line, style="yellow", markup=False, soft_wrap=True)
     else:
         _term.stderr.print(line, style="dim", markup=False, soft_wrap=True)
