@@ -131,7 +131,9 @@ def main() -> None:
         before = [x for x in raised if x < STEP_AT_S]
         _, calm, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, chunk_s=1.0)
         base = calm.baseline()
-        doubt = "-" if tracker.doubt is None else f"first refit {tr[0].window.play / at[0] - 1:+.0%}: outside"
+        lo, hi = (v / at[0] for v in tracker.interval)
+        doubt = (f"first refit {tr[0].window.play / at[0] - 1:+.0%} {'outside' if tracker.doubt else 'inside'} "
+                 f"[{lo:.2f}, {hi:.2f}]x")  # fmt: skip
         rows.append([name, f"{model.play / at[0] - 1:+.1%}", doubt, f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
@@ -141,7 +143,7 @@ def main() -> None:
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
-        ["preset", "model play vs truth", "doubt (re-baselined)", "track RMS raw", "track RMS growth", "window RMS raw",
+        ["preset", "model play vs truth", "first refit vs file interval (x truth)", "track RMS raw", "track RMS growth", "window RMS raw",
          "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "estimate ms med/max", "wall s"],
         rows,

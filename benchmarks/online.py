@@ -1,6 +1,7 @@
 """Online identification at real servo rates: probe, design, decimated MRGIA, verdict, on every twin x transport.
 
-Run: ``.venv/bin/python benchmarks/online.py [--full] [--presets xm430 ...] [--transports sim ...] [--samples 12000]``.
+Run: ``.venv/bin/python benchmarks/online.py [--full] [--presets xm430 ...] [--transports sim ...] [--samples 12000]
+[--seeds 0 1 2] [--keep DIR]``.
 
 The default run is short: every preset on ``sim://`` (4 runs); ``--full`` runs
 the grid, every preset x every transport of ``benchmarks/twins.py``.
@@ -64,8 +65,9 @@ from servoid.recording import read_recording
 WITHIN = 0.05
 
 
-def run(url: str, samples: int, out: Path) -> tuple[dict | None, str, float]:
-    argv = ["identify", "--json", "--driver", url, "--samples", str(samples), "--out", str(out), "--no-plots"]
+def run(url: str, samples: int, out: Path, seed: int = 0) -> tuple[dict | None, str, float]:
+    argv = ["identify", "--json", "--driver", url, "--samples", str(samples), "--out", str(out), "--no-plots",
+            "--seed", str(seed)]  # fmt: skip
     stdout, stderr = io.StringIO(), io.StringIO()
     started = time.perf_counter()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
@@ -101,12 +103,12 @@ def window_seconds_to_within(history: list[dict]) -> float:
     return float(t[0] if outside.size == 0 else t[min(int(outside[-1]) + 1, t.size - 1)])
 
 
-def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
+def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> list[str]:
     params = preset(name)
     play = params.play_rad
     scale = params.gear_ratio if transport.startswith("odrive") and params.loop_encoder == "motor" else 1.0
     with LIVE[transport](name) as url:
-        result, error, wall = run(url, samples, out)
+        result, error, wall = run(url, samples, out, seed)
     if result is None:
         return [name, transport, f"{play:.5f}", *["-"] * 11, f"{wall:.0f}", outcome(error)]
     verdict = result["online"]
@@ -135,12 +137,18 @@ def row(name: str, transport: str, samples: int, out: Path) -> list[str]:
     ]  # fmt: skip
 
 
+def _seeded(cells: list[str], seed: int) -> list[str]:
+    """A row with the seed after the transport."""
+    return [*cells[:2], str(seed), *cells[2:]]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--presets", nargs="+", default=list(preset_names()))
     parser.add_argument("--transports", nargs="+", default=None, choices=list(LIVE), help="default: sim (--full: all)")
     parser.add_argument("--full", action="store_true", help="every preset x every transport")
     parser.add_argument("--samples", type=int, default=12_000, help="samples per run (default 12000: 60 s at 200 Hz)")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="identify's --seed, one run each (default 0)")
     parser.add_argument(
         "--keep", type=Path, default=None, help="keep each run's outputs (recording.csv, model.json) here"
     )
@@ -152,13 +160,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         where = args.keep if args.keep is not None else Path(tmp)
         rows = [
-            row(name, transport, args.samples, where / f"{name}-{i}")
+            _seeded(row(name, transport, args.samples, where / f"{name}-{i}-{seed}", seed), seed)
             for name in args.presets
             for i, transport in enumerate(args.transports)
+            for seed in args.seeds
         ]
     table(
         f"servoid identify --driver URL --samples {args.samples} (probe, design, decimated MRGIA, verdict)",
-        ["preset", "transport", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
+        ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
          "to 5 % s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped", "wall s", "verdict"],
         rows,
     )  # fmt: skip

@@ -299,6 +299,12 @@ class LoopWearTracker:
         return self.false_alarm_samples / self.window.config.samples(self.window.config.every_s)
 
     @property
+    def interval(self) -> tuple[float, float]:
+        """The model file's 95 % interval of the play the first refit is judged by (NaN: none)."""
+        low, high = self._interval if self._interval is not None else (math.nan, math.nan)
+        return (math.nan if low is None else float(low), math.nan if high is None else float(high))
+
+    @property
     def start_play(self) -> float:
         """The play of the model the tracker started from (the model file's)."""
         return self._start_play
