@@ -32,10 +32,12 @@ took), whether or not identify kept it. Last, the verdict's calibration: the
 runs counted as identifiable or withheld, and right (the true structure, the
 gap within the issue's target) or wrong; identifiable and wrong must be 0.
 
-Columns: the structure and the form that gave the answer, the gap error
+Columns: the structure and the form that gave the answer, whether the place
+of the play is named or said to be undetermined, the gap error
 against the twin's true play, the fit against the floor the record's
 resolution and noise leave (``q sqrt(1/12 + 0.3^2) / std(y)``, from the
-twin's truth, not the estimate), the 95 % interval relative to the truth
+twin's truth, not the estimate; the fit is the answering model's), the 95 % interval relative to the truth
+("none (fit)": withheld because the fit is too far above the floor estimated from the record)
 and whether it covers it, the verdict and why, and the time. Printed as they
 are; nothing is tuned to the twins. The machine may be shared: times are one
 run each (the paper's 20 000-sample time is the best of three).
@@ -58,7 +60,7 @@ from servoid.ident import MRGIAConfig, identify
 from servoid.ident.identify import SELECTABLE, Identification
 from servoid.ident.models.simulate import simulate
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
-from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+from servoid.ident.offline.intervals import MAX_FIT_FOR_INTERVAL, MAX_FIT_TO_FLOOR
 from servoid.ident.offline.loop_fit import LoopChoice, fit_loop
 from servoid.ident.offline.second_structure import needed
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_PLANT
@@ -123,6 +125,13 @@ def right(rec: dict[str, object], result: Identification, kind: str) -> bool:
     return bool(result.structure == rec["structure"] and np.isfinite(gap) and abs(gap) <= target)
 
 
+def answer_fit(result: Identification) -> float:
+    """The free-run NRMSE of the model that answers (the servo-loop model's when it does, else the black box's)."""
+    return (
+        float(result.loop.fit_nrmse) if result.form != "pseudo_wiener" and result.loop is not None else result.fit_nrmse
+    )
+
+
 def reasons(result: Identification) -> str:
     """The failed rules, by short name."""
     if result.identifiable:
@@ -165,12 +174,13 @@ def grid_of(
 
 
 def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: bool = False) -> None:
-    cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "gap", "fit/floor",
+    cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "place", "gap", "fit/floor",
             "95 % / truth", "covers", "white", "loop fit", "verdict", "s"]  # fmt: skip
     rows = []
     loop_rows: list[list[str]] = []
     load_rows: list[list[str]] = []
-    covered = judged = 0
+    covered = judged = withheld = 0
+    named = 0
     by_preset: dict[str, list[tuple[bool, float]]] = {}
     confusion: dict[tuple[str, str], list[str]] = {}
     for name, mult, friction, kind in grid:
@@ -180,13 +190,16 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: boo
                 result, seconds = run(rec["u"], rec["y"], rec["period"])  # type: ignore[arg-type]
             except Exception as exc:  # noqa: BLE001 - a benchmark prints what happened and goes on
                 rows.append([name, kind, f"{mult:g}x", f"x{friction:g}", str(seed), "", f"error: {exc}"[:60],
-                             "", "", "", "", "", "", "", ""])  # fmt: skip
+                             "", "", "", "", "", "", "", "", ""])  # fmt: skip
                 continue
             play = float(rec["play"])  # type: ignore[arg-type]
             lo, hi = result.play_interval
             covers = bool(np.isfinite(lo) and lo <= play <= hi)
             judged += 1
             covered += covers
+            withheld += result.interval_note is not None
+            place = "undetermined" if result.verdict.structure_undetermined else "named"
+            named += place == "named" and result.structure == rec["structure"]
             half = 0.5 * (hi - lo) / result.play if np.isfinite(lo) and result.play > 0.0 else np.inf
             by_preset.setdefault(name, []).append((covers, float(half)))
             label = f"{name} {kind} {mult:g}x x{friction:g} s{seed}"
@@ -197,9 +210,10 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: boo
             confusion.setdefault(cell, []).append(label if result.identifiable else f"{label} ({reasons(result)[5:]})")
             rows.append([
                 name, kind, f"{mult:g}x", f"x{friction:g}", str(seed), str(rec["structure"]),
-                f"{result.structure} ({result.form})", f"{100 * (result.play / play - 1):+.1f} %",
-                f"{result.fit_nrmse / float(rec['floor']):.2f}",  # type: ignore[arg-type]
-                f"[{lo / play:.2f}, {hi / play:.2f}]" if np.isfinite(lo) else "none", "yes" if covers else "no",
+                f"{result.structure} ({result.form})", place, f"{100 * (result.play / play - 1):+.1f} %",
+                f"{answer_fit(result) / float(rec['floor']):.2f}",  # type: ignore[arg-type]
+                f"[{lo / play:.2f}, {hi / play:.2f}]" if np.isfinite(lo) else ("none (fit)" if result.interval_note else "none"),
+                "yes" if covers else "no",
                 "yes" if result.residual_white else "no", "tried" if _loop_tried(result) else "skipped",
                 reasons(result), f"{seconds:.1f}",
             ])  # fmt: skip
@@ -211,7 +225,12 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: boo
                 print(" | ".join(load_rows[-1]), flush=True)
     table("Twins: identify with no structure flags (gap = play / true play - 1; fit against the twin's floor)",
           cols, rows)  # fmt: skip
-    print(f"intervals covering the true play: {covered} of {judged}")
+    reported = judged - sum(1 for r in rows if r[10].startswith("none"))
+    print(
+        f"intervals covering the true play: {covered} of {reported} reported ({judged} runs; {withheld} withheld "
+        f"because the fit is more than {MAX_FIT_FOR_INTERVAL:g} times the estimated floor)"
+    )
+    print(f"the true place of the play named (not undetermined): {named} of {judged}")
     for name, seen in by_preset.items():
         halves = [h for _, h in seen if np.isfinite(h)]
         none = f" ({len(seen) - len(halves)} without one)" if len(halves) < len(seen) else ""

@@ -288,3 +288,65 @@ def test_a_servo_loop_answer_needs_twice_the_reversals_of_the_black_box():
     assert not loop.identifiable and f"at least {MIN_LOOP_REVERSALS} needed" in loop.reason
     assert verdict(Evidence(reversals=MIN_LOOP_REVERSALS, margin=0.5, dead_time_samples=3.0, stall_band=0.0,
                             **common)).identifiable  # fmt: skip
+
+
+def test_far_above_its_floor_the_interval_is_withheld_with_its_reason():
+    """The interval's model-error term assumes the structure holds: above MAX_FIT_FOR_INTERVAL times the
+    floor no interval is reported (the horn twins with friction x4 gave intervals 13-17 times the truth)."""
+    from servoid.ident.offline.intervals import MAX_FIT_FOR_INTERVAL, interval_withheld
+
+    assert interval_withheld(0.99 * MAX_FIT_FOR_INTERVAL * 0.01, 0.01) is None
+    assert interval_withheld(0.05, float("nan")) is None
+    note = interval_withheld(3.0 * 0.01, 0.01)
+    assert note is not None and "3 times" in note
+    good = Evidence(play=1.0, interval=(float("nan"), float("nan")), reversals=40, fit_nrmse=0.03, floor=0.01)
+    assert f"there is no 95 % interval: {note}" in verdict(dataclasses.replace(good, interval_note=note)).reason
+
+
+def test_a_black_box_off_its_floor_does_not_place_the_play(monkeypatch):
+    """A servo record the black box fits better than the servo-loop model, but off its floor: the black box has
+    the play outside the loop only, so the place is undetermined (the runner-up named), and no interval."""
+    import importlib
+
+    from servoid.ident.serialise import dumps
+
+    pipeline = importlib.import_module("servoid.ident.identify")
+    worse = _FakeLoop(fit_nrmse=10.0, margin=0.4, play=0.2)  # far worse than the black box, the play inside
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb, keep=None: worse)
+    u, y = _paper(800, 6, snr=43.0)
+    y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # an effect the black box lacks: far above its floor
+    result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert result.form == "pseudo_wiener" and not result.identifiable
+    assert "structure undetermined" in result.reason and "runner-up output_backlash" in result.reason
+    low, high = result.play_interval
+    assert low <= 0.2 < high  # the runner-up's play is what the data cannot exclude
+    # the same record with a floor far below its fit: no interval, and why
+    monkeypatch.setattr(pipeline, "floor_nrmse", lambda y, keep=None: 0.01 * result.fit_nrmse)
+    result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)
+    assert result.interval_note is not None and "none (the fit is" in result.headline()
+    out = json.loads(dumps(result.to_dict()))
+    assert out["play_interval"] == [None, None] and out["play_interval_reason"] == result.interval_note
+    # the same record judged at its floor with a white residual: the black box places the play (no doubt)
+    assert pipeline._place_doubts(None, None, 0.1, 1.0, already=False) == ((), None)
+
+
+def test_a_play_in_loop_runner_up_without_a_play_does_not_test_the_place():
+    """The servo-loop model puts the play outside the loop by a wide margin, but its play-in-loop candidate's play
+    collapsed below the resolution (friction took its place): the place is undetermined, the rival play returned."""
+    import importlib
+    from types import SimpleNamespace
+
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+
+    pipeline = importlib.import_module("servoid.ident.identify")
+
+    def cand(structure, play, val):
+        return SimpleNamespace(structure=structure, model=SimpleNamespace(play=play), validation_nrmse=val)
+
+    loop = _FakeLoop(structure=OUTPUT_BACKLASH, play=3.0, margin=0.6)
+    loop = SimpleNamespace(**dataclasses.asdict(loop), candidates=(cand(OUTPUT_BACKLASH, 3.0, 0.04),
+                                                                    cand(PLAY_IN_LOOP, 0.01, 0.065)))  # fmt: skip
+    reasons, rival = pipeline._place_doubts(loop, None, 0.05, 1.0, already=False)
+    assert rival == 0.01 and "structure undetermined" in reasons[0] and "runner-up play_in_loop" in reasons[0]
+    loop.candidates = (cand(OUTPUT_BACKLASH, 3.0, 0.04), cand(PLAY_IN_LOOP, 1.5, 0.065))  # a play it can see
+    assert pipeline._place_doubts(loop, None, 0.05, 1.0, already=False) == ((), None)

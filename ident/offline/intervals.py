@@ -43,9 +43,11 @@ __all__ = [
     "resolution_floor_nrmse",
     "model_error_halfwidth",
     "with_model_error",
+    "interval_withheld",
     "MIN_REVERSALS",
     "MIN_LOOP_REVERSALS",
     "MAX_FIT_TO_FLOOR",
+    "MAX_FIT_FOR_INTERVAL",
     "MIN_STRUCTURE_MARGIN",
     "MAX_REL_HALF_WIDTH",
     "MIN_NOISE_WINDOWS",
@@ -62,6 +64,12 @@ MIN_REVERSALS = 10
 MIN_LOOP_REVERSALS = 20
 #: The largest fit NRMSE, as a multiple of the floor estimated from the data, for an identified play.
 MAX_FIT_TO_FLOOR = 1.2
+#: The largest fit NRMSE, as a multiple of the floor estimated from the data, for which a 95 % interval is
+#: reported at all: the fit rule's own :data:`MAX_FIT_TO_FLOOR`. The interval's model-error term
+#: (:func:`model_error_halfwidth`) assumes the structure is right and the play absorbs no more error than the
+#: residual shows; a fit the fit rule rejects misses an effect whose share the play took is not bounded.
+#: See :func:`interval_withheld` for the twins' numbers behind it.
+MAX_FIT_FOR_INTERVAL = MAX_FIT_TO_FLOOR
 #: The smallest relative validation margin between the two places of the play that names a structure.
 MIN_STRUCTURE_MARGIN = 0.05
 #: The largest half-width of the 95 % interval, relative to the play: the issue's accuracy for a play inside
@@ -392,6 +400,39 @@ def with_model_error(interval: tuple[float, float], halfwidth: float) -> tuple[f
     return low - halfwidth, high + halfwidth
 
 
+def interval_withheld(fit_nrmse: float, floor: float) -> str | None:
+    """Why no 95 % interval is reported for a fit this far above its floor, or None when one is.
+
+    The interval (:func:`with_model_error`) is honest only where the model's structure holds: its
+    model-error term is the error the residual shows, and a model that misses an effect can hide
+    any part of it in the play. Above :data:`MAX_FIT_FOR_INTERVAL` times the floor estimated from
+    the record (:func:`floor_nrmse`, the floor the fit rule reads) the interval is withheld rather
+    than widened: no widening short of "from zero to the record's range" covers the plays such fits
+    give on the horn twins (+90 ... +1450 %, intervals 2-17 times the truth), and that says nothing.
+    The threshold is the fit rule's (:data:`MAX_FIT_TO_FLOOR`), so that an interval is given exactly
+    where the model is taken to hold. Checked on the twins' runs (``benchmarks/real_servos.py``, every
+    preset at 20x, friction x1 and x4, gentle sines and held steps, seeds 1-3; README, "what we
+    learned"): every interval from a fit at 0.99-1.18 times the estimated floor covered the truth,
+    and every one that missed came from a fit at 1.25 times or more.
+
+    Parameters
+    ----------
+    fit_nrmse : float
+        The answer's free-run NRMSE.
+    floor : float
+        The floor NRMSE estimated from the record (:func:`floor_nrmse`); NaN when unknown (nothing withheld).
+    """
+    if not (math.isfinite(fit_nrmse) and math.isfinite(floor) and floor > 0.0):
+        return None
+    ratio = fit_nrmse / floor
+    if ratio <= MAX_FIT_FOR_INTERVAL:
+        return None
+    return (
+        f"the fit is {ratio:.3g} times the record's floor (an interval is given up to {MAX_FIT_FOR_INTERVAL:g}): "
+        "the model misses an effect, and how much of it the play absorbed is not bounded"
+    )
+
+
 # -- the verdict --------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Evidence:
@@ -421,6 +462,8 @@ class Evidence:
         For the black box as the final answer: whether its residual passed
         the whiteness test (:attr:`servoid.ident.diagnosis.residuals.ResidualTests.white`,
         the one owner; None: not applied, e.g. a servo-loop answer).
+    interval_note : str, optional
+        Why the interval was withheld (:func:`interval_withheld`); None when it was not.
     """
 
     play: float
@@ -432,6 +475,7 @@ class Evidence:
     dead_time_samples: float | None = None
     stall_band: float | None = None
     residual_white: bool | None = None
+    interval_note: str | None = None
 
 
 @dataclass(frozen=True)
@@ -518,7 +562,9 @@ def verdict(e: Evidence) -> Verdict:
             "and the play may be absorbing it"
         )
     low, high = e.interval
-    if np.isnan(low) or np.isnan(high):
+    if e.interval_note is not None:
+        why.append(f"there is no 95 % interval: {e.interval_note}")
+    elif np.isnan(low) or np.isnan(high):
         why.append("there is no 95 % interval: the data do not determine the play's standard error")
     elif not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
         why.append(f"the 95 % interval [{low:.3g}, {high:.3g}] reaches zero or has no finite ends")

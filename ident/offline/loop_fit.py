@@ -178,7 +178,7 @@ class LoopChoice:
         record cannot show a play inside the loop, so neither place can be told (the study's Q3:
         at 5x-10x the XM430's bandwidth the output backlash won with a play 2-3 times too large).
     stall_band : float
-        The friction stall band ``fs / (kv kp)``, unit of ``y``: the position error a P loop
+        The friction stall band ``max(fs, fc) / (kv kp)``, unit of ``y``: the position error a P loop
         leaves standing against break-away friction (not smaller than the play: the two are confused).
     model : ServoLoopModel
         The final model (simulate it with ``y0 = y[0]`` to get ``simulated``).
@@ -608,7 +608,8 @@ def fit_loop(
         simulated=simulated + centre,
         reasons=reasons,
         dead_time_samples=_dead_time_samples(inside, uc[kept], yc[kept]),
-        stall_band=stall_band(final.fs, final.kv, final.kp),
+        # the model's break-away is the larger of the two: with fs < fc it has no Stribeck hump (servo_loop._friction)
+        stall_band=stall_band(max(final.fs, final.fc), final.kv, final.kp),
         model=final,
         candidates=tuple(c for c, _ in candidates),
         seconds=time.perf_counter() - t0,
