@@ -29,7 +29,7 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    extended by a heavy load of its own inertia that meets the flanks in rigid impacts, found on a
    grid of inertia x restitution with the loop refitted at each point, kept only when it
    validates :data:`LOAD_MARGIN` better. ``identify`` runs it where the motor-side winner is off
-   its floor (a load coasting across the play: the ODrive twin's -80 % came to -8 ... +17 %).
+   its floor (a load coasting across the play: the ODrive twin's -45 ... -80 % came to -14 ... +6 %).
 
 What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
 contact is the play operator, so the free-run output is continuous in the parameters;
