@@ -137,8 +137,8 @@ def load_stage(
             cost = float(sol.cost) if sol is not None else float("inf")
             points.append((cost, d))
             # every point is a rival: its play joins the interval when it validates as well as the answer
-            fitted = _model(best.structure, period, d).simulate(u, y0=float(y[0]))
-            rivals.append((d["play"], nrmse(y[val], fitted[val])))
+            point = _model(best.structure, period, d).simulate(u, y0=float(y[0]))
+            rivals.append((d["play"], nrmse(y[val], point[val])))
     d = min(points, key=lambda c: c[0])[1]
     free = _free(best.structure, integrator) + FINAL_FREE
     d, prob, _ = _fit(
@@ -147,18 +147,18 @@ def load_stage(
     evaluations += prob.evaluations
     # the profile over the inertia: the answer refitted with each grid value held; the best on the
     # estimation blocks answers, and every one is a rival (the play moves with mu where the record is flat)
-    fits = [d]
+    fits: list[dict[str, float]] = [d]
     held = tuple(n for n in free if n != "mu")
     for mu in MU_GRID:
         start = dict(d)
         for name in _PER_INERTIA:
             start[name] = d[name] * (1.0 + mu) / (1.0 + d["mu"])
         start["mu"] = mu
-        fitted, prob, _ = _fit(
+        held_fit, prob, _ = _fit(
             u, y, period, best.structure, start, est, a_scale, integrator=integrator, max_nfev=PROFILE_NFEV, free=held
         )
         evaluations += prob.evaluations
-        fits.append(fitted)
+        fits.append(held_fit)
     scored = []
     for fitted in fits:
         model = _model(best.structure, period, fitted)
