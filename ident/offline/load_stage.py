@@ -18,15 +18,12 @@ keeps the result only when it validates a parsimony margin better than the massl
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
 
 import numpy as np
 
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.servo_loop import LOAD_NAMES
-
-if TYPE_CHECKING:
-    from servoid.ident.offline.loop_fit import LoopCandidate
 
 __all__ = [
     "MU_GRID",
@@ -37,8 +34,16 @@ __all__ = [
     "GRID_NFEV",
     "FINAL_NFEV",
     "PROFILE_NFEV",
+    "Fit",
+    "Simulate",
     "load_stage",
 ]
+
+#: A least-squares fit on the estimation blocks from a start with some names free and a budget:
+#: its values, its cost (inf when it failed) and the simulations it took.
+Fit = Callable[[dict[str, float], tuple[str, ...], int], tuple[dict[str, float], float, int]]
+#: The free-run simulation of a set of values over the whole record.
+Simulate = Callable[[dict[str, float]], np.ndarray]
 
 #: Inertia ratios held on the grid: a light horn to a load three times the motor side (the twins:
 #: horn servos 0.03-0.04, the CiA 402 0.9, the ODrive 2.8); ``mu = 0`` is the massless winner itself.
@@ -69,49 +74,42 @@ PROFILE_NFEV = 20
 
 
 def load_stage(
-    u: np.ndarray,
     y: np.ndarray,
-    period: float,
-    best: LoopCandidate,
     best_d: dict[str, float],
+    free: tuple[str, ...],
+    fit: Fit,
+    simulate: Simulate,
     est: np.ndarray,
     val: np.ndarray,
-    a_scale: float,
-) -> tuple[LoopCandidate, dict[str, float], int, list[tuple[float, float]]]:
+) -> tuple[dict[str, float], int, list[tuple[float, float]]]:
     """The massless winner extended by a massive load: the grid with the loop refitted, then least squares.
 
     Parameters
     ----------
-    u, y : ndarray
-        The centred record.
-    period : float
-        The host period, s.
-    best : LoopCandidate
-        The massless winner (its place of the play and whether it has an integrator stay).
+    y : ndarray
+        The centred record's readings.
     best_d : dict
-        Its fitted values (the fit's own names: ``play``, ``asym`` ...), the start of every grid point.
+        The massless winner's fitted values (the fit's own names: ``play``, ``asym`` ...), the start
+        of every grid point.
+    free : tuple of str
+        The massless winner's free parameters (its place of the play and integrator decide them).
+    fit : callable
+        :data:`Fit`: least squares of the winner's structure on the estimation blocks.
+    simulate : callable
+        :data:`Simulate`: the winner's structure simulated from a set of values.
     est, val : ndarray of bool
         The estimation and the validation samples.
-    a_scale : float
-        The fit's scale of a constant force.
 
     Returns
     -------
-    candidate : LoopCandidate
-        The stage's fit (estimation blocks), with its validation NRMSE; kept or not is the caller's choice.
     values : dict
-        Its fitted values.
+        The stage's fitted values (estimation blocks); kept or not is the caller's choice.
     evaluations : int
         Simulations it took.
     rivals : list of (float, float)
-        The play and the validation NRMSE of every grid point and of the candidate: the models the
-        record may not separate (:func:`~servoid.ident.offline.loop_fit.widened_to_rivals`).
+        The play and the validation NRMSE of every grid point and of the profile's fits: the models
+        the record may not separate (:func:`~servoid.ident.offline.loop_fit.widened_to_rivals`).
     """
-    # imported here: loop_fit runs this stage and owns the fit's machinery
-    from servoid.ident.offline.loop_fit import LoopCandidate, _fit, _free, _model, _Problem
-
-    al0 = max(best_d["fc"], 1e-6 * a_scale)
-    integrator = best.integrator
     evaluations = 0
     points: list[tuple[float, dict[str, float]]] = []
     rivals: list[tuple[float, float]] = []
@@ -124,27 +122,21 @@ def load_stage(
                 # the same loop when the load rests on a flank: (1 + mu) dv/dt = kv (v_cmd - v) + z + a0 - F(v)
                 for name in _PER_INERTIA:
                     start[name] = (1.0 + mu) * best_d[name]
-                start.update(mu=mu, e=e, al=al0, play=factor * best_d["play"])
-                r = _Problem(u, y, period, best.structure, (), start, est, a_scale)(np.zeros(0))
-                tries.append((float(r @ r), start))
+                start.update(mu=mu, e=e, al=best_d["al"], play=factor * best_d["play"])
+                r = simulate(start)[est] - y[est]
+                cost = float(r @ r)
+                tries.append((cost if np.isfinite(cost) else np.inf, start))
             evaluations += len(tries)
             start = min(tries, key=lambda c: c[0])[1]
-            d, prob, sol = _fit(
-                u, y, period, best.structure, start, est, a_scale, integrator=integrator, max_nfev=GRID_NFEV,
-                free=GRID_FREE,
-            )  # fmt: skip
-            evaluations += prob.evaluations
-            cost = float(sol.cost) if sol is not None else float("inf")
+            d, cost, used = fit(start, GRID_FREE, GRID_NFEV)
+            evaluations += used
             points.append((cost, d))
             # every point is a rival: its play joins the interval when it validates as well as the answer
-            point = _model(best.structure, period, d).simulate(u, y0=float(y[0]))
-            rivals.append((d["play"], nrmse(y[val], point[val])))
+            rivals.append((d["play"], nrmse(y[val], simulate(d)[val])))
     d = min(points, key=lambda c: c[0])[1]
-    free = _free(best.structure, integrator) + FINAL_FREE
-    d, prob, _ = _fit(
-        u, y, period, best.structure, d, est, a_scale, integrator=integrator, max_nfev=FINAL_NFEV, free=free
-    )
-    evaluations += prob.evaluations
+    free = free + FINAL_FREE
+    d, _, used = fit(d, free, FINAL_NFEV)
+    evaluations += used
     # the profile over the inertia: the answer refitted with each grid value held; the best on the
     # estimation blocks answers, and every one is a rival (the play moves with mu where the record is flat)
     fits: list[dict[str, float]] = [d]
@@ -154,24 +146,12 @@ def load_stage(
         for name in _PER_INERTIA:
             start[name] = d[name] * (1.0 + mu) / (1.0 + d["mu"])
         start["mu"] = mu
-        held_fit, prob, _ = _fit(
-            u, y, period, best.structure, start, est, a_scale, integrator=integrator, max_nfev=PROFILE_NFEV, free=held
-        )
-        evaluations += prob.evaluations
+        held_fit, _, used = fit(start, held, PROFILE_NFEV)
+        evaluations += used
         fits.append(held_fit)
     scored = []
-    for fitted in fits:
-        model = _model(best.structure, period, fitted)
-        y_hat = model.simulate(u, y0=float(y[0]))
-        scored.append((nrmse(y[est], y_hat[est]), nrmse(y[val], y_hat[val]), model, fitted))
-        rivals.append((model.play, scored[-1][1]))
-    est_nrmse, val_nrmse, model, d = min(scored, key=lambda c: c[0])
-    cand = LoopCandidate(
-        structure=best.structure,
-        integrator=integrator,
-        model=model,
-        estimation_nrmse=est_nrmse,
-        validation_nrmse=val_nrmse,
-        evaluations=evaluations,
-    )
-    return cand, d, evaluations, rivals
+    for values in fits:
+        y_hat = simulate(values)
+        scored.append((nrmse(y[est], y_hat[est]), values))
+        rivals.append((values["play"], nrmse(y[val], y_hat[val])))
+    return min(scored, key=lambda c: c[0])[1], evaluations, rivals

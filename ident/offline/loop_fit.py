@@ -576,7 +576,7 @@ def fit_loop(
     # loop: where it coasts, the massless play in the loop can win by a hair), when that is off its floor
     base, base_d = (best, best_d) if load else next((c, d) for c, d in candidates if c.structure == OUTPUT_BACKLASH)
     if load or (load is None and base.validation_nrmse > LOAD_FIT_TO_FLOOR * floor_nrmse(yc, kept)):
-        heavy, heavy_d, used, tried = load_stage(uc, yc, period, base, base_d, est, val, a_scale)
+        heavy, heavy_d, used, tried = _run_load_stage(uc, yc, period, base, base_d, est, val, a_scale)
         evaluations += used
         load_val = heavy.validation_nrmse
         if load_val < (1.0 - LOAD_MARGIN) * best.validation_nrmse:
@@ -627,6 +627,43 @@ def fit_loop(
         load_validation=load_val,
         load_candidate=heavy,
     )
+
+
+def _run_load_stage(
+    u: np.ndarray,
+    y: np.ndarray,
+    period: float,
+    base: LoopCandidate,
+    base_d: dict[str, float],
+    est: np.ndarray,
+    val: np.ndarray,
+    a_scale: float,
+) -> tuple[LoopCandidate, dict[str, float], int, list[tuple[float, float]]]:
+    """:func:`~servoid.ident.offline.load_stage.load_stage` on ``base``'s structure, as a candidate."""
+
+    def fit(start: dict[str, float], free: tuple[str, ...], nfev: int) -> tuple[dict[str, float], float, int]:
+        d, prob, sol = _fit(
+            u, y, period, base.structure, start, est, a_scale, integrator=base.integrator, max_nfev=nfev, free=free
+        )
+        return d, float(sol.cost) if sol is not None else math.inf, prob.evaluations
+
+    def simulate(d: dict[str, float]) -> np.ndarray:
+        return _model(base.structure, period, d).simulate(u, y0=float(y[0]))
+
+    # the load's friction starts at the massless fit's Coulomb level (a deceleration of the same order)
+    start = dict(base_d, al=max(base_d["fc"], 1e-6 * a_scale))
+    d, used, rivals = load_stage(y, start, _free(base.structure, base.integrator), fit, simulate, est, val)
+    model = _model(base.structure, period, d)
+    y_hat = model.simulate(u, y0=float(y[0]))
+    cand = LoopCandidate(
+        structure=base.structure,
+        integrator=base.integrator,
+        model=model,
+        estimation_nrmse=nrmse(y[est], y_hat[est]),
+        validation_nrmse=nrmse(y[val], y_hat[val]),
+        evaluations=used,
+    )
+    return cand, d, used, rivals
 
 
 def refit(
