@@ -146,4 +146,4 @@ def second_structure(
 
     if (np.asarray(u).size if keep is None else int(np.count_nonzero(keep))) < MIN_SAMPLES:
         return None
-    return fit_loop(u, y, sample_period_s, keep=keep)
+    return fit_loop(u, y, sample_period_s, keep=keep, load=None)
