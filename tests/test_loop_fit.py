@@ -194,6 +194,14 @@ def test_the_jacobians_columns_on_threads_equal_them_one_after_the_other(monkeyp
     assert _threads.pool() is not None  # three threads were asked for: two helpers
     assert np.array_equal(jacobians[0], jacobians[1])
     assert np.all(np.isfinite(jacobians[0])) and np.any(jacobians[0] != 0.0)
+    # the two places of the play are searched at once on the pool: the same candidates to the bit
+    fits = []
+    for n in ("1", "2"):
+        monkeypatch.setenv(_threads.ENV, n)
+        fits.append(fit_loop(u, y, period))
+    assert fits[0].evaluations == fits[1].evaluations
+    assert [c.model for c in fits[0].candidates] == [c.model for c in fits[1].candidates]
+    assert np.array_equal(fits[0].simulated, fits[1].simulated)
     with _threads.one_thread():
         assert _threads.threads() == 1 and _threads.pool() is None
     monkeypatch.setenv(_threads.ENV, "two")

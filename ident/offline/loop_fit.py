@@ -100,6 +100,8 @@ _LOAD_FREE = ("kp", "kv", "fc", "play", "mu", "e", "al")
 LOAD_NFEV = 30
 LOAD_MARGIN = 0.02
 LOAD_FIT_TO_FLOOR = 1.1
+#: Search the two places of the play at once on the thread pool (:mod:`._threads`; the same answer to the bit).
+PLACES_AT_ONCE = True
 #: The first stage of each candidate's fit: the loop's rates, the friction level and the play.
 _STAGE = ("kp", "kv", "fc", "play")
 STAGE_NFEV = 15
@@ -566,11 +568,14 @@ def fit_loop(
                 f"the output never moves in the {name} blocks ({int(np.unique(yc[kept]).size)} distinct readings in "
                 "all): the servo-loop model cannot be fitted and validated on this record"
             )
-    candidates: list[tuple[LoopCandidate, dict[str, float]]] = []
-    evaluations = 0
-    for structure in (OUTPUT_BACKLASH, PLAY_IN_LOOP):
-        start, used = _scan(uc, yc, period, structure, kp, kv, v_typ, est, grid)
-        evaluations += used
+    places = (OUTPUT_BACKLASH, PLAY_IN_LOOP)
+    found: list[list[tuple[LoopCandidate, dict[str, float]]]] = [[] for _ in places]
+    spent = [0 for _ in places]
+
+    def place(i: int) -> None:
+        """Scan and fit the two candidates of one place of the play into ``found[i]``, ``spent[i]``."""
+        structure = places[i]
+        start, spent[i] = _scan(uc, yc, period, structure, kp, kv, v_typ, est, grid)
         for integrator in (False, True):
             s = dict(start)
             s["ki"] = 0.2 * s["kp"] * s["kv"] if integrator else 0.0
@@ -579,12 +584,12 @@ def fit_loop(
                 uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE,
                 ftol=FTOL, stall=STALL,
             )  # fmt: skip
-            evaluations += prob.evaluations
+            spent[i] += prob.evaluations
             d, prob, _ = _fit(
                 uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV,
                 ftol=FTOL, stall=STALL,
             )  # fmt: skip
-            evaluations += prob.evaluations
+            spent[i] += prob.evaluations
             model = _model(structure, period, d)
             y_hat = model.simulate(uc, y0=float(yc[0]))
             cand = LoopCandidate(
@@ -595,7 +600,19 @@ def fit_loop(
                 validation_nrmse=nrmse(yc[val], y_hat[val]),
                 evaluations=prob.evaluations,
             )
-            candidates.append((cand, d))
+            found[i].append((cand, d))
+
+    # the two places are independent searches: on the pool at once (each one's Jacobians share it), which
+    # also runs their scans and single evaluations side by side; BLAS is limited here, once, because the
+    # two searches' own limits would otherwise restore each other's on their way out
+    with single_threaded_blas():
+        if PLACES_AT_ONCE:
+            _threads.each(place, len(places))
+        else:
+            for i in range(len(places)):
+                place(i)
+    candidates = found[0] + found[1]
+    evaluations = sum(spent)
     candidates.sort(key=lambda c: c[0].validation_nrmse)
     best, best_d = candidates[0]
     per_structure = {
