@@ -78,7 +78,7 @@ def test_motor_side_loop_twin_is_never_named_play_in_loop(monkeypatch: pytest.Mo
     choice = fit_loop(u, y, period)
     assert choice.structure == OUTPUT_BACKLASH or not choice.determined
     assert abs(choice.play / play - 1.0) <= 0.3
-    # FTOL and STALL end each search at a step that gains under 1e-4 of the cost; scipy's own 1e-8 (the
+    # FTOL and STALL end each search at a step that gains under 1e-5 / 1e-4 of the cost; scipy's own 1e-8 (the
     # path before) runs on: the early stop lands inside the full search's interval, on fewer simulations
     monkeypatch.setattr(loop_fit, "FTOL", 1e-8)
     monkeypatch.setattr(loop_fit, "STALL", 0.0)

@@ -35,9 +35,11 @@ contact is the play operator, so the free-run output is continuous in the parame
 rates and the play are fitted as ``ln(p / p_start)`` with a 3 % finite-difference step,
 which sees the slope rather than the sub-step roughness of events; the simulation stops at
 the last scored sample; BLAS runs single-threaded (small matrices, many of them). Each search
-ends at the first step that lowers the cost by less than 1e-4 of it (:data:`FTOL`,
-:data:`STALL`): the last 1e-4 of the cost moved the play by well under its interval and cost
-half the simulations (``benchmarks/loop_speed.py``).
+ends at a step that lowers the cost by less than 1e-5 of it (:data:`FTOL`), and each candidate's
+at an accepted step that lowers it by less than 1e-4 (:data:`STALL`): the searches' tails moved
+the play by well under its interval and cost half the simulations (``benchmarks/loop_speed.py``).
+The Jacobian's columns and the two places' searches run at once on the shared thread pool
+(:mod:`._threads`), with the same answer to the bit.
 """
 
 from __future__ import annotations
@@ -106,10 +108,11 @@ PLACES_AT_ONCE = True
 _STAGE = ("kp", "kv", "fc", "play")
 STAGE_NFEV = 15
 #: scipy's ``ftol`` of :func:`fit_loop`'s massless fits (its stages, candidates and final refit): a step
-#: that lowers the cost by less than this share ends the fit. scipy's 1e-8 ran most fits to their budget
-#: for the last 1e-5 of the cost, which moved the play by under 0.5 %, far inside its interval
-#: (``benchmarks/loop_speed.py``); every iteration costs a Jacobian, one simulation per free parameter.
-FTOL = 1e-4
+#: that lowers the cost by less than this share (and that the linear model predicted) ends the fit.
+#: scipy's 1e-8 ran most fits to their budget for the last 1e-5 of the cost, which moved the play by
+#: under 0.5 %, far inside its interval (``benchmarks/loop_speed.py``). 1e-4 saved more but ended a
+#: candidate of the live XM430 twin's first window early, in a minimum that fit 0.197 instead of 0.155.
+FTOL = 1e-5
 #: The candidates' searches (not the final refit, whose Jacobian the interval reads) also end at the
 #: first accepted step that lowers the cost by less than this share: scipy's ``ftol`` waits for a step
 #: whose reduction the linear model also predicted, and on this rough cost the play-in-loop
