@@ -14,6 +14,7 @@ from servoid.excitation.specs import GentleSpec
 from servoid.ident import MRGIAConfig, identify
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, SERVO_LOOP
+from servoid.ident.offline import loop_fit
 from servoid.ident.offline.loop_fit import LOAD_MARGIN, MIN_SAMPLES, LoopChoice, block_mask, fit_loop
 
 #: The presets' loop bandwidths, Hz (measured in the issue-12 study): only to set the host rate.
@@ -72,13 +73,23 @@ def test_identify_names_the_play_in_the_loop_of_a_horn_encoder_twin() -> None:
     assert loop.dead_time_samples is not None and loop.dead_time_samples > 0.0
 
 
-def test_motor_side_loop_twin_is_never_named_play_in_loop() -> None:
+def test_motor_side_loop_twin_is_never_named_play_in_loop(monkeypatch: pytest.MonkeyPatch) -> None:
     # a play of 1.5 counts: the two places differ by 1-2 % in validation (the study's cia402), so the
     # honest answers are the output backlash or "undetermined" -- never a confident play in the loop
     u, y, period, play = _twin_record("cia402", 0.02, 6.0, seed=1)
     choice = fit_loop(u, y, period)
     assert choice.structure == OUTPUT_BACKLASH or not choice.determined
     assert abs(choice.play / play - 1.0) <= 0.3
+    # FTOL and STALL end each search at a step that gains under 1e-5 / 1e-4 of the cost; scipy's own 1e-8 (the
+    # path before) runs on: the early stop lands inside the full search's interval, on fewer simulations
+    monkeypatch.setattr(loop_fit, "FTOL", 1e-8)
+    monkeypatch.setattr(loop_fit, "STALL", 0.0)
+    full = fit_loop(u, y, period)
+    assert choice.structure == full.structure
+    lo, hi = full.play_interval
+    assert lo <= choice.play <= hi
+    assert abs(choice.play / full.play - 1.0) < 0.25 * (hi - lo) / full.play
+    assert choice.evaluations < full.evaluations
 
 
 def test_raw_counts_and_centred_records_give_the_same_loop() -> None:
@@ -219,6 +230,14 @@ def test_the_jacobians_columns_on_threads_equal_them_one_after_the_other(monkeyp
     assert _threads.pool() is not None  # three threads were asked for: two helpers
     assert np.array_equal(jacobians[0], jacobians[1])
     assert np.all(np.isfinite(jacobians[0])) and np.any(jacobians[0] != 0.0)
+    # the two places of the play are searched at once on the pool: the same candidates to the bit
+    fits = []
+    for n in ("1", "2"):
+        monkeypatch.setenv(_threads.ENV, n)
+        fits.append(fit_loop(u, y, period))
+    assert fits[0].evaluations == fits[1].evaluations
+    assert [c.model for c in fits[0].candidates] == [c.model for c in fits[1].candidates]
+    assert np.array_equal(fits[0].simulated, fits[1].simulated)
     with _threads.one_thread():
         assert _threads.threads() == 1 and _threads.pool() is None
     monkeypatch.setenv(_threads.ENV, "two")

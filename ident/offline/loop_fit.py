@@ -35,7 +35,12 @@ What makes the cost usable (the study's Q3 finding 4): the friction is smooth an
 contact is the play operator, so the free-run output is continuous in the parameters;
 rates and the play are fitted as ``ln(p / p_start)`` with a 3 % finite-difference step,
 which sees the slope rather than the sub-step roughness of events; the simulation stops at
-the last scored sample; BLAS runs single-threaded (small matrices, many of them).
+the last scored sample; BLAS runs single-threaded (small matrices, many of them). Each search
+ends at a step that lowers the cost by less than 1e-5 of it (:data:`FTOL`), and each candidate's
+at an accepted step that lowers it by less than 1e-4 (:data:`STALL`): the searches' tails moved
+the play by well under its interval and cost half the simulations (``benchmarks/loop_speed.py``).
+The Jacobian's columns and the two places' searches run at once on the shared thread pool
+(:mod:`._threads`), with the same answer to the bit.
 """
 
 from __future__ import annotations
@@ -96,9 +101,22 @@ LOAD_MARGIN = 0.02
 LOAD_FIT_TO_FLOOR = 1.1
 #: A kept load's inertia ratio within this factor of :data:`MU_LIMITS` is on its limit (:func:`_load_noticed`).
 LOAD_LIMIT_NEAR = 1.1
+#: Search the two places of the play at once on the thread pool (:mod:`._threads`; the same answer to the bit).
+PLACES_AT_ONCE = True
 #: The first stage of each candidate's fit: the loop's rates, the friction level and the play.
 _STAGE = ("kp", "kv", "fc", "play")
 STAGE_NFEV = 15
+#: scipy's ``ftol`` of :func:`fit_loop`'s massless fits (its stages, candidates and final refit): a step
+#: that lowers the cost by less than this share (and that the linear model predicted) ends the fit.
+#: scipy's 1e-8 ran most fits to their budget for the last 1e-5 of the cost, which moved the play by
+#: under 0.5 %, far inside its interval (``benchmarks/loop_speed.py``). 1e-4 saved more but ended a
+#: candidate of the live XM430 twin's first window early, in a minimum that fit 0.197 instead of 0.155.
+FTOL = 1e-5
+#: The candidates' searches (not the final refit, whose Jacobian the interval reads) also end at the
+#: first accepted step that lowers the cost by less than this share: scipy's ``ftol`` waits for a step
+#: whose reduction the linear model also predicted, and on this rough cost the play-in-loop
+#: candidates crept on for ten more Jacobians at 1e-5 of the cost each.
+STALL = 1e-4
 #: Free parameters of every candidate; see :func:`_free` for what each structure adds.
 _FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "play")
 
@@ -257,6 +275,14 @@ def block_mask(n: int, blocks: int = BLOCKS) -> np.ndarray:
     return keep
 
 
+class _Stalled(Exception):
+    """The search's last accepted iterate ``z`` lowered the cost by less than the problem's ``stall`` share."""
+
+    def __init__(self, z: np.ndarray) -> None:
+        super().__init__("stalled")
+        self.z = z
+
+
 class _Problem:
     """The residual ``y_hat - y`` on the scored samples over the scaled free parameters."""
 
@@ -287,6 +313,10 @@ class _Problem:
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
         self._buffers: list[np.ndarray] = []  # one per Jacobian column: the columns run at once
+        #: A share of the cost (:data:`STALL`): an iterate that lowers the cost by less ends the search
+        #: (:class:`_Stalled`) before its Jacobian; 0: never (scipy's own tests only).
+        self.stall = 0.0
+        self._cost: float | None = None
 
     def values(self, z: np.ndarray) -> dict[str, float]:
         d = dict(self.start)
@@ -346,6 +376,10 @@ class _Problem:
         z = np.asarray(z, dtype=np.float64)
         last = self._last
         r0 = last[1] if last is not None and np.array_equal(last[0], z) else self(z)
+        cost = float(r0 @ r0)
+        if self.stall > 0.0 and self._cost is not None and self._cost - cost < self.stall * self._cost:
+            raise _Stalled(z.copy())
+        self._cost = cost
         lo, hi = self.bounds()
         jac = np.empty((r0.size, z.size))
         if len(self._buffers) < z.size:
@@ -435,17 +469,24 @@ def _fit(
     integrator: bool,
     max_nfev: int,
     free: tuple[str, ...] | None = None,
+    ftol: float = 1e-8,
+    stall: float = 0.0,
 ) -> tuple[dict[str, float], _Problem, Any]:
     if free is None:
         free = _free(structure, integrator)
     prob = _Problem(u, y, period, structure, free, start, score, a_scale)
+    prob.stall = stall
     lo, hi = prob.bounds()
     z0 = np.array([start[n] if n in _BOUNDED else 0.0 for n in free])
     with single_threaded_blas():
         try:
-            sol = least_squares(prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev)
+            sol = least_squares(
+                prob, z0, prob.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, max_nfev=max_nfev, ftol=ftol
+            )
         except ValueError:  # the search met a non-finite Jacobian: keep the start, no interval
             return prob.values(z0), prob, None
+        except _Stalled as stalled:  # the last step gained under ``stall``: keep it, no solution object
+            return prob.values(stalled.z), prob, None
     return prob.values(sol.x), prob, sol
 
 
@@ -533,23 +574,28 @@ def fit_loop(
                 f"the output never moves in the {name} blocks ({int(np.unique(yc[kept]).size)} distinct readings in "
                 "all): the servo-loop model cannot be fitted and validated on this record"
             )
-    candidates: list[tuple[LoopCandidate, dict[str, float]]] = []
-    evaluations = 0
-    for structure in (OUTPUT_BACKLASH, PLAY_IN_LOOP):
-        start, used = _scan(uc, yc, period, structure, kp, kv, v_typ, est, grid)
-        evaluations += used
+    places = (OUTPUT_BACKLASH, PLAY_IN_LOOP)
+    found: list[list[tuple[LoopCandidate, dict[str, float]]]] = [[] for _ in places]
+    spent = [0 for _ in places]
+
+    def place(i: int) -> None:
+        """Scan and fit the two candidates of one place of the play into ``found[i]``, ``spent[i]``."""
+        structure = places[i]
+        start, spent[i] = _scan(uc, yc, period, structure, kp, kv, v_typ, est, grid)
         for integrator in (False, True):
             s = dict(start)
             s["ki"] = 0.2 * s["kp"] * s["kv"] if integrator else 0.0
             # the loop's rates and the play first (the linear start's rates are biased by the play), then everything
             s, prob, _ = _fit(
-                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE
-            )
-            evaluations += prob.evaluations
+                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE,
+                ftol=FTOL, stall=STALL,
+            )  # fmt: skip
+            spent[i] += prob.evaluations
             d, prob, _ = _fit(
-                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV
-            )
-            evaluations += prob.evaluations
+                uc, yc, period, structure, s, est, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV,
+                ftol=FTOL, stall=STALL,
+            )  # fmt: skip
+            spent[i] += prob.evaluations
             model = _model(structure, period, d)
             y_hat = model.simulate(uc, y0=float(yc[0]))
             cand = LoopCandidate(
@@ -560,7 +606,19 @@ def fit_loop(
                 validation_nrmse=nrmse(yc[val], y_hat[val]),
                 evaluations=prob.evaluations,
             )
-            candidates.append((cand, d))
+            found[i].append((cand, d))
+
+    # the two places are independent searches: on the pool at once (each one's Jacobians share it), which
+    # also runs their scans and single evaluations side by side; BLAS is limited here, once, because the
+    # two searches' own limits would otherwise restore each other's on their way out
+    with single_threaded_blas():
+        if PLACES_AT_ONCE:
+            _threads.each(place, len(places))
+        else:
+            for i in range(len(places)):
+                place(i)
+    candidates = found[0] + found[1]
+    evaluations = sum(spent)
     candidates.sort(key=lambda c: c[0].validation_nrmse)
     best, best_d = candidates[0]
     per_structure = {
@@ -591,7 +649,7 @@ def fit_loop(
     free = _free(best.structure, best.integrator) + (LOAD_NAMES if best.model.massive else ())
     d, prob, sol = _fit(
         uc, yc, period, best.structure, best_d, kept, a_scale, integrator=best.integrator, max_nfev=FINAL_NFEV,
-        free=free,
+        free=free, ftol=FTOL,
     )  # fmt: skip
     evaluations += prob.evaluations
     final = _model(best.structure, period, d)
