@@ -135,6 +135,34 @@ def test_lost_readings_are_simulated_through_and_never_read() -> None:
         fit_loop(u, y, period, keep=keep[:-1])
 
 
+def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch: pytest.MonkeyPatch) -> None:
+    # every search (the candidates' and their first stages) reads the first SEARCH_SAMPLES samples only; the
+    # final refit scores the whole record, and the play of the model's own simulation is still recovered;
+    # unless the window's winner predicts the rest worse than it validated: then the search runs on all
+    monkeypatch.setattr(loop_fit, "SEARCH_SAMPLES", 600)
+    read: list[int] = []
+    fit = loop_fit._fit
+
+    def recorded(u: np.ndarray, y: np.ndarray, *args: object, **kwargs: object) -> object:
+        read.append(min(u.size, int(np.flatnonzero(args[3])[-1]) + 1))  # type: ignore[call-overload]
+        return fit(u, y, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(loop_fit, "_fit", recorded)
+    period = 0.01
+    truth = _loop(OUTPUT_BACKLASH, period)
+    u = _gentle(0.1, period, 1200, seed=4)
+    y = truth.simulate(u, y0=0.0)
+    choice = fit_loop(u, y, period)
+    assert len(read) == 9 and max(read[:-1]) <= 600 and read[-1] == u.size
+    assert choice.structure == OUTPUT_BACKLASH
+    assert choice.play == pytest.approx(truth.play, rel=0.02)
+    assert choice.fit_nrmse < 0.01
+    # a tail the window's winner does not predict (a drift the model has no term for): searched again on all
+    read.clear()
+    fit_loop(u, y + np.where(np.arange(u.size) >= 600, 0.002 * np.sin(np.arange(u.size) / 40.0), 0.0), period)
+    assert len(read) == 17 and max(read[:8]) <= 600 and min(read[8:]) > 600
+
+
 def test_the_interval_takes_in_the_plays_of_candidates_that_validate_as_well() -> None:
     # model error the record cannot resolve: a rival within the structure margin widens the interval,
     # one clearly worse does not, and an interval the Jacobian could not give stays absent
