@@ -139,7 +139,7 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     # every search (the candidates' and their first stages) reads the first SEARCH_SAMPLES samples only; the
     # final refit scores the whole record, and the play of the model's own simulation is still recovered;
     # unless the window's winner predicts the rest worse than it validated: then the search runs on all
-    monkeypatch.setattr(loop_fit, "SEARCH_SAMPLES", 600)
+    monkeypatch.setattr(loop_fit, "SEARCH_SAMPLES", 600)  # half the record
     read: list[int] = []
     fit = loop_fit._fit
 

@@ -40,7 +40,7 @@ ends at a step that lowers the cost by less than 1e-5 of it (:data:`FTOL`), and 
 at an accepted step that lowers it by less than 1e-4 (:data:`STALL`): the searches' tails moved
 the play by well under its interval and cost half the simulations (``benchmarks/loop_speed.py``).
 The Jacobian's columns and the two places' searches run at once on the shared thread pool
-(:mod:`._threads`), with the same answer to the bit. A record longer than :data:`SEARCH_SAMPLES`
+(:mod:`._threads`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
 is searched (steps 3-5 and 7) on its first :data:`SEARCH_SAMPLES` samples, with their own
 interleaved blocks; only the final refit (step 6) and what is read from it run on every sample
 (the starts of step 2 read all): the search's cost no longer grows with the record, and on the
@@ -505,11 +505,14 @@ def _fit(
 def _search_lengths(y: np.ndarray, kept: np.ndarray) -> tuple[int, ...]:
     """The lengths of the record's start that :func:`fit_loop` searches on, in turn: :data:`SEARCH_SAMPLES`, then all.
 
-    All only, when the record is not longer or when the window's estimation or validation blocks do
+    All only, when the record is shorter than twice the window or when the window's estimation or validation blocks do
     not move (a record that starts at rest); raises when the whole record's do not.
     """
     n = int(y.size)
-    window = (SEARCH_SAMPLES,) if 0 < SEARCH_SAMPLES < n and int(np.sum(kept[:SEARCH_SAMPLES])) >= MIN_SAMPLES else ()
+    # a window of more than half the record saves little, and a second search on all would cost more than it saved
+    window = (
+        (SEARCH_SAMPLES,) if 0 < 2 * SEARCH_SAMPLES <= n and int(np.sum(kept[:SEARCH_SAMPLES])) >= MIN_SAMPLES else ()
+    )
     lengths = tuple(w for w in (*window, n) if _moves(y[:w], kept[:w]) is None)
     if lengths and lengths[-1] == n:
         return lengths
