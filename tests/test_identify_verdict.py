@@ -350,3 +350,25 @@ def test_a_play_in_loop_runner_up_without_a_play_does_not_test_the_place():
     assert rival == 0.01 and "structure undetermined" in reasons[0] and "runner-up play_in_loop" in reasons[0]
     loop.candidates = (cand(OUTPUT_BACKLASH, 3.0, 0.04), cand(PLAY_IN_LOOP, 1.5, 0.065))  # a play it can see
     assert pipeline._place_doubts(loop, None, 0.05, 1.0, already=False) == ((), None)
+
+
+def test_a_play_in_the_loop_the_record_rejects_places_the_play_outside() -> None:
+    # the play-in-loop runner-up fitted no play: the place is undetermined unless the winner wins clearly,
+    # at its floor, on a record that crosses the play often enough to have shown a play in the loop
+    from types import SimpleNamespace
+
+    from servoid.ident.identify import PLACED_MARGIN, _place_doubts
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, MIN_LOOP_REVERSALS
+
+    runner_up = SimpleNamespace(structure=PLAY_IN_LOOP, validation_nrmse=0.02, model=SimpleNamespace(play=1e-6))
+    loop = SimpleNamespace(structure=OUTPUT_BACKLASH, margin=2 * PLACED_MARGIN, candidates=(runner_up,))
+    clear = Evidence(play=0.01, interval=(0.009, 0.011), reversals=MIN_LOOP_REVERSALS, fit_nrmse=0.01, floor=0.01)
+    assert _place_doubts(loop, None, 0.0, 1e-3, already=False, evidence=clear) == ((), None)
+    for unclear, loop_ in (
+        (dataclasses.replace(clear, reversals=MIN_LOOP_REVERSALS - 1), loop),  # held steps
+        (dataclasses.replace(clear, fit_nrmse=1.01 * MAX_FIT_TO_FLOOR * clear.floor), loop),
+        (clear, SimpleNamespace(structure=OUTPUT_BACKLASH, margin=0.9 * PLACED_MARGIN, candidates=(runner_up,))),
+    ):
+        doubts, rival = _place_doubts(loop_, None, 0.0, 1e-3, already=False, evidence=unclear)
+        assert doubts[0].startswith("structure undetermined") and rival == 1e-6

@@ -61,6 +61,25 @@ def test_recovers_its_own_simulation(structure: str) -> None:
     np.testing.assert_allclose(choice.simulated, choice.model.simulate(u - u.mean(), y0=y[0] - u.mean()) + u.mean())
 
 
+def test_a_winner_that_lost_its_stribeck_hump_is_refitted_from_one() -> None:
+    # exact recovery: a drive that breaks away at 1.5 x its Coulomb level; the final refit starts from a
+    # winner whose hump died (fs below fc: no hump, and no slope in fs to bring it back; refitted from there
+    # alone fs stays below fc)
+    period = 0.01
+    truth = dataclasses.replace(_loop(OUTPUT_BACKLASH, period), ki=2000.0, fc=3.0, fs=4.5, vs=0.2)
+    u = _gentle(0.1, period, 2000, seed=3)
+    y = truth.simulate(u, y0=0.0)
+    start = dict(truth.params(), kv=100.0, fc=3.5, fs=1.0, vs=0.01, play=0.008, asym=0.0)
+    free = loop_fit._free(OUTPUT_BACKLASH, True)
+    v_typ = float(np.std(np.diff(y))) / period
+    every = np.ones(y.size, dtype=bool)
+    d, _, _, _ = loop_fit._final_fit(
+        u, y, period, OUTPUT_BACKLASH, True, start, every, 0.1 * 100.0 * v_typ, free, v_typ
+    )
+    assert d["fs"] == pytest.approx(truth.fs, rel=0.01)
+    assert d["play"] == pytest.approx(truth.play, rel=1e-3)
+
+
 def test_identify_names_the_play_in_the_loop_of_a_horn_encoder_twin() -> None:
     # the seam: identify() fits the black box, then the servo-loop model, which names the structure
     u, y, period, play = _twin_record("xm430", 0.1, 40.0, seed=1)
