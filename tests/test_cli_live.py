@@ -27,17 +27,17 @@ def run_json(capsys, *argv):
 
 def test_a_live_run_on_the_simulated_servo_writes_what_an_offline_run_writes(tmp_path, capsys):
     code, obj, _ = run_json(capsys, "--driver", "sim://model?clock=virtual&seed=1&jitter=0.0002", "--rate", "1000",
-                            "--samples", "3000", "--no-probe", "--out", str(tmp_path))  # fmt: skip
+                            "--samples", "2000", "--no-probe", "--out", str(tmp_path))  # fmt: skip
     assert code == 0
     acq = obj["acquisition"]
-    assert acq["samples"] == 3000 and acq["counts"]["late"] > 0 and acq["counts"]["timeout"] == 0
+    assert acq["samples"] == 2000 and acq["counts"]["late"] > 0 and acq["counts"]["timeout"] == 0
     assert obj["max_relative_error"] < 1e-6  # noise-free: the used samples identify the plant exactly
     for key in ("recording", "model", "convergence_plot", "fit_plot", "backlash_plot"):
         assert (tmp_path / obj["outputs"][key].split("/")[-1]).stat().st_size > 0
     saved = load_model(tmp_path / "model.json")
     assert saved.servo["driver"] == "sim" and saved.sample_period_s == pytest.approx(0.001)
     rec = read_recording(tmp_path / "recording.csv")
-    assert rec.status is not None and len(rec) == 3000
+    assert rec.status is not None and len(rec) == 2000
     # the recording identifies again offline with the live run's orders, leaving out the same samples
     code, again, _ = run_json(capsys, "--data", str(tmp_path / "recording.csv"), "--out", str(tmp_path / "b"),
                               "--no-plots", "--na", "2", "--nb", "0", "--delay", "1")  # fmt: skip

@@ -123,7 +123,7 @@ def saved_cap(obj: dict) -> float:  # type: ignore[type-arg]
 
 def test_live_identify_probes_designs_and_judges_by_default(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     code = main(["identify", "--json", "--driver", "sim://model?clock=virtual&snr=40&seed=1", "--rate", "200",
-                 "--samples", "6000", "--no-plots", "--out", str(tmp_path)])  # fmt: skip
+                 "--samples", "4000", "--no-plots", "--out", str(tmp_path)])  # fmt: skip
     out, err = capsys.readouterr()
     assert code == 0, err
     obj = json.loads(out)
@@ -131,7 +131,7 @@ def test_live_identify_probes_designs_and_judges_by_default(tmp_path, capsys) ->
     assert obj["decimation"]["factor"] == design["factor"] > 1
     # gentle sines by default (they change inside a group: the estimator sees the group's anti-aliased mean)
     assert design["shape"] == "gentle" and 0 < design["accel"] and design["amplitude"] <= saved_cap(obj)
-    assert obj["samples"] == 6000 // design["factor"]
+    assert obj["samples"] == 4000 // design["factor"]
     assert online["settled"] == (not online["reasons"])
     saved = json.loads((tmp_path / "model.json").read_text())
     assert saved["probe"]["samples"] > 0 and saved["online"] == online
