@@ -28,9 +28,10 @@ are, one row per run:
 * ``refit s/stall ms/dropped``: the window refit's median wall time (on its
   worker thread), the longest time one sample's hand-over took on the
   sampling thread, and the windows left out because a refit still ran;
-* ``answer``: the play identify reported (``answer`` in its JSON): ``online+ref`` the online
-  window estimate refined on the whole record from it, ``offline`` identification's own fit
-  (the black box); its error against the truth and whether it was called identifiable;
+* ``answer``: the play identify reported (``answer`` in its JSON): ``search`` the offline
+  servo-loop search on the whole live record, ``online`` the online window estimate when it
+  validated better than that search as one more candidate, ``offline`` identification's own
+  fit (the black box); its error against the truth and whether it was called identifiable;
 * ``verdict``: the online verdict (``servoid.ident.online.verdict``) and its first reason;
 * ``wall s``: the whole command, probe included.
 
@@ -125,7 +126,8 @@ def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> li
         to5, what = seconds_to_within(out, result), "mrgia"
     probe = result["probe"]
     answer = result["answer"]
-    said = {"online_refined": "online+ref", "offline_fit": "offline"}.get(answer["source"], answer["source"])
+    names = {"loop_search": "search", "loop_online": "online", "offline_fit": "offline"}
+    said = names.get(answer["source"], answer["source"])
     answer_play = answer["play"] / scale
     return [
         name, transport, f"{play:.5f}", f"{probe['samples'] / probe['rate_hz']:.1f}",

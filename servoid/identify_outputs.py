@@ -77,10 +77,10 @@ class Record:
         What a live run adds to ``model.json`` and ``--json``: the probe, the
         design, the decimation and the online verdict (``servoid.cli._live``).
     loop : LoopChoice or None
-        The servo-loop model refined on this record from a live run's settled
-        online estimate (:func:`servoid.ident.online.refinement.refine_online`):
+        A live run's servo-loop answer on this record: the offline search with the
+        online estimate as one more candidate (:func:`servoid.ident.online.refinement.refine_online`);
         identification takes it as its servo-loop answer (``identify(loop=)``)
-        rather than fitting one from scratch. None: not live, or no online model.
+        rather than fitting one again. None: not live, or no online model.
     """
 
     u: np.ndarray

@@ -60,6 +60,8 @@ NOISE_MULTIPLE = 30.0
 MIN_GROUPS = 3
 #: The fastest gentle-sine segment at full amplitude, as a share of the probe's loop bandwidth
 #: (0.3: on the XM430 twin at 200 Hz, -0.1 %; at 0.25 with 0.92x the amplitude the place of the play flipped, +236 %).
+#: Tuned, not derived: the play shows when the deceleration stays below the load's friction's (Coulomb torque over
+#: inertia), which the probe does not measure; the rule exceeds it on the CiA 402 and ODrive twins (docs/online.md).
 GENTLE_SHARE = 0.3
 #: The designed shapes of the set point.
 GENTLE, STEPS = "gentle", "steps"

@@ -286,16 +286,15 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
     reported as ``online`` is the servo loop's when identification chose that
     form, or, as the second-structure seam decides
     (:func:`~servoid.ident.offline.second_structure.second_structure`), when
-    the black box is off its floor or its residual is coloured and the loop
-    refined from the online estimate fits the record within
+    the black box is off its floor or its residual is coloured and the servo
+    loop's answer on the whole record fits it within
     ``1 + MIN_STRUCTURE_MARGIN`` of the black box; else the MRGIA's (the
     paper's plant). Both are kept in the JSON.
 
     ``live["answer"]`` says where the reported play came from (:func:`answer`):
-    the online servo-loop estimate refined on the whole record from it (a
-    settled online estimate: one answer), identification's own fit (an online
-    estimate that did not settle, or the black box), and how far the online
-    play lies from it. Records that are not live pass unchanged.
+    the servo loop's search on the whole record or the online estimate that won
+    it as a candidate, or identification's own fit (the black box), and how far
+    the online play lies from it. Records that are not live pass unchanged.
     """
     if not record.live:
         return record
@@ -333,7 +332,7 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
         if loop_verdict is not None:
             line = (f"servo loop ({loop_dict['structure']}), online window refit{mark[use_loop]}: play "
                     f"{_num(loop_verdict.get('online_gap')):.4g} {unit} (fit {_num(loop_verdict.get('online_nrmse')):.3g}); "
-                    f"refined on the whole record from it: {_num(loop_verdict.get('refined_gap')):.4g} {unit} "
+                    f"the whole record's fit: {_num(loop_verdict.get('refined_gap')):.4g} {unit} "
                     f"(fit {_num(loop_verdict.get('refined_nrmse')):.3g}); ")  # fmt: skip
             line += "settled" if loop_verdict["settled"] else "NOT settled: " + "; ".join(loop_verdict["reasons"])
             (_term.stderr.print if loop_verdict["settled"] else _term.warn)(line)
@@ -343,10 +342,12 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
 def answer(record: Record, result: Identification, online: dict[str, Any]) -> dict[str, Any]:
     """Which number a live identify reports as its answer, and how the online estimate compared (JSON-ready).
 
-    ``source`` is ``online_refined`` when the servo-loop answer is the refinement of the
-    online estimate (identification took it, ``identify(loop=)``; ``online_settled`` says
-    whether the online estimate had converged), ``offline_fit`` when identification's own fit
-    answers (the black box, or no online servo-loop model), and ``gap`` is the online play relative to the answer's (the
+    ``source`` is ``loop_online`` when the servo-loop answer is the online estimate, which
+    validated better than the offline search on the whole record and was refitted on it
+    (:func:`loop_online`; identification took it, ``identify(loop=)``), ``loop_search`` when
+    that search's own answer won, ``offline_fit`` when identification's own fit answers (the
+    black box, or no online servo-loop model); ``online_settled`` says whether the online
+    estimate had converged and ``gap`` is the online play relative to the answer's (the
     convergence check). ``line`` is the sentence ``servoid identify`` prints under its headline.
     """
     import math
@@ -356,12 +357,15 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     play = float(result.play)
     gap = online_play / play - 1.0 if math.isfinite(online_play) and play > 0.0 else math.nan
     took_online = record.loop is not None and result.loop is record.loop
-    source = "online_refined" if took_online else "offline_fit"
+    won = bool((((record.live or {}).get("online_loop") or {}).get("refined") or {}).get("online_won"))
+    source = ("loop_online" if won else "loop_search") if took_online else "offline_fit"
     est = "the servo loop's window refit" if online.get("estimator") == "window" else "the decimated MRGIA"
     why = "settled" if online.get("settled") else "NOT settled"
     if took_online:
-        line = (f"the answer: the online estimate ({est}, {why}) refined on the whole record from it: play "
-                f"{play:.4g} {unit}; online {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
+        how = ("the online estimate won the offline search's validation on the whole record" if won
+               else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
+        line = (f"the answer: {how}: play {play:.4g} {unit}; the online estimate ({est}, {why}) "
+                f"{online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
     else:
         line = (f"the answer: identification's own fit ({result.form}): play {play:.4g} {unit}; the online estimate "
                 f"({est}, {why}) {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
@@ -371,18 +375,18 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
 
 
 def loop_online(online: WindowResult, result: SessionResult) -> tuple[dict[str, Any], LoopChoice | None]:
-    """The servo-loop model's online estimate, refined on the whole record from it, and its verdict (JSON-ready).
+    """The servo-loop answer of a live run, the online estimate among its candidates, and the estimate's verdict (JSON-ready).
 
-    The refinement is :func:`~servoid.ident.online.refinement.refine_online` over the
-    usable samples, started from the last window's model (no second fit from
-    scratch); :func:`~servoid.ident.online.verdict.judge_window` judges the
-    online estimate on its windows and against it. :func:`with_verdict` then
-    reports this estimate or the MRGIA's, by the structure identification chose.
+    The answer is :func:`~servoid.ident.online.refinement.refine_online` over the
+    usable samples: the offline search on the whole record (both places fresh,
+    the load stage) with the last window's model as one more candidate judged
+    on validation; :func:`~servoid.ident.online.verdict.judge_window` judges the
+    online estimate on its windows and against that answer. :func:`with_verdict`
+    then reports this estimate or the MRGIA's, by the structure identification chose.
 
-    Returns the JSON-ready summary and the refinement as identification's
-    servo-loop answer (``identify(loop=)``: one answer, started from the online
-    estimate, whether or not that settled -- the verdict says which; None when
-    there is no online model, and identification fits its own).
+    Returns the JSON-ready summary and the answer as identification's servo-loop
+    answer (``identify(loop=)``, which applies the offline honesty rules to it; None
+    when there is no online model, and identification fits its own).
 
     Parameters
     ----------
@@ -405,14 +409,14 @@ def loop_online(online: WindowResult, result: SessionResult) -> tuple[dict[str, 
     u, y, keep = result.u[first:], result.y[first:], keep[first:]
     started = time.perf_counter()
     try:
-        choice, whole = refine_online(u, y, online, keep=keep)
+        choice, refined = refine_online(u, y, online, keep=keep)
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
     online_nrmse = nrmse(y[keep], online.model.simulate(u, y0=float(y[0]))[keep])
-    verdict = judge_window(online, online_nrmse, whole.model.play, whole.fit_nrmse)
-    out["refined"] = {"model": whole.model.to_dict(), "fit_nrmse": whole.fit_nrmse,
-                      "seconds": time.perf_counter() - started, "choice": choice.to_dict()}  # fmt: skip
+    verdict = judge_window(online, online_nrmse, choice.play, choice.fit_nrmse)
+    out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
+                      "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
     return out, choice
 
