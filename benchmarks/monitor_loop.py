@@ -6,9 +6,11 @@ twin preset by default; about 10 minutes, 40 with ``--full``, on a shared 2-core
 What ``servoid monitor`` runs for a model whose play sits in the loop, the
 same object: :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`
 (here with ``background=False``: each refit inside the feed, as on a virtual
-clock), started from the model file's loop (here:
-:func:`~servoid.ident.offline.loop_fit.fit_loop` on 20 s of the unworn twin, as
-``servoid identify`` would write it), fed every sample at the host's default
+clock), started from the model file's loop (here: ``servoid identify --data`` on a
+recording of 20 s of the unworn twin, its ``model.json`` read back as ``servoid
+monitor`` reads it: the loop, the play's interval, the identifiable flag; one
+file per preset, from the tracking run's twin, used by all three runs, as a user
+identifies once and monitors many times), fed every sample at the host's default
 rate (200 Hz): the whole loop refitted on the first 10 s, then the play alone
 on 1.6 s windows every 0.25 s, their scatter over the next 20 s, then the
 CUSUM against the bounds ``--dead-zone 10%`` sets (+/- 10 % of the model
@@ -32,10 +34,10 @@ virtual, so a run is as fast as the refits.
    estimates, the threshold h and the mean samples between false alarms it
    implies (Siegmund, the module text of ``cusum.py``).
 4. Doubt: whether the tracking run's first refit of the whole loop moved the play
-   outside the model file's 95 % interval (``fit_loop``'s; the file's
-   identifiable flag is not part of this run), with the first refit's play
-   against the truth: ``servoid monitor`` then says so and, its bounds in %,
-   re-baselines on that refit (:attr:`LoopWearTracker.doubt`).
+   outside the model file's 95 % interval, or the file calls its play not
+   identifiable, with the first refit's play against the truth: ``servoid
+   monitor`` then says so and, its bounds in %, re-baselines on that refit
+   (:attr:`LoopWearTracker.doubt`).
 
 Also the wall time per estimate (median / largest: what the worker thread spends;
 it must stay under 0.25 s). The machine may be shared.
@@ -44,22 +46,31 @@ it must stay under 0.25 s). The machine may be shared.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
+import io
+import math
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 from _table import table
 from real_servos import SINE_AMPLITUDE  # benchmarks/, on the path when a benchmark runs as a script
 
+from servoid.cli import main as servoid_main
 from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
-from servoid.ident.offline.loop_fit import fit_loop
+from servoid.loop_compensation import loop_model
+from servoid.modelfile import ModelFile, load_model
+from servoid.recording import write_recording
 
 RATE = 200.0
 CHUNK_S = 0.05
@@ -69,20 +80,45 @@ STEP_AT_S = 40.0
 SCORED_FROM_S = 30.0
 
 
-def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, chunk_s: float = CHUNK_S):  # type: ignore[no-untyped-def]
-    """The reference model, then ``seconds`` of monitoring with the play at ``factor(t)`` times the new one."""
+def _excitation(name: str, n: int, seed: int) -> np.ndarray:
+    """The gentle sines servoid designs for a play in the loop, ``n`` samples."""
+    spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=8.0)
+    return sample(spec, n, seed=seed + 1000)
+
+
+def _model_file(name: str, seed: int) -> ModelFile:
+    """What ``servoid identify --data`` writes for :data:`REFERENCE_S` of the unworn twin (the run's first part)."""
+    twin = Twin(preset(name), seed=seed)
+    twin.enable()
+    n_ref = int(REFERENCE_S * RATE)
+    ref = twin.sample(_excitation(name, n_ref, seed), 1.0 / RATE)
+    with tempfile.TemporaryDirectory() as tmp:
+        data = write_recording(Path(tmp) / "reference.csv", {"t": np.arange(n_ref) / RATE, "u": ref.u, "y": ref.y},
+                               metadata={"servoid recording": "", "input_unit": "rad", "unit": "rad"})  # fmt: skip
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+            status = servoid_main(["identify", "--data", str(data), "--out", str(Path(tmp) / "run"), "--no-plots",
+                                   "--json"])  # fmt: skip
+        if status != 0:
+            raise SystemExit(f"servoid identify failed on the {name} twin's reference ({status})")
+        return load_model(Path(tmp) / "run" / "model.json")
+
+
+def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
+         chunk_s: float = CHUNK_S):  # fmt: skip
+    """The twin's reference part, then ``seconds`` of monitoring from ``file`` with the play at ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
     play0 = twin.truth.play_rad
     n_ref = int(REFERENCE_S * RATE)
     n = int(seconds * RATE)
-    spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=8.0)
-    u = sample(spec, n_ref + n, seed=seed + 1000)
-    ref = twin.sample(u[:n_ref], 1.0 / RATE)
-    choice = fit_loop(np.asarray(ref.u), np.asarray(ref.y), 1.0 / RATE)
-    model = choice.model
+    u = _excitation(name, n_ref + n, seed)
+    twin.sample(u[:n_ref], 1.0 / RATE)
+    # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
+    model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
-    tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=choice.play_interval)
+    low, high = (math.nan if v is None else float(v) for v in file.play_interval)
+    tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
+                              identifiable=file.identifiable)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -96,7 +132,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     rows: tuple[PlayRow, ...] = tracker.rows_since(0)
     t = np.array([r.window.t_s for r in rows])
     at = truth[np.minimum((t * RATE).astype(int) - 1, n - 1)]
-    return model, tracker, rows, t, at
+    return model, tracker, rows, t, at, play0
 
 
 def _raised(tracker: LoopWearTracker) -> list[float]:
@@ -116,7 +152,8 @@ def main() -> None:
     rows = []
     for name in args.presets:
         started = time.perf_counter()
-        model, tracker, tr, t, at = _run(name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1)
+        file = _model_file(name, 1)
+        model, tracker, tr, t, at, play0 = _run(name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1, file)
         sel = t >= SCORED_FROM_S
         mean = np.array([r.mean for r in tr])[sel]
         window = np.array([r.window.play for r in tr])[sel]
@@ -125,16 +162,16 @@ def main() -> None:
         growth = float(np.sqrt(np.mean((mean / mean[0] - truth / truth[0]) ** 2)))
         raw_window = float(np.sqrt(np.mean((window / truth - 1.0) ** 2)))
         cost = np.array([r.window.seconds for r in tr[1:]])
-        _, step, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2)
+        _, step, _, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2, file)
         raised = _raised(step)
         after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
         before = [x for x in raised if x < STEP_AT_S]
-        _, calm, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, chunk_s=1.0)
+        _, calm, _, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, file, chunk_s=1.0)
         base = calm.baseline()
-        lo, hi = (v / at[0] for v in tracker.interval)
-        doubt = (f"first refit {tr[0].window.play / at[0] - 1:+.0%} {'outside' if tracker.doubt else 'inside'} "
-                 f"[{lo:.2f}, {hi:.2f}]x")  # fmt: skip
-        rows.append([name, f"{model.play / at[0] - 1:+.1%}", doubt, f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
+        lo, hi = (v / play0 for v in tracker.interval)  # the file's, against the unworn play it was fitted on
+        doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
+                 f"[{lo:.2f}, {hi:.2f}]x; {'doubt' if tracker.doubt else 'no doubt'}")  # fmt: skip
+        rows.append([name, f"{model.play / play0 - 1:+.1%}", doubt, f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
                      f"{base['tau']:.1f} / {base['h']:.1f} / "
@@ -143,7 +180,7 @@ def main() -> None:
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
-        ["preset", "model play vs truth", "first refit vs file interval (x truth)", "track RMS raw", "track RMS growth", "window RMS raw",
+        ["preset", "model file play vs unworn truth", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "track RMS growth", "window RMS raw",
          "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "estimate ms med/max", "wall s"],
         rows,
