@@ -15,6 +15,7 @@ by validation.
 from __future__ import annotations
 
 import html
+import math
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Literal
@@ -688,6 +689,9 @@ def _place_doubts(
             f"runner-up {other}, {100.0 * rejected.margin:.1f} % worse in validation): no model that fits the "
             "record places the play",
         ), float(rejected.play)
+    both = _both_places_hold(loop, evidence)
+    if both is not None:
+        return both
     if loop is None or loop.structure != OUTPUT_BACKLASH or q <= 0.0:
         return (), None
     inside = [c for c in getattr(loop, "candidates", ()) if c.structure == PLAY_IN_LOOP]
@@ -709,6 +713,33 @@ def _place_doubts(
         f"fitted a play of {best.model.play:.3g}, below the record's resolution {q:.3g}: it holds the record "
         "without a play (friction or an effect the model lacks took its place), so the margin does not test the place",
     ), float(best.model.play)
+
+
+def _both_places_hold(loop: LoopResult | None, evidence: Evidence | None) -> tuple[tuple[str, ...], float] | None:
+    """The doubt when the runner-up place of the play holds the record too, and its play; None otherwise.
+
+    The validation margin tells two models apart; it does not say the loser fails. Where the runner-up
+    validates within :data:`MAX_FIT_TO_FLOOR` times the record's estimated floor (the rule by which any
+    model is taken to hold) and the winner leads by less than :data:`PLACED_MARGIN`, both places explain
+    the record as well as the model's missing effects allow, and the winner's narrow interval is the
+    wrong place's. Found on the XM430 twin (play inside the loop), 20 s of gentle sines at 200 Hz: the
+    play outside the loop with a Stribeck hump and an integrator won by 6.4 % at 1.09 times the floor,
+    with +121 % of play and a 95 % interval [2.03, 2.39] times the truth, "identifiable"; the play in
+    the loop, 1.16 times the floor, had +7.5 %.
+    """
+    if loop is None or evidence is None or not np.isfinite(evidence.floor) or evidence.floor <= 0.0:
+        return None
+    other = PLAY_IN_LOOP if loop.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
+    runner = getattr(loop, "validation_nrmse", {}).get(other, math.inf)
+    rivals = [c for c in getattr(loop, "candidates", ()) if c.structure == other]
+    if not rivals or loop.margin >= PLACED_MARGIN or not runner <= MAX_FIT_TO_FLOOR * evidence.floor:
+        return None
+    rival = min(rivals, key=lambda c: c.validation_nrmse)
+    return (
+        f"structure undetermined: the runner-up {other} holds the record too ({runner / evidence.floor:.2f} times "
+        f"its floor, {100.0 * loop.margin:.1f} % worse in validation, under the {100.0 * PLACED_MARGIN:.0f} % that "
+        f"places the play; its play {rival.model.play:.4g})",
+    ), float(rival.model.play)
 
 
 @dataclass(frozen=True)

@@ -372,3 +372,28 @@ def test_a_play_in_the_loop_the_record_rejects_places_the_play_outside() -> None
     ):
         doubts, rival = _place_doubts(loop_, None, 0.0, 1e-3, already=False, evidence=unclear)
         assert doubts[0].startswith("structure undetermined") and rival == 1e-6
+
+
+def test_a_runner_up_place_that_holds_the_record_too_leaves_the_place_undetermined() -> None:
+    # the margin tells two models apart, not that the loser fails: a runner-up within the floor rule and a
+    # winner ahead by less than PLACED_MARGIN leave the place open, whichever place won, with the rival's play
+    from types import SimpleNamespace
+
+    from servoid.ident.identify import PLACED_MARGIN, _place_doubts
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+
+    floor = 0.01
+    evidence = Evidence(play=0.0096, interval=(0.0089, 0.0104), reversals=53, fit_nrmse=0.011, floor=floor)
+    for winner, other in ((OUTPUT_BACKLASH, PLAY_IN_LOOP), (PLAY_IN_LOOP, OUTPUT_BACKLASH)):
+        rival = SimpleNamespace(structure=other, validation_nrmse=0.0116, model=SimpleNamespace(play=0.0047))
+        loop = SimpleNamespace(structure=winner, margin=0.064, candidates=(rival,),
+                               validation_nrmse={winner: 0.0109, other: 0.0116})  # fmt: skip
+        doubts, play = _place_doubts(loop, None, 0.0, 1e-4, already=False, evidence=evidence)
+        assert play == 0.0047 and doubts[0].startswith(f"structure undetermined: the runner-up {other} holds")
+        # a runner-up off its floor, or a winner clearly ahead, places the play
+        off = dict(loop.validation_nrmse, **{other: 1.01 * MAX_FIT_TO_FLOOR * floor})
+        assert _place_doubts(SimpleNamespace(**{**vars(loop), "validation_nrmse": off}), None, 0.0, 1e-4,
+                             already=False, evidence=evidence) == ((), None)  # fmt: skip
+        clear = SimpleNamespace(**{**vars(loop), "margin": PLACED_MARGIN})
+        assert _place_doubts(clear, None, 0.0, 1e-4, already=False, evidence=evidence) == ((), None)
