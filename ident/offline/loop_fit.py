@@ -45,7 +45,8 @@ is searched (steps 3-5 and 7) on its first :data:`SEARCH_SAMPLES` samples, with 
 interleaved blocks; only the final refit (step 6) and what is read from it run on every sample
 (the starts of step 2 read all): the search's cost no longer grows with the record, and on the
 twins the play moved by well inside its interval (CiA 402, 20 000 samples: identify 3.3x faster); a
-window whose winner predicts the rest of the record worse than it validated is searched again on all.
+window whose winner is off the window's floor, or predicts the rest of the record worse than it validated,
+is searched again on all.
 """
 
 from __future__ import annotations
