@@ -86,6 +86,7 @@ __all__ = [
     "refit_loop",
     "LoopRefit",
     "block_mask",
+    "place_margin",
     "MIN_SAMPLES",
 ]
 
@@ -731,8 +732,7 @@ def fit_loop(
     per_structure = {
         s: min(c.validation_nrmse for c, _ in candidates if c.structure == s) for s in (OUTPUT_BACKLASH, PLAY_IN_LOOP)
     }
-    other = PLAY_IN_LOOP if best.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
-    margin = per_structure[other] / best.validation_nrmse - 1.0 if best.validation_nrmse > 0.0 else math.inf
+    margin = place_margin(per_structure, best.structure)
 
     load_val = math.nan
     heavy = None
@@ -749,8 +749,7 @@ def fit_loop(
             best, best_d = heavy, heavy_d
             candidates.insert(0, (heavy, heavy_d))
             per_structure[best.structure] = load_val
-            other = PLAY_IN_LOOP if best.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
-            margin = per_structure[other] / load_val - 1.0 if load_val > 0.0 else math.inf
+            margin = place_margin(per_structure, best.structure)
 
     # the final refit of the winner on every sample
     free = _free(best.structure, best.integrator) + (LOAD_NAMES if best.model.massive else ())
@@ -792,6 +791,26 @@ def fit_loop(
         load_validation=load_val,
         load_candidate=heavy,
     )
+
+
+def place_margin(per_structure: dict[str, float], structure: str) -> float:
+    """How much worse the other place of the play validates than ``structure``'s (the structure rule's number).
+
+    Parameters
+    ----------
+    per_structure : dict of str to float
+        The best validation NRMSE of each place of the play.
+    structure : str
+        The answer's place of the play.
+
+    Returns
+    -------
+    float
+        The other place's validation NRMSE over the answer's, minus 1 (infinite where the answer's is zero).
+    """
+    other = PLAY_IN_LOOP if structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
+    v = per_structure[structure]
+    return per_structure[other] / v - 1.0 if v > 0.0 else math.inf
 
 
 def _final_fit(

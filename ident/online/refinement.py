@@ -47,7 +47,7 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline.intervals import quantum
 from servoid.ident.offline.loop_fit import (
     CANDIDATE_NFEV,
@@ -60,6 +60,7 @@ from servoid.ident.offline.loop_fit import (
     _with_rivals,
     block_mask,
     fit_loop,
+    place_margin,
     refit_loop,
 )
 from servoid.ident.online.window import WindowResult
@@ -154,11 +155,10 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
     won = cand.validation_nrmse < best_val
     if not won:
         # 3. the search answers; the candidate joins its margin and its interval's rivals
-        other = PLAY_IN_LOOP if search.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
         choice = dataclasses.replace(
             search,
             validation_nrmse=per_structure,
-            margin=_margin(per_structure, search.structure, other),
+            margin=place_margin(per_structure, search.structure),
             play_interval=_with_rivals(search.play_interval, [cand], best_val),
             candidates=tuple(candidates),
             seconds=time.perf_counter() - t0,
@@ -168,7 +168,6 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
     # 2. the online candidate answers: refitted on every usable sample, as fit_loop's winner is
     final = refit_loop(u_arr, y_arr, cand.model, score=kept, max_nfev=FINAL_NFEV)
     model = final.model
-    other = PLAY_IN_LOOP if model.structure == OUTPUT_BACKLASH else OUTPUT_BACKLASH
     simulated = model.simulate(uc, y0=float(yc[0]))
     inside = model if model.structure == PLAY_IN_LOOP else None
     choice = LoopChoice(
@@ -177,7 +176,7 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
         play_interval=_with_rivals(final.play_interval, candidates, cand.validation_nrmse),
         fit_nrmse=nrmse(yc[kept], simulated[kept]),
         validation_nrmse=per_structure,
-        margin=_margin(per_structure, model.structure, other),
+        margin=place_margin(per_structure, model.structure),
         params=model.params(),
         simulated=simulated + centre,
         reasons=_noticed(model, quantum(yc[kept])),
@@ -191,9 +190,3 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
         evaluations=search.evaluations + cand.evaluations + final.evaluations,
     )
     return choice, Refined(cand, search, True)
-
-
-def _margin(per_structure: dict[str, float], best: str, other: str) -> float:
-    """How much worse the other place validates than the answer's (``fit_loop``'s margin)."""
-    v = per_structure[best]
-    return per_structure[other] / v - 1.0 if v > 0.0 else math.inf
