@@ -1,19 +1,18 @@
-"""The servo-loop fit's time and answers, and ``identify``'s wall time: main's search against today's, in the same run.
+"""The servo-loop fit's time and answers, and ``identify``'s wall time: another revision's loop fit against this tree's, in the same run.
 
 Runs ``servoid.ident.identify`` (the user's call: the black box, the servo-loop fit
 and its load stage where it runs) on the twins' records of ``real_servos.py``
 (gentle sines at 20x the loop bandwidth, seed 1, and one 20 000-sample record of
-the CiA 402 twin, 50 s at 400 Hz) twice: once with the servo-loop fit searching
-the whole record as main does (:data:`MAIN`: ``SEARCH_SAMPLES = 0``) and once with
-the module's own settings (the search on the record's first
-:data:`~servoid.ident.offline.loop_fit.SEARCH_SAMPLES` samples, the final refit on
-all). Both on the thread rule's default (``SERVOID_THREADS`` to change it); best of
-``--repeat``. The table gives ``identify``'s wall time, the servo-loop fit's own time
-and simulations, the place of the play, the play's error against the twin's truth,
-its 95 % interval over the truth and the loop fit over the record's floor, so that a
-faster path that moves the answer shows::
+the CiA 402 twin, 50 s at 400 Hz) twice: once with the servo-loop fit
+(:mod:`~servoid.ident.offline.loop_fit`) of the git revision ``--against`` (default
+``main``, read with ``git show``; the rest of the code is this tree's) and once with
+this tree's. Both on the thread rule's default (``SERVOID_THREADS`` to change it);
+best of ``--repeat``. The table gives ``identify``'s wall time, the servo-loop fit's
+own time and simulations, the place of the play, the play's error against the twin's
+truth, its 95 % interval over the truth and the loop fit over the record's floor, so
+that a faster path that moves the answer shows::
 
-    .venv/bin/python benchmarks/loop_speed.py [--twins cia402,sts3215,xm430,cia402@20000] [--repeat 2]
+    .venv/bin/python benchmarks/loop_speed.py [--twins cia402,sts3215,xm430,cia402@20000] [--repeat 2] [--against main]
 """
 
 from __future__ import annotations
@@ -21,7 +20,11 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+import subprocess
+import sys
+import types
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import real_servos
@@ -31,20 +34,29 @@ from real_servos import run, twin_record
 from servoid.ident.identify import Identification
 from servoid.ident.offline import loop_fit
 
-#: The knobs of :mod:`~servoid.ident.offline.loop_fit` as main has them: the search on the whole record.
-MAIN: dict[str, float] = {"SEARCH_SAMPLES": 0}
-
 
 @contextlib.contextmanager
-def _knobs(values: dict[str, float]) -> Iterator[None]:
-    old = {k: getattr(loop_fit, k) for k in values}
-    for k, v in values.items():
-        setattr(loop_fit, k, v)
+def _loop_fit_of(revision: str) -> Iterator[None]:
+    """``servoid.ident.offline.loop_fit`` replaced by the module of ``revision`` (its callers import it at call time)."""
+    source = subprocess.run(
+        ["git", "show", f"{revision}:ident/offline/loop_fit.py"],
+        cwd=Path(__file__).resolve().parent,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    name = loop_fit.__name__
+    module = types.ModuleType(name)
+    module.__file__ = f"{revision}:ident/offline/loop_fit.py"
+    package = sys.modules[name.rpartition(".")[0]]
+    sys.modules[name] = module
     try:
+        exec(compile(source, module.__file__, "exec"), module.__dict__)
+        package.loop_fit = module  # type: ignore[attr-defined]
         yield
     finally:
-        for k, v in old.items():
-            setattr(loop_fit, k, v)
+        sys.modules[name] = loop_fit
+        package.loop_fit = loop_fit  # type: ignore[attr-defined]
 
 
 def _record(spec: str) -> dict[str, object]:
@@ -86,20 +98,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--twins", default="cia402,sts3215,xm430,cia402@20000")
     parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--against", default="main", help="the git revision whose loop fit runs first")
     args = parser.parse_args()
     rows = []
     loads = [os.getloadavg()[0]]
     for spec in args.twins.split(","):
         rec = _record(spec)
         run(rec["u"][:400], rec["y"][:400], float(rec["period"]))  # type: ignore[index, arg-type]  # compile outside the clock
-        with _knobs(MAIN):
+        with _loop_fit_of(args.against):
             main_s, a = _timed(rec, args.repeat)
         own_s, b = _timed(rec, args.repeat)
-        rows.append(_row(spec, "main", rec, main_s, a))
+        rows.append(_row(spec, args.against, rec, main_s, a))
         rows.append(_row(spec, f"now ({main_s / own_s:.1f}x)", rec, own_s, b))
         loads.append(os.getloadavg()[0])
     table(
-        f"identify, main's search against today's (best of {args.repeat}; load average {min(loads):.2f}-"
+        f"identify, {args.against}'s loop fit against this tree's (best of {args.repeat}; load average {min(loads):.2f}-"
         f"{max(loads):.2f} on {os.cpu_count()} cores, a machine shared with others' runs)",
         ["twin", "samples", "path", "identify s", "loop fit s", "simulations", "structure", "play error",
          "95 % / truth", "fit/floor", "margin"],

@@ -20,10 +20,11 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    the loop at +200 %, identifiable).
 5. **Select** the candidate with the smallest free-run NRMSE on the validation blocks; the
    **margin** is the best candidate of the other place relative to it (``val_other / val_best - 1``).
-6. **Final refit** of the winner on all samples, and the play's 95 % interval from the
-   Newey-West (HAC) sandwich on that fit's Jacobian (noise), widened to the plays of the
-   candidates that validate as well as the winner (within the structure margin): the model
-   error the record cannot resolve.
+6. **Final refit** of the winner on all samples (a winner that lost its Stribeck hump is
+   refitted from one too, on the window where the search ran on one: :func:`_final_fit`), and the play's 95 %
+   interval from the Newey-West (HAC) sandwich on that fit's Jacobian (noise), widened to the
+   plays of the candidates that validate as well as the winner (within the structure margin):
+   the model error the record cannot resolve.
 
 7. **The load stage** (``load=``; :mod:`~servoid.ident.offline.load_stage`): the massless winner
    extended by a heavy load of its own inertia that meets the flanks in rigid impacts, found on a
@@ -39,6 +40,8 @@ the last scored sample; BLAS runs single-threaded (small matrices, many of them)
 ends at a step that lowers the cost by less than 1e-5 of it (:data:`FTOL`), and each candidate's
 at an accepted step that lowers it by less than 1e-4 (:data:`STALL`): the searches' tails moved
 the play by well under its interval and cost half the simulations (``benchmarks/loop_speed.py``).
+The final refit ends by the same rule (:data:`FINAL_STALL`) and then takes one Jacobian at its
+answer for the interval.
 The Jacobian's columns and the two places' searches run at once on the shared thread pool
 (:mod:`._threads`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
 is searched (steps 3-5 and 7) on its first :data:`SEARCH_SAMPLES` samples, with their own
@@ -145,6 +148,10 @@ HUMP_RESTART = 1.3
 #: ... and its Stribeck speed at least this share of the record's typical speed (a hump narrower than
 #: the speeds the record passes through has no slope to grow from).
 HUMP_VS = 0.3
+#: The final refit also ends at an accepted step that lowers the cost by less than this share (as the searches
+#: do, :data:`STALL`; 0: at scipy's ``ftol`` only, the path before), then takes one Jacobian at its answer
+#: for the interval.
+FINAL_STALL = STALL
 #: Free parameters of every candidate; see :func:`_free` for what each structure adds.
 _FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "play")
 
@@ -499,7 +506,14 @@ def _fit(
     free: tuple[str, ...] | None = None,
     ftol: float = 1e-8,
     stall: float = 0.0,
+    closing: bool = False,
 ) -> tuple[dict[str, float], _Problem, Any]:
+    """Least squares of one candidate from ``start``; returns the values, the problem and the solution (None: none).
+
+    A search that stalls (``stall``) has no solution object; with ``closing`` (the final refit, whose
+    Jacobian the interval reads) it gets one, with the Jacobian at the kept iterate: one more
+    Jacobian, where scipy's own stop would have taken several.
+    """
     if free is None:
         free = _free(structure, integrator)
     prob = _Problem(u, y, period, structure, free, start, score, a_scale)
@@ -513,9 +527,26 @@ def _fit(
             )
         except ValueError:  # the search met a non-finite Jacobian: keep the start, no interval
             return prob.values(z0), prob, None
-        except _Stalled as stalled:  # the last step gained under ``stall``: keep it, no solution object
-            return prob.values(stalled.z), prob, None
+        except _Stalled as stalled:  # the last step gained under ``stall``: keep it
+            if not closing:  # a search: no solution object
+                return prob.values(stalled.z), prob, None
+            # the final refit: the Jacobian at the kept iterate (its residual is cached), which the interval reads
+            prob.stall = 0.0
+            jac = prob.jacobian(stalled.z)
+            assert prob._last is not None
+            fun = prob._last[1]
+            return prob.values(stalled.z), prob, _Closed(stalled.z, jac, fun, 0.5 * float(fun @ fun))
     return prob.values(sol.x), prob, sol
+
+
+@dataclass(frozen=True)
+class _Closed:
+    """What :func:`_fit` reads of scipy's solution, for a final refit that stalled (:data:`FINAL_STALL`)."""
+
+    x: np.ndarray
+    jac: np.ndarray
+    fun: np.ndarray
+    cost: float
 
 
 def _search_lengths(y: np.ndarray, kept: np.ndarray) -> tuple[int, ...]:
@@ -753,8 +784,12 @@ def fit_loop(
 
     # the final refit of the winner on every sample
     free = _free(best.structure, best.integrator) + (LOAD_NAMES if best.model.massive else ())
+    search = None
+    if w < yc.size:
+        search = np.zeros(yc.size, dtype=bool)
+        search[:w] = est
     d, prob, sol, used = _final_fit(
-        uc, yc, period, best.structure, best.integrator, best_d, kept, a_scale, free, v_typ
+        uc, yc, period, best.structure, best.integrator, best_d, kept, a_scale, free, v_typ, search
     )  # fmt: skip
     evaluations += used
     final = _model(best.structure, period, d)
@@ -824,8 +859,9 @@ def _final_fit(
     a_scale: float,
     free: tuple[str, ...],
     v_typ: float,
+    search: np.ndarray | None = None,
 ) -> tuple[dict[str, float], _Problem, Any, int]:
-    """The winner's final refit; a winner without a Stribeck hump is refitted from one too, the lower cost kept.
+    """The winner's final refit on ``score``; a winner without a Stribeck hump is refitted from one too.
 
     The searches lose the hump: where ``fc`` passes ``fs`` the model has none
     (:func:`~servoid.ident.models.servo_loop._friction`), the cost's slope in ``fs`` is zero and
@@ -834,22 +870,48 @@ def _final_fit(
     Coulomb level, Stribeck speed 0.1 rad/s at the output) fitted ``fs`` = 0.03 ``fc`` and +13.6 %
     of play at 20x (2**16-count encoder); refitted from ``fs`` = 1.3 ``fc`` it fits 22 % better with
     +3.5 %, ``fs`` 1.32 ``fc`` and ``vs`` 0.11 rad/s. The hump's start is :data:`HUMP_RESTART`.
-    Returns the values, the problem and scipy's solution of the kept fit, and the simulations of both.
+
+    A search on a window (``search``: the window's estimation blocks, on which the winner was fitted) restarts
+    there: the humped fit replaces the winner as the final refit's start when it costs less on the window, and
+    the final refit runs once on ``score``. Without one, both starts are refitted on ``score`` and the lower cost
+    kept. Each final refit ends as the searches do (:data:`FINAL_STALL`), with the Jacobian at its answer for
+    the interval. Returns the values, the problem and the solution of the kept refit, and the simulations of all.
     """
 
-    def one(s: dict[str, float]) -> tuple[dict[str, float], _Problem, Any]:
+    def final(s: dict[str, float]) -> tuple[dict[str, float], _Problem, Any]:
         return _fit(
-            u, y, period, structure, s, score, a_scale, integrator=integrator, max_nfev=FINAL_NFEV, free=free, ftol=FTOL
-        )
+            u, y, period, structure, s, score, a_scale, integrator=integrator, max_nfev=FINAL_NFEV, free=free,
+            ftol=FTOL, stall=FINAL_STALL, closing=True,
+        )  # fmt: skip
 
-    d, prob, sol = one(start)
-    used = prob.evaluations
-    if "fs" in free and start["fc"] > 0.0 and start["fs"] <= start["fc"]:
-        humped = one(dict(start, fs=HUMP_RESTART * start["fc"], vs=max(start["vs"], HUMP_VS * v_typ)))
-        used += humped[1].evaluations
-        if humped[2] is not None and (sol is None or humped[2].cost < sol.cost):
-            d, prob, sol = humped
-    return d, prob, sol, used
+    if not ("fs" in free and start["fc"] > 0.0 and start["fs"] <= start["fc"]):
+        d, prob, sol = final(start)
+        return d, prob, sol, prob.evaluations
+    humped = dict(start, fs=HUMP_RESTART * start["fc"], vs=max(start["vs"], HUMP_VS * v_typ))
+    if search is None:
+        d, prob, sol = final(start)
+        used = prob.evaluations
+        other = final(humped)
+        used += other[1].evaluations
+        if other[2] is not None and (sol is None or other[2].cost < sol.cost):
+            d, prob, sol = other
+        return d, prob, sol, used
+    # a window's search: restart the search there (cheap), then one refit on all
+    fitted, prob, _ = _fit(
+        u, y, period, structure, humped, search, a_scale, integrator=integrator, max_nfev=CANDIDATE_NFEV, free=free,
+        ftol=FTOL, stall=STALL,
+    )  # fmt: skip
+    used = prob.evaluations + 2
+    if _cost(u, y, period, structure, fitted, search) < _cost(u, y, period, structure, start, search):
+        start = fitted
+    d, prob, sol = final(start)
+    return d, prob, sol, used + prob.evaluations
+
+
+def _cost(u: np.ndarray, y: np.ndarray, period: float, structure: str, d: dict[str, float], score: np.ndarray) -> float:
+    """The sum of squared residuals of the model ``d`` on the samples ``score`` (one simulation)."""
+    r = _Problem(u, y, period, structure, (), d, score, 1.0)(np.zeros(0))
+    return float(r @ r)
 
 
 def _run_load_stage(
