@@ -51,6 +51,7 @@ def variants(name: str) -> dict[str, dict[str, object]]:
         "load_inertia_x0.01": {"load_inertia_kgm2": 0.01 * p.load_inertia_kgm2},
         "load_friction_x20": {"load_coulomb_nm": 20.0 * p.load_coulomb_nm, "load_breakaway_nm": 20.0 * p.load_breakaway_nm},
         "gear_stiffness_x100": {"gear_stiffness_nm_rad": 100.0 * p.gear_stiffness_nm_rad},
+        "gear_damping_x10": {"gear_damping_nms": 10.0 * p.gear_damping_nms},
         "breakaway_=_coulomb": {"motor_breakaway_nm": p.motor_coulomb_nm},
         "motor_friction_0": {"motor_coulomb_nm": 0.0, "motor_breakaway_nm": 0.0},
         "encoder_noise_0": {"encoder_noise_counts": 0.0},
