@@ -91,13 +91,16 @@ def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
     return np.repeat(rng.uniform(-STEP_AMPLITUDE, STEP_AMPLITUDE, n // hold + 2), hold)[:n]
 
 
-def twin_record(name: str, mult: float, friction: float, kind: str, seed: int) -> dict[str, object]:
-    """One host-sampled record of a preset with its truth."""
+def twin_record(
+    name: str, mult: float, friction: float, kind: str, seed: int, **overrides: object
+) -> dict[str, object]:
+    """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments)."""
     base = preset(name)
-    over: dict[str, float] = {"encoder_noise_counts": NOISE_COUNTS, "load_encoder_cpr": 4096}
+    over: dict[str, object] = {"encoder_noise_counts": NOISE_COUNTS, "load_encoder_cpr": 4096}
     if friction != 1.0:
         over["motor_coulomb_nm"] = base.motor_coulomb_nm * friction
         over["motor_breakaway_nm"] = base.motor_breakaway_nm * friction
+    over.update(overrides)
     twin = Twin(preset(name, **over), seed=seed)
     twin.enable()
     rate = mult * BANDWIDTH_HZ[name]
