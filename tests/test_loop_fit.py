@@ -186,6 +186,12 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     read.clear()
     fit_loop(u, y + 0.002 * np.sin(np.arange(u.size) / 40.0), period)
     assert len(read) in (17, 18) and max(read[:8]) <= 600 and min(read[8:]) > 600
+    # the winner and its humped restart tie on the window (WINDOW_TIE): both refitted on all, the lower kept
+    read.clear()
+    monkeypatch.setattr(loop_fit, "_cost", lambda *args: 1.0)
+    tied = fit_loop(u, y, period)
+    assert read[-2:] == [u.size, u.size] and max(read[:-2]) <= 600
+    assert tied.play == pytest.approx(truth.play, rel=0.02)
 
 
 def test_the_interval_takes_in_the_plays_of_candidates_that_validate_as_well() -> None:
