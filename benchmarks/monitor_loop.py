@@ -39,6 +39,10 @@ virtual, so a run is as fast as the refits.
    monitor`` then says so and, its bounds in %, re-baselines on that refit
    (:attr:`LoopWearTracker.doubt`).
 
+``--fresh``: the first fit searches both places of the play from scratch on the
+monitor's first 10 s (``LoopWearTracker(fresh=True)``) instead of refitting the
+file's loop: what a monitor could do when the file does not place the play.
+
 Also the wall time per estimate (median / largest: what the worker thread spends;
 it must stay under 0.25 s). The machine may be shared.
 """
@@ -104,7 +108,7 @@ def _model_file(name: str, seed: int) -> ModelFile:
 
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
-         chunk_s: float = CHUNK_S):  # fmt: skip
+         chunk_s: float = CHUNK_S, fresh: bool = False):  # fmt: skip
     """The twin's reference part, then ``seconds`` of monitoring from ``file`` with the play at ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
@@ -118,7 +122,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
     low, high = (math.nan if v is None else float(v) for v in file.play_interval)
     tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
-                              identifiable=file.identifiable)  # fmt: skip
+                              identifiable=file.identifiable, fresh=fresh)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -145,6 +149,11 @@ def main() -> None:
     parser.add_argument("--track", type=float, default=120.0, help="tracking run, servo s (default 120)")
     parser.add_argument("--quiet", type=int, default=100_000, help="samples of the run without wear")
     parser.add_argument("--full", action="store_true", help="1 000 000 samples without wear")
+    parser.add_argument(
+        "--fresh",
+        action="store_true",
+        help="the first fit searches both places of the play from scratch (not the file's loop)",
+    )
     args = parser.parse_args()
     quiet = 1_000_000 if args.full else args.quiet
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -153,7 +162,9 @@ def main() -> None:
     for name in args.presets:
         started = time.perf_counter()
         file = _model_file(name, 1)
-        model, tracker, tr, t, at, play0 = _run(name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1, file)
+        model, tracker, tr, t, at, play0 = _run(
+            name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1, file, fresh=args.fresh
+        )
         sel = t >= SCORED_FROM_S
         mean = np.array([r.mean for r in tr])[sel]
         window = np.array([r.window.play for r in tr])[sel]
@@ -162,11 +173,13 @@ def main() -> None:
         growth = float(np.sqrt(np.mean((mean / mean[0] - truth / truth[0]) ** 2)))
         raw_window = float(np.sqrt(np.mean((window / truth - 1.0) ** 2)))
         cost = np.array([r.window.seconds for r in tr[1:]])
-        _, step, _, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2, file)
+        _, step, _, _, _, _ = _run(
+            name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2, file, fresh=args.fresh
+        )
         raised = _raised(step)
         after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
         before = [x for x in raised if x < STEP_AT_S]
-        _, calm, _, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, file, chunk_s=1.0)
+        _, calm, _, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, file, chunk_s=1.0, fresh=args.fresh)
         base = calm.baseline()
         lo, hi = (v / play0 for v in tracker.interval)  # the file's, against the unworn play it was fitted on
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "

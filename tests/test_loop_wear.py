@@ -89,3 +89,23 @@ def test_the_doubt_about_a_model_file_names_an_unidentifiable_play_and_a_refit_o
     assert moved is not None and "-50%" in moved and "outside" in moved
     both = file_doubt(0.004, 0.006, (0.0035, 0.0045), False)
     assert both is not None and both.startswith("the model file says its play is not identifiable") and "+50%" in both
+
+
+def test_one_wild_window_play_does_not_raise_the_alarm_and_a_step_past_the_bound_does() -> None:
+    from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker
+    from servoid.ident.online.window import WindowRow
+
+    tracker = LoopWearTracker(LOOP, [Bound(quantity=PLAY, low=0.9 * LOOP.play, high=1.1 * LOOP.play)],
+                              background=False, rebase=True)  # fmt: skip
+    noise = np.random.default_rng(11).standard_normal(400)
+    t = 10.0
+    tracker._take(WindowRow(t, LOOP.play, 0.01, 0.01, 0.0, PLAY_IN_LOOP))  # the first fit
+    plays = LOOP.play * (1.0 + 0.02 * noise)
+    plays[150] = 6.0 * LOOP.play  # one window gone wild after the baseline (80 estimates)
+    plays[300:] *= 1.2  # then the play steps up by 20 %
+    for i, p in enumerate(plays):
+        tracker._take(WindowRow(t + 0.25 * (i + 1), float(p), 0.01, 0.01, 0.0, PLAY_IN_LOOP))
+    base = tracker.baseline()
+    assert base["scatter"] == pytest.approx(0.02 * LOOP.play, rel=0.3) and base["h"] > 0.0
+    raised = [round((e.sample / RATE - t) / 0.25) - 1 for e in tracker.events if e.raised]
+    assert raised and 300 <= raised[0] < 310  # not at the wild window: it adds at most CLIP robust scales
