@@ -323,7 +323,7 @@ class LoopWearTracker:
     def kappa(self) -> float:
         """The nearest bound's distance inside from the baseline's mean clipped play, in ``sigma`` (NaN before).
 
-        A median already on or beyond a bound takes 0.25: the CUSUM then adds up at every check
+        A mean already on or beyond a bound takes 0.25: the CUSUM then adds up at every check
         and raises soon whatever the threshold. No floor otherwise: a floor set the odrive
         twin's threshold (its window plays scatter by 58 %) for a bound 2x as far as it was,
         and it raised a false alarm in 10^6 samples.
