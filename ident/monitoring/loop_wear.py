@@ -224,7 +224,6 @@ class LoopWearTracker:
         identifiable: bool | None = None,
         fresh: bool = False,
     ) -> None:
-        self.fresh = bool(fresh)
         self.window = WindowRefit(config or play_config(start.sample_period_s), start=None if fresh else start,
                                   background=background, wait=wait, later=fit_play)  # fmt: skip
         cfg = self.window.config
