@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -9,7 +10,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 
-__all__ = ["nrmse", "residual_nrmse"]
+__all__ = ["nrmse", "free_run_nrmse", "residual_nrmse"]
 
 
 def nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) -> float:
@@ -30,6 +31,25 @@ def nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) 
     if std == 0.0:
         raise ConfigError("y is constant: an NRMSE against it is undefined")
     return float(np.sqrt(np.mean((y_arr - yh) ** 2)) / std)
+
+
+def free_run_nrmse(y: Sequence[float] | np.ndarray, y_hat: Sequence[float] | np.ndarray) -> float:
+    """:func:`nrmse` of a simulated free run that may have run away: infinite then, not an error.
+
+    A candidate model met on the way (a search's start, a fit that stalled at absurd gains) can
+    diverge: its output grows past what a square holds (about 1e154) or leaves the floats. Such a
+    model fits infinitely badly, which is what a comparison of candidates needs to read.
+
+    Raises
+    ------
+    ConfigError
+        As :func:`nrmse`, for ``y``.
+    """
+    yh = np.asarray(y_hat, dtype=np.float64)
+    if not np.all(np.isfinite(yh)):
+        return math.inf
+    with np.errstate(over="ignore"):
+        return nrmse(y, yh)
 
 
 def residual_nrmse(residual: np.ndarray, y_std: float) -> float:

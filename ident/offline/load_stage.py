@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from servoid.ident.metrics import nrmse
+from servoid.ident.metrics import free_run_nrmse
 from servoid.ident.models.servo_loop import LOAD_NAMES
 
 __all__ = [
@@ -132,7 +132,7 @@ def load_stage(
             evaluations += used
             points.append((cost, d))
             # every point is a rival: its play joins the interval when it validates as well as the answer
-            rivals.append((d["play"], nrmse(y[val], simulate(d)[val])))
+            rivals.append((d["play"], free_run_nrmse(y[val], simulate(d)[val])))
     d = min(points, key=lambda c: c[0])[1]
     free = free + FINAL_FREE
     d, _, used = fit(d, free, FINAL_NFEV)
@@ -152,6 +152,6 @@ def load_stage(
     scored = []
     for values in fits:
         y_hat = simulate(values)
-        scored.append((nrmse(y[est], y_hat[est]), values))
-        rivals.append((values["play"], nrmse(y[val], y_hat[val])))
+        scored.append((free_run_nrmse(y[est], y_hat[est]), values))
+        rivals.append((values["play"], free_run_nrmse(y[val], y_hat[val])))
     return min(scored, key=lambda c: c[0])[1], evaluations, rivals

@@ -66,7 +66,7 @@ from scipy.optimize import least_squares
 from servoid import validation
 from servoid.errors import ConfigError, ModelError
 from servoid.ident.diagnosis.friction_stall import stall_band
-from servoid.ident.metrics import nrmse
+from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import KERNEL_NAMES, LOAD_NAMES, ServoLoopModel, simulate_kernel, substeps
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline import _threads
@@ -661,8 +661,8 @@ def _search(
                 structure=structure,
                 integrator=integrator,
                 model=model,
-                estimation_nrmse=nrmse(ys[est], y_hat[est]),
-                validation_nrmse=nrmse(ys[val], y_hat[val]),
+                estimation_nrmse=free_run_nrmse(ys[est], y_hat[est]),
+                validation_nrmse=free_run_nrmse(ys[val], y_hat[val]),
                 evaluations=prob.evaluations,
             )
             found[i].append((cand, d))
@@ -964,8 +964,8 @@ def _run_load_stage(
         structure=base.structure,
         integrator=base.integrator,
         model=model,
-        estimation_nrmse=nrmse(y[est], y_hat[est]),
-        validation_nrmse=nrmse(y[val], y_hat[val]),
+        estimation_nrmse=free_run_nrmse(y[est], y_hat[est]),
+        validation_nrmse=free_run_nrmse(y[val], y_hat[val]),
         evaluations=used,
     )
     return cand, d, used, rivals
