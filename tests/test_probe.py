@@ -42,8 +42,11 @@ def test_probe_of_the_exact_plant_finds_its_play_and_a_safe_rate() -> None:
     # gentle sines by default, their fastest full-amplitude segment at GENTLE_SHARE of the probe's bandwidth
     f_top = np.sqrt(design.accel / design.amplitude) / (2 * np.pi) * RATE
     assert design.shape == "gentle" and f_top == pytest.approx(GENTLE_SHARE * probe.bandwidth_hz)
+    # ... after a slow phase, gentler still, for a play outside the loop
+    assert design.slow_spec() is not None and design.slow_accel < design.accel and 0 < design.slow_part < 1
     held = design_live(probe, RATE, hold=5)
     assert held.shape == "steps" and held.spec().startswith("steps:") and held.hold % held.factor == 0
+    assert held.slow_spec() is None
 
 
 def test_the_design_never_saturates_a_drive_the_probe_saw_saturate(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]

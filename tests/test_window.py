@@ -139,3 +139,22 @@ def test_the_final_answer_is_the_offline_search_with_the_online_estimate_as_a_ca
     assert low <= choice.play <= high and high - low < 0.1 * choice.play  # the record pins the play
     with pytest.raises(ConfigError, match="no model"):
         refine_online(u, y, dataclasses.replace(online, model=None), keep=keep)
+
+
+def test_a_play_outside_the_loop_comes_from_the_slow_phase_and_the_place_from_the_fast_part() -> None:
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+    from servoid.ident.online.refinement import refine_online
+    from servoid.ident.online.window import WindowResult
+
+    # a motor-side servo whose record shows a wider play in its slow phase (where the load no longer coasts)
+    outside = dataclasses.replace(TRUTH, structure=OUTPUT_BACKLASH)
+    wide = dataclasses.replace(outside, c1=0.013, c2=0.013)
+    u, _ = _record(12.0, seed=7)
+    slow = u.size // 3
+    y = np.concatenate([wide.simulate(u[:slow], y0=0.0), outside.simulate(u[slow:], y0=0.0)])
+    y += 1e-4 * np.random.default_rng(8).standard_normal(u.size)
+    online = WindowResult(outside, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    choice, refined = refine_online(u, y, online, slow=slow)
+    assert choice.structure == OUTPUT_BACKLASH and choice.simulated.size == u.size
+    assert refined.fast_play is not None and abs(refined.fast_play / outside.play - 1) < 0.05
+    assert abs(choice.play / wide.play - 1) < 0.05

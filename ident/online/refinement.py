@@ -16,7 +16,10 @@ like the search's own on the same validation blocks (:func:`refine_online`):
 3. the margin between the places and the play's interval take the candidate in as
    ``fit_loop`` takes its own: the best validation of each place, and the hull of every
    candidate's play within :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN` of
-   the answer's validation.
+   the answer's validation;
+4. after a live design's slow phase (``slow``), steps 1-3 run on the fast part; an answer
+   with the play outside the loop is replaced by the search on the slow part when that
+   search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -47,6 +50,7 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import nrmse
+from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline.intervals import quantum
 from servoid.ident.offline.loop_fit import (
@@ -80,11 +84,15 @@ class Refined:
         The offline search's own answer (:func:`~servoid.ident.offline.loop_fit.fit_loop`).
     online_won : bool
         Whether the online candidate validated better and answers.
+    fast_play : float or None
+        With a slow phase and the play outside the loop: the answer's play on the fast part,
+        before its refit on the slow part (None: no such refit).
     """
 
     online: LoopCandidate
     search: LoopChoice
     online_won: bool
+    fast_play: float | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the candidate's place, play and fits, the search's, and which answered."""
@@ -93,11 +101,21 @@ class Refined:
                                      "estimation_nrmse": c.estimation_nrmse, "validation_nrmse": c.validation_nrmse},
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
-                "online_won": self.online_won}  # fmt: skip
+                "online_won": self.online_won, "fast_play": self.fast_play}  # fmt: skip
 
 
-def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> tuple[LoopChoice, Refined]:
+def refine_online(
+    u: Any, y: Any, online: WindowResult, *, keep: Any = None, slow: int = 0
+) -> tuple[LoopChoice, Refined]:
     """The offline search on the whole record with the online estimate as one more candidate (the module's steps).
+
+    With a live design's slow phase (its first ``slow`` samples, :data:`~servoid.ident.online.probe_design.SLOW_SHARE`)
+    the search and the candidate run on the fast part after it, which names the place of the play;
+    when that is outside the loop and the search on the slow part agrees, the slow part's answer
+    stands (step 4): there the set point decelerates more gently than the load's friction and the
+    load shows the whole play at each reversal, which the fast part's coasting load hides (the
+    CiA 402 twin). A play inside the loop keeps the fast part's answer (the slow part hands a
+    horn twin's record to its motor's stall band).
 
     Parameters
     ----------
@@ -108,6 +126,9 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
         The window refit's run; its :attr:`~WindowResult.model` is the candidate.
     keep : array_like of bool, optional
         The usable samples (a live session's validity mask); default all.
+    slow : int
+        How many of the first samples are a slow phase (0: none; ignored when fewer than
+        :data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES` usable samples are on either side).
 
     Returns
     -------
@@ -135,6 +156,49 @@ def refine_online(u: Any, y: Any, online: WindowResult, *, keep: Any = None) -> 
     if int(kept.sum()) < MIN_SAMPLES:
         raise ConfigError(f"{int(kept.sum())} usable samples; the servo-loop refinement needs at least {MIN_SAMPLES}")
     y_arr = np.where(kept, y_arr, y_arr[0])
+    head = _fast_start(kept, validation.integer("slow", slow, minimum=0))
+    if head == 0:
+        return _refine(u_arr, y_arr, kept, start, t0)
+    choice, refined = _refine(u_arr[head:], y_arr[head:], kept[head:], start, t0)
+    # back on the whole record: a play outside the loop from the search on the slow part
+    centre = float(np.mean(u_arr))
+    uc, yc = u_arr - centre, y_arr - centre
+    fast_play = None
+    if choice.structure != PLAY_IN_LOOP:
+        slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)
+        if (
+            slow_choice.structure != PLAY_IN_LOOP
+        ):  # else the slow part does not confirm the place: the fast answer stands
+            fast_play = choice.play
+            choice = dataclasses.replace(
+                choice,
+                play=slow_choice.play,
+                play_interval=slow_choice.play_interval,
+                fit_nrmse=slow_choice.fit_nrmse,
+                params=slow_choice.params,
+                reasons=slow_choice.reasons,
+                dead_time_samples=slow_choice.dead_time_samples,
+                stall_band=slow_choice.stall_band,
+                model=slow_choice.model,
+                evaluations=choice.evaluations + slow_choice.evaluations,
+            )
+    simulated = choice.model.simulate(uc, y0=float(yc[0]))
+    choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
+    return choice, dataclasses.replace(refined, fast_play=fast_play)
+
+
+def _fast_start(kept: np.ndarray, slow: int) -> int:
+    """The first usable sample after a slow phase of ``slow`` samples; 0 when either part is too short to fit."""
+    after = np.flatnonzero(kept[slow:]) if slow < kept.size else np.empty(0, dtype=np.int64)
+    if slow == 0 or after.size < MIN_SAMPLES or int(kept[:slow].sum()) < MIN_SAMPLES:
+        return 0
+    return slow + int(after[0])
+
+
+def _refine(
+    u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, start: ServoLoopModel, t0: float
+) -> tuple[LoopChoice, Refined]:
+    """The module's steps 1-3 on one record (``y_arr[0]`` measured, unusable samples filled)."""
     # the search identification's second structure runs (second_structure: load=None)
     search = fit_loop(u_arr, y_arr, start.sample_period_s, keep=kept, load=None)
     # 1. the online model as a candidate: the estimation blocks fitted, the validation blocks scored (fit_loop's split)

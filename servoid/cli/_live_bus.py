@@ -110,7 +110,7 @@ def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -
             one = argparse.Namespace(**{**vars(args), "seed": args.seed + index, "samples": n, "excitation": spec,
                                         "amplitude": args.amplitude if args.excitation else None})  # fmt: skip
             limits = bus.joints[index].limits
-            return _live.excitation(one, amplitude, limits, bus.command_unit.unit) - limits.centre
+            return _live.excitation(one, amplitude, limits, bus.command_unit.unit)[0] - limits.centre
 
         u, blocks = bus_excitation(signal, len(ids), samples, mode=args.joints)
         u += np.array([j.limits.centre for j in bus.joints])
