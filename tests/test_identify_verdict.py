@@ -90,6 +90,11 @@ def test_each_rule_gives_its_reason():
         v = verdict(evidence)
         assert not v.identifiable and words in v.reason, (words, v.reason)
     assert verdict(dataclasses.replace(good, margin=0.2)).identifiable
+    # a small margin that the Diebold-Mariano test finds throughout the record (a play-in-loop answer) names it
+    from servoid.ident.offline.intervals import PLACE_Z
+
+    assert verdict(dataclasses.replace(good, margin=0.01, place_z=PLACE_Z)).identifiable
+    assert "structure undetermined" in verdict(dataclasses.replace(good, margin=0.01, place_z=0.99 * PLACE_Z)).reason
 
 
 def test_reversals_count_only_turns_larger_than_the_threshold():
@@ -381,7 +386,7 @@ def test_a_runner_up_place_that_holds_the_record_too_leaves_the_place_undetermin
 
     from servoid.ident.identify import PLACED_MARGIN, _place_doubts
     from servoid.ident.models.structure_names import OUTPUT_BACKLASH
-    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, PLACE_Z
 
     floor = 0.01
     evidence = Evidence(play=0.0096, interval=(0.0089, 0.0104), reversals=53, fit_nrmse=0.011, floor=floor)
@@ -397,3 +402,8 @@ def test_a_runner_up_place_that_holds_the_record_too_leaves_the_place_undetermin
                              already=False, evidence=evidence) == ((), None)  # fmt: skip
         clear = SimpleNamespace(**{**vars(loop), "margin": PLACED_MARGIN})
         assert _place_doubts(clear, None, 0.0, 1e-4, already=False, evidence=evidence) == ((), None)
+        # a small margin that holds throughout the record (Diebold-Mariano) places a play in the loop only
+        for z in (PLACE_Z, 0.99 * PLACE_Z):
+            tested = SimpleNamespace(**{**vars(loop), "place_z": z})
+            placed = _place_doubts(tested, None, 0.0, 1e-4, already=False, evidence=evidence) == ((), None)
+            assert placed == (winner == PLAY_IN_LOOP and z >= PLACE_Z)

@@ -49,6 +49,7 @@ __all__ = [
     "MAX_FIT_TO_FLOOR",
     "MAX_FIT_FOR_INTERVAL",
     "MIN_STRUCTURE_MARGIN",
+    "PLACE_Z",
     "MAX_REL_HALF_WIDTH",
     "MIN_NOISE_WINDOWS",
     "Z95",
@@ -72,6 +73,12 @@ MAX_FIT_TO_FLOOR = 1.2
 MAX_FIT_FOR_INTERVAL = MAX_FIT_TO_FLOOR
 #: The smallest relative validation margin between the two places of the play that names a structure.
 MIN_STRUCTURE_MARGIN = 0.05
+#: The Diebold-Mariano statistic (:func:`~servoid.ident.offline.place_test.place_z`) at or above which a
+#: play-in-loop answer's record rejects the motor side whatever its margin (``Evidence.place_z``): the 99 %
+#: one-sided normal quantile. On the twins' gentle sines (10/20/50x, seeds 1-2) the XM430 (play in the loop)
+#: wins by 1.3-7.4 % at +0.9 ... +6.9, the CiA 402's motor-side winners (0.3-2 %) score -1.4 ... -4.7 and
+#: the ODrive's -0.1 ... -3.6 against the play in the loop (issue 12 horn search session).
+PLACE_Z = 2.33
 #: The largest half-width of the 95 % interval, relative to the play: the issue's accuracy for a play inside
 #: the loop (15 %). With the model-error term (:func:`model_error_halfwidth`) the half-width is the accuracy
 #: the record supports; a play known only to +-16-19 % (the STS3215 twin at 10x, -16.7 % off) is not identified.
@@ -464,6 +471,9 @@ class Evidence:
         the one owner; None: not applied, e.g. a servo-loop answer).
     interval_note : str, optional
         Why the interval was withheld (:func:`interval_withheld`); None when it was not.
+    place_z : float, optional
+        For a play-in-loop answer: the Diebold-Mariano statistic of its validation errors against the
+        motor side's (:func:`~servoid.ident.offline.place_test.place_z`); None: not tested.
     """
 
     play: float
@@ -476,6 +486,7 @@ class Evidence:
     stall_band: float | None = None
     residual_white: bool | None = None
     interval_note: str | None = None
+    place_z: float | None = None
 
 
 @dataclass(frozen=True)
@@ -514,7 +525,8 @@ def verdict(e: Evidence) -> Verdict:
     Not identifiable when: the model fits worse than predicting the mean;
     the play is not positive and finite; fewer than :data:`MIN_REVERSALS`
     (a servo-loop answer: :data:`MIN_LOOP_REVERSALS`) output reversals larger than twice the play; the two places of the play
-    differ by less than :data:`MIN_STRUCTURE_MARGIN` in validation fit; the
+    differ by less than :data:`MIN_STRUCTURE_MARGIN` in validation fit (unless a play-in-loop answer's
+    record rejects the motor side by :data:`PLACE_Z`); the
     fit is more than :data:`MAX_FIT_TO_FLOOR` times the floor; the interval
     is unbounded, reaches zero or is wider than :data:`MAX_REL_HALF_WIDTH`
     of the play; the play's dead time at a reversal is under one sample;
@@ -550,7 +562,13 @@ def verdict(e: Evidence) -> Verdict:
             f"only {e.reversals} reversals of the output larger than twice the play {play:.4g} "
             f"(at least {needed} needed): the record does not cross the play often enough"
         )
-    if e.margin is not None and (not np.isfinite(e.margin) or e.margin < MIN_STRUCTURE_MARGIN):
+    # a small margin that holds throughout the record names a play in the loop (:data:`PLACE_Z`)
+    rejects_motor_side = e.place_z is not None and e.place_z >= PLACE_Z
+    if (
+        e.margin is not None
+        and (not np.isfinite(e.margin) or e.margin < MIN_STRUCTURE_MARGIN)
+        and not rejects_motor_side
+    ):
         why.append(
             f"structure undetermined: the two places of the play fit equally (validation margin "
             f"{100.0 * e.margin:.1f} %, at least {100.0 * MIN_STRUCTURE_MARGIN:.0f} % needed)"

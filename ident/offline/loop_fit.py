@@ -80,6 +80,7 @@ from servoid.ident.offline.intervals import (
     quantum,
 )
 from servoid.ident.offline.load_stage import MU_LIMITS, load_stage
+from servoid.ident.offline.place_test import place_z
 
 __all__ = [
     "LoopChoice",
@@ -252,6 +253,10 @@ class LoopChoice:
         (``model.massive``).
     load_candidate : LoopCandidate or None
         The load stage's fit (estimation blocks), kept or not; None when it did not run.
+    place_z : float
+        The Diebold-Mariano statistic of the winner's validation errors against the best candidate's of
+        the other place (:func:`~servoid.ident.offline.place_test.place_z`; positive: the winner's place
+        predicts the record better throughout, not by chance); NaN when it was not computed.
     """
 
     structure: str
@@ -271,6 +276,7 @@ class LoopChoice:
     evaluations: int
     load_validation: float = math.nan
     load_candidate: LoopCandidate | None = field(default=None, repr=False)
+    place_z: float = math.nan
 
     @property
     def determined(self) -> bool:
@@ -292,6 +298,7 @@ class LoopChoice:
             "stall_band": self.stall_band,
             "seconds": self.seconds,
             "evaluations": self.evaluations,
+            "place_z": self.place_z,
         }
 
 
@@ -788,6 +795,11 @@ def fit_loop(
             per_structure[best.structure] = load_val
             margin = place_margin(per_structure, best.structure)
 
+    # how surely the record prefers the winner's place: its validation errors against the other place's best
+    rival = min((c for c, _ in candidates if c.structure != best.structure), key=lambda c: c.validation_nrmse)
+    z = place_z(*(m.simulate(us, y0=float(ys[0]))[val] - ys[val] for m in (best.model, rival.model)))
+    evaluations += 2
+
     # the final refit of the winner on every sample
     free = _free(best.structure, best.integrator) + (LOAD_NAMES if best.model.massive else ())
     search = None
@@ -831,6 +843,7 @@ def fit_loop(
         evaluations=evaluations,
         load_validation=load_val,
         load_candidate=heavy,
+        place_z=z,
     )
 
 
