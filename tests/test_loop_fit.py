@@ -235,21 +235,25 @@ def test_the_load_stage_stands_only_when_it_validates_better() -> None:
         assert tried.play == plain.play
 
 
-def test_the_load_stage_recovers_a_heavy_load_from_the_massless_start() -> None:
+def test_the_load_stage_recovers_a_heavy_load_and_its_integrator_from_the_massless_start() -> None:
     # exact recovery of the impact model's own simulation: a load twice the motor side's inertia
     # coasts across the play after each reversal; the massless fit books most of the play away,
-    # the load stage's grid (the loop refitted at each point) finds the load from the massless start
+    # the load stage's grid (the loop refitted at each point) finds the load from the massless start.
+    # The loop integrates, which the massless candidates cannot tell (with and without an integrator they
+    # validate alike, the one without first): identify's stage (load=None) starts from the one with it
     period = 0.01
     mu = 2.0
     truth = dataclasses.replace(
-        _loop(OUTPUT_BACKLASH, period), kv=120.0 * (1 + mu), fc=3.0 * (1 + mu), fs=4.0 * (1 + mu), mu=mu, e=0.0, al=3.0
-    )
+        _loop(OUTPUT_BACKLASH, period), kv=120.0 * (1 + mu), ki=600.0 * (1 + mu), fc=3.0 * (1 + mu),
+        fs=4.0 * (1 + mu), mu=mu, e=0.0, al=3.0,
+    )  # fmt: skip
     u = _gentle(0.1, period, 2000, seed=3)
     y = truth.simulate(u, y0=0.0)
-    choice = fit_loop(u, y, period, load=True)
+    choice = fit_loop(u, y, period, load=None)
     assert choice.model.massive
     assert choice.play == pytest.approx(truth.play, rel=0.03)
     assert 0.5 * mu < choice.model.mu < 2.0 * mu
+    assert 0.5 * truth.ki < choice.model.ki < 2.0 * truth.ki
     assert choice.fit_nrmse < 0.002
     # the massless answer the stage replaced was far off: the test can fail
     plain = next(c for c in choice.candidates if not c.model.massive)
