@@ -173,8 +173,9 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     u = _gentle(0.1, period, 1200, seed=4)
     y = truth.simulate(u, y0=0.0)
     choice = fit_loop(u, y, period)
-    # eight searches on the window (and the hump restart where the winner lost its hump), then the final refit on all
-    assert len(read) in (9, 10) and max(read[:-1]) <= 600 and read[-1] == u.size
+    # eight searches on the window (and the hump restart where the winner lost its hump), then the final refit: its
+    # bridge on twice the window's reach (BRIDGE), then on all
+    assert len(read) in (10, 11) and max(read[:-2]) <= 600 and 600 < read[-2] < u.size and read[-1] == u.size
     assert choice.structure == OUTPUT_BACKLASH
     assert choice.play == pytest.approx(truth.play, rel=0.02)
     assert choice.fit_nrmse < 0.01
@@ -190,8 +191,18 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     read.clear()
     monkeypatch.setattr(loop_fit, "_cost", lambda *args: 1.0)
     tied = fit_loop(u, y, period)
-    assert read[-2:] == [u.size, u.size] and max(read[:-2]) <= 600
+    assert read[-4] == read[-2] < u.size and read[-3] == read[-1] == u.size and max(read[:-4]) <= 600
     assert tied.play == pytest.approx(truth.play, rel=0.02)
+    # the window is cut where its start holds WINDOW_REVERSALS reversals of the set point, not below MIN_WINDOW
+    tri = np.abs((np.arange(1000) % 100) - 50.0)  # reverses at every 50th sample
+    assert loop_fit._reversals_end(tri, 0.5, 3) == 152 and loop_fit._reversals_end(tri, 60.0, 1) == tri.size
+    monkeypatch.setattr(loop_fit, "MIN_WINDOW", 200)
+    monkeypatch.setattr(loop_fit, "WINDOW_REVERSALS", 6)
+    kept = np.ones(u.size, dtype=bool)
+    cut = loop_fit._reversals_end(u, 1e-6, 6)
+    assert 200 < cut < 600 and loop_fit._search_lengths(u, y, kept, 1e-6) == (cut, u.size)
+    monkeypatch.setattr(loop_fit, "MIN_WINDOW", 590)
+    assert loop_fit._search_lengths(u, y, kept, 1e-6) == (590, u.size)
 
 
 def test_the_interval_takes_in_the_plays_of_candidates_that_validate_as_well() -> None:
