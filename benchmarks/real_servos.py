@@ -26,7 +26,9 @@ without time, when the black box is off its floor), on:
 
 A second table gives the servo-loop model's own answer on each twin record
 (:func:`servoid.ident.offline.loop_fit.fit_loop`: the place of the play it
-chose, the validation margin between the two places, its gap, fit, interval,
+chose, the validation margin between the two places, the Diebold-Mariano
+statistic of its place against the other (positive: the winner's place
+better; :mod:`servoid.ident.offline.place_test`), its gap, fit, interval,
 the play's dead time at a reversal in samples, the simulations and seconds it
 took), whether or not identify kept it. Last, the verdict's calibration: the
 runs counted as identifiable or withheld, and right (the true structure, the
@@ -248,8 +250,8 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: boo
         runs = confusion.get(cell, [])
         print(f"  {cell[0]} and {cell[1]}: {len(runs)}" + "".join(f"\n    {r}" for r in runs))
     table("Twins: the servo-loop model alone (fit_loop; from identify when it ran there, else fitted here)",
-          ["preset", "excitation", "rate", "fric", "seed", "true", "loop's choice", "margin", "gap", "fit/floor",
-           "95 % / truth", "dead time (samples)", "simulations", "s"], loop_rows)  # fmt: skip
+          ["preset", "excitation", "rate", "fric", "seed", "true", "loop's choice", "margin", "place z", "gap",
+           "fit/floor", "95 % / truth", "dead time (samples)", "simulations", "s"], loop_rows)  # fmt: skip
     if load:
         table("Twins: the load stage (fit_loop load=True: a load of its own inertia meeting the flanks in impacts)",
               ["preset", "excitation", "rate", "fric", "seed", "massless gap", "massless val/floor", "s",
@@ -286,7 +288,8 @@ def loop_row(rec: dict[str, object], result: Identification, head: list[str]) ->
     lo, hi = loop.play_interval
     dead = "" if loop.dead_time_samples is None else f"{loop.dead_time_samples:.2f}"
     return [
-        *head, str(rec["structure"]), loop.structure, f"{100 * loop.margin:.1f} %", f"{100 * (loop.play / play - 1):+.1f} %",
+        *head, str(rec["structure"]), loop.structure, f"{100 * loop.margin:.1f} %", f"{loop.place_z:+.2f}",
+        f"{100 * (loop.play / play - 1):+.1f} %",
         f"{loop.fit_nrmse / float(rec['floor']):.2f}",  # type: ignore[arg-type]
         f"[{lo / play:.2f}, {hi / play:.2f}]" if np.isfinite(lo) else "none", dead, str(loop.evaluations),
         f"{loop.seconds:.1f}",
