@@ -76,8 +76,10 @@ MIN_STRUCTURE_MARGIN = 0.05
 #: The Diebold-Mariano statistic (:func:`~servoid.ident.offline.place_test.place_z`) at or above which a
 #: play-in-loop answer's record rejects the motor side whatever its margin (``Evidence.place_z``): the 99 %
 #: one-sided normal quantile. On the twins' gentle sines (10/20/50x, seeds 1-2) the XM430 (play in the loop)
-#: wins by 1.3-7.4 % at +0.9 ... +6.9, the CiA 402's motor-side winners (0.3-2 %) score -1.4 ... -4.7 and
-#: the ODrive's -0.1 ... -3.6 against the play in the loop (issue 12 horn search session).
+#: wins by 1.3-7.4 % at +0.9 ... +6.9 (issue 12 horn search session). A motor-side answer's own statistic
+#: does not place the play (README, issue 12 DM session): the CiA 402's right ones score +1.4 ... +4.8, the horn
+#: twins' wrong ones (held steps, friction x4) +2.6 ... +5.5, so the rule reads play-in-loop answers only; the
+#: closest wrong play-in-loop winner measured, the ODrive with friction x4 at 20x s1, scored +1.8.
 PLACE_Z = 2.33
 #: The largest half-width of the 95 % interval, relative to the play: the issue's accuracy for a play inside
 #: the loop (15 %). With the model-error term (:func:`model_error_halfwidth`) the half-width is the accuracy

@@ -13,7 +13,10 @@ stretch; near 0: the two places explain the record alike.
 Measured on the twins (issue 12 horn search session, gentle sines, 10/20/50x, seeds 1-2): the
 XM430 (play in the loop) wins by 1.3-7.4 % with both places within 1.0-1.7 times the floor, which the
 margin rule calls undetermined; the statistic is +0.9 (10x s1), +2.4 ... +6.9 on the other five. The
-CiA 402's motor-side winners (margins 0.8-2 %) score -1.7 ... -5.4 against the play in the loop.
+CiA 402's motor-side winners (margins 0.3-1.8 %) score +1.4 ... +4.8 against the play in the loop, but so do
+the horn twins' wrong motor-side winners on held steps and with four times the friction (+2.6 ... +5.5,
+issue 12 DM session): a model that misses an effect can lose everywhere in the right place, so only a
+play-in-loop answer is read (:data:`~servoid.ident.offline.intervals.PLACE_Z`).
 """
 
 from __future__ import annotations
