@@ -842,10 +842,11 @@ def fit_loop(
         base, base_d = next(
             ((c, d) for c, d in candidates if c.structure == base.structure and c.integrator), (base, base_d)
         )
-        heavy, heavy_d, used, tried = _run_load_stage(us, ys, period, base, base_d, est, val, a_scale)
+        keep = (1.0 - LOAD_MARGIN) * best.validation_nrmse
+        heavy, heavy_d, used, tried = _run_load_stage(us, ys, period, base, base_d, est, val, a_scale, keep)
         evaluations += used
         load_val = heavy.validation_nrmse
-        if load_val < (1.0 - LOAD_MARGIN) * best.validation_nrmse:
+        if load_val < keep:
             rivals = tried
             best, best_d = heavy, heavy_d
             candidates.insert(0, (heavy, heavy_d))
@@ -1027,6 +1028,7 @@ def _run_load_stage(
     est: np.ndarray,
     val: np.ndarray,
     a_scale: float,
+    kept_below: float,
 ) -> tuple[LoopCandidate, dict[str, float], int, list[tuple[float, float]]]:
     """:func:`~servoid.ident.offline.load_stage.load_stage` on ``base``'s structure, as a candidate."""
 
@@ -1041,7 +1043,7 @@ def _run_load_stage(
 
     # the load's friction starts at the massless fit's Coulomb level (a deceleration of the same order)
     start = dict(base_d, al=max(base_d["fc"], 1e-6 * a_scale))
-    d, used, rivals = load_stage(y, start, _free(base.structure, base.integrator), fit, simulate, est, val)
+    d, used, rivals = load_stage(y, start, _free(base.structure, base.integrator), fit, simulate, est, val, kept_below)
     model = _model(base.structure, period, d)
     y_hat = model.simulate(u, y0=float(y[0]))
     cand = LoopCandidate(
