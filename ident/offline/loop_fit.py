@@ -82,6 +82,7 @@ from servoid.ident.offline.intervals import (
     floor_nrmse,
     hac_stderr,
     quantum,
+    reversal_indices,
 )
 from servoid.ident.offline.load_stage import MU_LIMITS, load_stage
 from servoid.ident.offline.place_test import place_z
@@ -606,29 +607,10 @@ def _search_lengths(u: np.ndarray, y: np.ndarray, kept: np.ndarray, h: float) ->
 def _reversals_end(u: np.ndarray, h: float, count: int) -> int:
     """The samples of ``u``'s start that hold ``count`` reversals by more than ``h`` (``u.size`` when it holds fewer).
 
-    A reversal: ``u`` leaves its running extreme in the current direction by more than ``h`` (a hysteresis, as a
-    play would see it), after a move the other way.
+    The reversals are :func:`~servoid.ident.offline.intervals.reversal_indices`' (a hysteresis, as a play would see it).
     """
-    hi = lo = float(u[0])
-    direction, seen = 0, 0
-    for i in range(1, u.size):
-        x = float(u[i])
-        if direction >= 0:
-            hi = max(hi, x)
-            if hi - x > h:
-                seen += direction > 0
-                direction, lo = -1, x
-                if seen >= count:
-                    return i + 1
-                continue
-        if direction <= 0:
-            lo = min(lo, x)
-            if x - lo > h:
-                seen += direction < 0
-                direction, hi = 1, x
-                if seen >= count:
-                    return i + 1
-    return int(u.size)
+    turns = reversal_indices(u, h)
+    return int(turns[count - 1]) + 1 if turns.size >= count else int(u.size)
 
 
 def _moves(y: np.ndarray, kept: np.ndarray) -> str | None:
