@@ -28,7 +28,7 @@ import numpy as np
 from servoid.excitation.specs import GentleSpec
 from servoid.excitation.streams import doubles
 
-__all__ = ["gentle", "segments"]
+__all__ = ["gentle", "segments", "whole_segments"]
 
 #: Segments drawn per look-up batch while walking to a start index.
 _BATCH = 256
@@ -97,3 +97,31 @@ def gentle(spec: GentleSpec, seed: int, start: int, count: int) -> np.ndarray:
         j += _BATCH
         begin = int(ends[-1])
     return out
+
+
+def whole_segments(spec: GentleSpec, seed: int, limit: int) -> int:
+    """The samples of the whole segments that fit in the first ``limit`` (0 when the first segment does not).
+
+    A run cut there ends a segment back at its offset (each segment is whole periods of a sine), so
+    another signal may follow without a step.
+
+    Parameters
+    ----------
+    spec : GentleSpec
+        The signal.
+    seed : int
+        Its seed.
+    limit : int
+        The most samples.
+
+    Returns
+    -------
+    int
+    """
+    begin, j = 0, 0
+    while True:
+        ends = begin + np.cumsum(segments(spec, seed, j, _BATCH)[2])
+        inside = ends[ends <= limit]
+        if inside.size < ends.size:
+            return int(inside[-1]) if inside.size else begin
+        begin, j = int(ends[-1]), j + _BATCH

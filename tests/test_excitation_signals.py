@@ -225,3 +225,18 @@ def test_gentle_sines_keep_their_peak_acceleration_and_amplitude():
     reversals = np.sum(np.diff(np.sign(np.diff(u))) != 0)
     assert reversals >= 40
     assert np.max(np.abs(u)) > 0.07
+
+
+def test_whole_segments_end_at_a_segment_boundary_back_at_the_offset():
+    from servoid.excitation.gentle import segments, whole_segments
+
+    spec = GentleSpec(amplitude=0.1, accel=1e-3, offset=0.02)
+    ends = np.cumsum(segments(spec, 3, 0, 600)[2])  # past the walk's first batch of 256 segments
+    for limit in (int(ends[0]) - 1, int(ends[4]), int(ends[4]) + 1, int(ends[300]) + 2):
+        cut = whole_segments(spec, 3, limit)
+        assert cut <= limit and (cut == 0 or cut in ends)
+        assert not np.any((ends > cut) & (ends <= limit))  # the last whole segment, not an earlier one
+    assert whole_segments(spec, 3, int(ends[0]) - 1) == 0
+    # a whole segment is whole periods: the next sample is back at the offset
+    cut = whole_segments(spec, 3, int(ends[10]) + 3)
+    assert sample(spec, cut + 1, seed=3)[cut] == pytest.approx(0.02, abs=1e-12)

@@ -132,12 +132,11 @@ def excitation(
         return limits.centre + sample(spec, n, seed=args.seed), 0
     import numpy as np
 
-    from servoid.excitation.gentle import segments
+    from servoid.excitation.gentle import whole_segments
 
     slow_spec = parse_spec(slow[0])
     assert isinstance(slow_spec, GentleSpec)
-    ends = np.cumsum(segments(slow_spec, args.seed, 0, max(8, n // 4))[2])
-    first = int(ends[np.searchsorted(ends, slow[1] * n, side="right") - 1]) if ends[0] <= slow[1] * n else 0
+    first = whole_segments(slow_spec, args.seed, int(slow[1] * n))
     head = sample(slow_spec, first, seed=args.seed) if first else np.empty(0)
     return limits.centre + np.concatenate([head, sample(spec, n - first, seed=args.seed)]), first
 
