@@ -84,10 +84,18 @@ def massless(u: np.ndarray, y: np.ndarray, period: float) -> tuple[ServoLoopMode
 
 
 def horn_search(
-    uc: np.ndarray, yc: np.ndarray, period: float, start: ServoLoopModel, integrator: bool, mu: float = MU
+    uc: np.ndarray,
+    yc: np.ndarray,
+    period: float,
+    start: ServoLoopModel,
+    integrator: bool,
+    mu: float = MU,
+    contact: tuple[float, float] | None = None,
 ) -> tuple[dict[str, float], float, int]:
     """The profile over the play with a light horn (the module docstring); centred signals, the search's window.
 
+    ``contact``: a compliant contact's natural frequency (rad/s) and damping ratio, held
+    (:func:`~servoid.ident.models.servo_loop._advance_contact`; ``e`` is then not fitted); None: rigid impacts.
     Returns the values, their validation NRMSE and the simulations the search took.
     """
     _, kv = lf._linear_start(uc, yc, period)
@@ -95,7 +103,8 @@ def horn_search(
     a_scale = 0.1 * kv * v_typ
     est = lf.block_mask(yc.size)
     d0 = _values(start)
-    held = tuple(n for n in lf._free(PLAY_IN_LOOP, integrator) if n != "play") + ("e", "al")
+    held = tuple(n for n in lf._free(PLAY_IN_LOOP, integrator) if n != "play") + (("al",) if contact else ("e", "al"))
+    wc, zeta = contact if contact else (0.0, 0.0)
 
     def simulate(d: dict[str, float]) -> np.ndarray:
         return lf._model(PLAY_IN_LOOP, period, d).simulate(uc, y0=float(yc[0]))
@@ -105,7 +114,8 @@ def horn_search(
     points = []
     try:
         for factor in PLAY_FACTORS:
-            s = dict(d0, mu=mu, e=E_START, al=AL_START * max(d0["fc"], 1e-6 * a_scale), play=factor * d0["play"])
+            s = dict(d0, mu=mu, e=0.0 if contact else E_START, al=AL_START * max(d0["fc"], 1e-6 * a_scale),
+                     play=factor * d0["play"], wc=wc, zeta=zeta)  # fmt: skip
             if s["fs"] <= s["fc"]:  # the searches lose the hump (loop_fit._final_fit): restart from one
                 s.update(fs=lf.HUMP_RESTART * s["fc"], vs=max(s["vs"], lf.HUMP_VS * v_typ))
             d, prob, _ = lf._fit(
@@ -195,19 +205,15 @@ def own(spec: str) -> None:
     )
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--records", default="sts3215:20:1,sts3215:20:2,xm430:20:1", help="preset:rate:seed, gentle sines")
-    ap.add_argument("--own", action="store_true", help="first the check on the model's own simulation")
-    ap.add_argument("--chaos", action="store_true", help="first the free run's sensitivity to 0.1 %% of a parameter")
-    args = ap.parse_args()
-    warnings.filterwarnings("ignore", category=RuntimeWarning)
-    lf._LOG_LIMITS["mu"] = (1e-3, 10.0)  # this process only: light horns
-    specs = args.records.split(",")
-    if args.chaos:
-        chaos(specs[0])
-    if args.own:
-        own(specs[0])
+#: The compliant contact's grid (``--contact``): natural frequencies on the load's inertia, rad/s, and damping ratios.
+CONTACT_WC = (300.0, 600.0, 1200.0)
+CONTACT_ZETA = (0.05, 0.2)
+#: The contact of the model's own simulation (``--contact --own``): rad/s, damping ratio.
+OWN_CONTACT = (800.0, 0.1)
+
+
+def profiles(specs: list[str], contacts: list[tuple[float, float] | None]) -> None:
+    """The profile over the play with a light horn on each record: rigid impacts (None) or each compliant contact."""
     rows = []
     for spec in specs:
         name, mult, seed = spec.split(":")
@@ -219,20 +225,80 @@ def main() -> None:
         # the search's window, as fit_loop's (its candidates were fitted there)
         w = lf.SEARCH_SAMPLES if u.size >= 2 * lf.SEARCH_SAMPLES else u.size
         centre = float(np.mean(u))
-        d, val1, sims = horn_search(u[:w] - centre, y[:w] - centre, period, cand, integrator)
+        for contact in contacts:
+            d, val1, sims = horn_search(u[:w] - centre, y[:w] - centre, period, cand, integrator, contact=contact)
+            rows.append([
+                name, f"{mult}x", seed, f"{100 * (cand.play / play - 1):+.1f} %", f"{val0 / floor:.3f}",
+                "rigid" if contact is None else f"{contact[0]:g} / {contact[1]:g}",
+                f"{100 * (d['play'] / play - 1):+.1f} %", f"{val1 / floor:.3f}", f"{100 * (val0 / val1 - 1):+.1f} %",
+                "-" if contact else f"{d['e']:.2f}", f"{d['al']:.3g}", str(sims), f"{time.perf_counter() - started:.1f}",
+            ])  # fmt: skip
+            print(" | ".join(rows[-1]), flush=True)
+            started = time.perf_counter()
+    table(
+        f"The play-in-loop candidate, massless and with a light horn (mu {MU}) in rigid impacts or on a compliant "
+        "contact held at wc (rad/s) / zeta (gap = play / the twin's - 1; validation / floor; s: the first row of a "
+        "record with its massless fit)",
+        ["preset", "rate", "seed", "massless gap", "val", "contact", "horn gap", "val", "horn better by", "e", "al",
+         "horn sims", "s"],
+        rows,
+    )  # fmt: skip
+
+
+def own_contact(spec: str, truth: tuple[float, float], contacts: list[tuple[float, float] | None]) -> None:
+    """The compliant grid on the model's own simulation: the first record's massless loop with a horn on a contact."""
+    name, mult, seed = spec.split(":")
+    rec = twin_record(name, float(mult), 1.0, "sines", int(seed))
+    u, period, play = np.asarray(rec["u"]), float(rec["period"]), float(rec["play"])  # type: ignore[arg-type]
+    start, *_ = massless(u, np.asarray(rec["y"]), period)
+    model = replace(_horn_truth(start, play), e=0.0, wc=truth[0], zeta=truth[1])
+    uc = u - float(np.mean(u))
+    q = 2.0 * np.pi / 4096
+    y = model.simulate(uc, y0=0.0) + np.random.default_rng(int(seed)).normal(0.0, NOISE_COUNTS * q, uc.size)
+    y = np.round(y / q) * q
+    w = lf.SEARCH_SAMPLES if u.size >= 2 * lf.SEARCH_SAMPLES else u.size
+    cand, integrator, val0 = massless(uc[:w], y[:w], period)
+    rows = []
+    for contact in contacts:
+        assert contact is not None
+        started = time.perf_counter()
+        d, val1, sims = horn_search(uc[:w], y[:w], period, cand, integrator, contact=contact)
         rows.append([
-            name, f"{mult}x", seed, f"{100 * (cand.play / play - 1):+.1f} %", f"{val0 / floor:.3f}",
-            f"{100 * (d['play'] / play - 1):+.1f} %", f"{val1 / floor:.3f}", f"{100 * (val0 / val1 - 1):+.1f} %",
-            f"{d['e']:.2f}", f"{d['al']:.3g}", str(sims), f"{time.perf_counter() - started:.1f}",
+            f"{100 * (cand.play / play - 1):+.1f} %", f"{val0:.4g}", f"{contact[0]:g}", f"{contact[1]:g}",
+            f"{100 * (d['play'] / play - 1):+.1f} %", f"{val1:.4g}", str(sims), f"{time.perf_counter() - started:.1f}",
         ])  # fmt: skip
         print(" | ".join(rows[-1]), flush=True)
     table(
-        f"The play-in-loop candidate, massless and with a light horn (mu {MU}; gap = play / the twin's - 1; "
-        "validation / floor)",
-        ["preset", "rate", "seed", "massless gap", "val", "horn gap", "val", "horn better by", "e", "al", "horn sims",
-         "s (both)"],
+        f"The model's own simulation ({name} {mult}x s{seed} massless loop, a horn mu {TWIN_HORN[0]}, al "
+        f"{TWIN_HORN[2]} on a contact wc {truth[0]:g} rad/s, zeta {truth[1]:g}; 4096 counts, 0.3 count of noise)",
+        ["massless gap", "val", "wc rad/s", "zeta", "contact gap", "val", "sims", "s"],
         rows,
-    )  # fmt: skip
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--records", default="sts3215:20:1,sts3215:20:2,xm430:20:1", help="preset:rate:seed, gentle sines")
+    ap.add_argument("--own", action="store_true", help="first the check on the model's own simulation")
+    ap.add_argument("--chaos", action="store_true", help="first the free run's sensitivity to 0.1 %% of a parameter")
+    ap.add_argument("--contact", action="store_true", help="the compliant contact's grid instead of rigid impacts")
+    ap.add_argument("--wc", default=",".join(f"{v:g}" for v in CONTACT_WC), help="contact frequencies, rad/s")
+    ap.add_argument("--zeta", default=",".join(f"{v:g}" for v in CONTACT_ZETA), help="contact damping ratios")
+    args = ap.parse_args()
+    warnings.filterwarnings("ignore", category=RuntimeWarning)
+    lf._LOG_LIMITS["mu"] = (1e-3, 10.0)  # this process only: light horns
+    specs = args.records.split(",")
+    if args.chaos:
+        chaos(specs[0])
+    if args.own and not args.contact:
+        own(specs[0])
+    contacts: list[tuple[float, float] | None] = [
+        (float(wc), float(zeta)) for wc in args.wc.split(",") for zeta in args.zeta.split(",")
+    ]
+    if args.contact and args.own:
+        own_contact(specs[0], OWN_CONTACT, contacts)
+        return
+    profiles(specs, contacts if args.contact else [None])
 
 
 if __name__ == "__main__":

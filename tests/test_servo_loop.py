@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from servoid.errors import ConfigError
 from servoid.ident._jit import python_version
 from servoid.ident.models.servo_loop import (
+    CONTACT_NAMES,
     PARAM_NAMES,
     STATE_SIZE,
     ServoLoopModel,
@@ -122,3 +125,45 @@ def test_a_massless_model_writes_no_load_and_old_files_read_as_massless() -> Non
     assert tuple(heavy.params())[-3:] == ("mu", "e", "al")
     with pytest.raises(ConfigError, match="e"):
         _model(PLAY_IN_LOOP, mu=0.1, e=1.5)
+
+
+def test_a_compliant_contact_kernel_equals_python_and_is_off_without_its_frequency() -> None:
+    u = 0.1 * np.sin(np.arange(300) * 0.05)
+    model = _model(PLAY_IN_LOOP, mu=0.05, al=3.0, wc=900.0, zeta=0.1)
+    assert model.compliant and tuple(model.params())[-2:] == CONTACT_NAMES
+    fast = np.empty(u.size)
+    slow = np.empty(u.size)
+    args = (model.vector(), True, u, 0.0, 0.01, model.substeps)
+    simulate_kernel(*args, fast)
+    python_version(simulate_kernel)(*args, slow)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+    assert ServoLoopModel.from_vector(PLAY_IN_LOOP, 0.01, model.vector()) == model
+    # wc = 0: the rigid impacts, bit for bit (and their files, without the contact's fields)
+    rigid = _model(PLAY_IN_LOOP, mu=0.05, e=0.5, al=3.0)
+    assert not rigid.compliant and tuple(rigid.params())[-3:] == ("mu", "e", "al")
+    np.testing.assert_array_equal(dataclasses.replace(rigid, zeta=0.3).simulate(u), rigid.simulate(u))
+    assert ServoLoopModel.from_vector(PLAY_IN_LOOP, 0.01, rigid.vector()[:15]) == rigid
+    # mu = 0: the massless play, whatever the contact says
+    np.testing.assert_array_equal(
+        _model(PLAY_IN_LOOP, wc=900.0, zeta=0.1).simulate(u), _model(PLAY_IN_LOOP).simulate(u)
+    )
+    # the contact changes the free run: the horn rings on it
+    assert np.max(np.abs(model.simulate(u) - rigid.simulate(u))) > 1e-2 * model.play
+
+
+@pytest.mark.parametrize("zeta", [0.0, 0.1])
+def test_a_compliant_contact_keeps_momentum_and_rebounds_as_its_damping_says(zeta: float) -> None:
+    # the motor side coasts at 1 into a load at rest; the contact (8 ms of 20, resolved by its own sub-step)
+    # keeps the pair's momentum and rebounds with about exp(-zeta pi / sqrt(1 - zeta^2)) (a clipped damper: not exactly)
+    model = _light(
+        OUTPUT_BACKLASH, kp=1e-9, kv=1e-9, fc=0.0, fs=0.0, mu=0.5, al=0.0, c1=0.01, c2=0.01, wc=2000.0, zeta=zeta
+    )
+    p = model.vector()
+    state = np.empty(STATE_SIZE)
+    initial_state(p, 0.0, state)
+    state[0], state[2] = 0.0, 1.0
+    advance(p, False, state, 0.0, 0.02, 20)
+    v, w = state[2], state[4]
+    assert v + model.mu * w == pytest.approx(1.0, rel=1e-6)
+    assert w - v == pytest.approx(np.exp(-zeta * np.pi / np.sqrt(1.0 - zeta**2)), abs=0.03)
+    assert -model.c2 < state[0] - state[1] < model.c1  # apart again, inside the play

@@ -11,6 +11,8 @@ simulator serves both places of the play (:mod:`~servoid.ident.models.structure_
     load:        massless -- the play operator of x: y = x - c1 pushed up, y = x + c2 pushed down, else held
                  or (opt-in, mu > 0) its own inertia mu and friction al, meeting the flanks in rigid
                  impacts of restitution e (:func:`_advance_load`)
+                 or (opt-in, mu > 0 and wc > 0) the same load on a compliant contact: a spring of natural
+                 frequency wc and damping ratio zeta outside the play (:func:`_advance_contact`)
     reading:     y_hat(k) = y(t_k), read at the host instant before the command u(k) is applied
 
 Why this form (physics, see the issue-12 study): a drive that closes its loop
@@ -56,6 +58,7 @@ from servoid.ident.models.structure_names import FEEDBACK, PLAY_IN_LOOP, STRUCTU
 __all__ = [
     "PARAM_NAMES",
     "LOAD_NAMES",
+    "CONTACT_NAMES",
     "KERNEL_NAMES",
     "STATE_SIZE",
     "ServoLoopModel",
@@ -73,11 +76,19 @@ PARAM_NAMES: tuple[str, ...] = ("kp", "kv", "ki", "vmax", "fc", "fs", "vs", "vep
 #: A vector without them, and ``mu = 0``, is the massless load (the play operator), as are model files
 #: written before they existed.
 LOAD_NAMES: tuple[str, ...] = ("mu", "e", "al")
-#: The kernel's parameter vector: :data:`PARAM_NAMES` then :data:`LOAD_NAMES`.
-KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES
+#: The gear contact's own parameters (:func:`_advance_contact`), after :data:`LOAD_NAMES`: the contact's
+#: natural frequency ``wc`` on the load's inertia, rad/s, and its damping ratio ``zeta``. ``wc = 0`` (and a
+#: vector without them) is the rigid flank of :func:`_advance_load`.
+CONTACT_NAMES: tuple[str, ...] = ("wc", "zeta")
+#: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, then :data:`CONTACT_NAMES`.
+KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES
 #: A rebound slower than this share of the speed the load's friction takes off in one sub-step ends in
 #: contact (:func:`_advance_load`): small, so that a small restitution still bounces (the fit needs its slope).
 REBOUND_SHARE = 0.01
+#: Largest ``h wc sqrt(1 + mu)`` of a compliant contact's sub-step (:func:`_advance_contact`): about 60
+#: sub-steps per period of the contact's ringing, so that the explicit contact force neither damps nor
+#: excites it (the fit's own sub-step, :data:`H_KV_MAX`, is up to ten times longer than the contact's period).
+H_WC_MAX = 0.1
 #: Floats in the simulation's state: ``[x, y, v, z, w, contact]`` (:func:`initial_state`).
 STATE_SIZE = 6
 
@@ -167,6 +178,8 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
     if veps <= 0.0:
         veps = 1e-300
     if p.shape[0] > 12 and p[12] > 0.0:
+        if p.shape[0] > 15 and p[15] > 0.0:
+            return _advance_contact(p, feedback_load, state, r, period, m, veps)
         return _advance_load(p, feedback_load, state, r, period, m, veps)
     h = period / m
     x, yl, v, z = state[0], state[1], state[2], state[3]
@@ -208,6 +221,18 @@ def _motor_step(
         f, df = _friction(vn, fc, fs, vs, veps)
         vn -= (vn * (1.0 + h * kv) - base + h * f) / (1.0 + h * kv + h * df)
     return vn
+
+
+@jit
+def _command(kp: float, error: float, vmax: float) -> float:
+    """The position loop's velocity command ``kp error``, clipped at ``vmax`` (0: no limit) (a massive load's, :func:`advance`)."""
+    vcmd = kp * error
+    if vmax > 0.0:
+        if vcmd > vmax:
+            return vmax
+        if vcmd < -vmax:
+            return -vmax
+    return vcmd
 
 
 @jit
@@ -266,12 +291,7 @@ def _advance_load(
     h = period / m
     x, yl, v, z, w, side = state[0], state[1], state[2], state[3], state[4], state[5]
     for _ in range(m):
-        vcmd = kp * (r - (yl if feedback_load else x))
-        if vmax > 0.0:
-            if vcmd > vmax:
-                vcmd = vmax
-            elif vcmd < -vmax:
-                vcmd = -vmax
+        vcmd = _command(kp, r - (yl if feedback_load else x), vmax)
         if side != 0.0:
             # one body: the implicit step of the pair, two Newton steps on both frictions
             base = (1.0 + mu) * v + h * (kv * vcmd + z + a0)
@@ -326,6 +346,77 @@ def _advance_load(
                 yn = xn - c1 if side > 0.0 else xn + c2
         x, yl, v, w = xn, yn, vn, wn
     state[0], state[1], state[2], state[3], state[4], state[5] = x, yl, v, z, w, side
+    return float(yl)
+
+
+@jit
+def contact_substeps(sample_period_s: float, m: int, mu: float, wc: float) -> int:
+    """Sub-steps per host period of a compliant contact: at least ``m``, and ``h wc sqrt(1 + mu) <= H_WC_MAX``.
+
+    Parameters
+    ----------
+    sample_period_s : float
+        The host period ``T``, s.
+    m : int
+        The loop's own sub-steps (:func:`substeps`).
+    mu : float
+        The load's inertia ratio.
+    wc : float
+        The contact's natural frequency on the load's inertia, rad/s.
+
+    Returns
+    -------
+    int
+    """
+    return max(m, int(math.ceil(sample_period_s * wc * math.sqrt(1.0 + mu) / H_WC_MAX)))
+
+
+@jit
+def _advance_contact(
+    p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, period: float, m: int, veps: float
+) -> float:
+    """:func:`advance` with a load of its own inertia on a compliant, damped gear contact (``mu > 0``, ``wc > 0``).
+
+    The load of :func:`_advance_load` (inertia ``mu`` times the motor side's, friction ``al sat(w /
+    veps)``), but a flank is a spring-damper, not a rigid wall: outside the play, by the penetration
+    ``p = (x - y) - c1`` (up) or ``(x - y) + c2`` (down), the contact pushes the load with the
+    acceleration ``f = wc^2 p + 2 zeta wc (v - w)`` (on the load's inertia) and never pulls
+    (``f`` clipped at 0 on its side), and the motor side with ``-mu f``::
+
+        dv/dt = kv (v_cmd - v) + z + a0 - F(v) - mu f,     dw/dt = f - al sat(w / veps)
+
+    A real gear's mesh is a stiff spring: the contact lasts about ``pi / wc`` (4 ms at 785 rad/s),
+    which against a host period of a few ms a rigid impact does not have. The contact is integrated
+    with its own sub-step (:func:`contact_substeps`, ``h wc sqrt(1 + mu) <= 0.1``): the forces at
+    the step's start, the motor's velocity loop and friction implicit as in :func:`advance`, the
+    load's friction implicit (:func:`_load_step`), then the positions with the new speeds
+    (semi-implicit Euler). ``e`` and the contact state ``state[5]`` are not used (``state[5]`` stays 0).
+    """
+    kp, kv, ki, vmax = p[0], p[1], p[2], p[3]
+    fc, fs, vs = p[4], p[5], p[6]
+    a0, c1, c2 = p[8], p[9], p[10]
+    mu, al, wc, zeta = p[12], p[14], p[15], p[16]
+    mc = contact_substeps(period, m, mu, wc)
+    h = period / mc
+    k2 = wc * wc
+    c = 2.0 * zeta * wc
+    x, yl, v, z, w = state[0], state[1], state[2], state[3], state[4]
+    for _ in range(mc):
+        vcmd = _command(kp, r - (yl if feedback_load else x), vmax)
+        d = x - yl
+        f = 0.0
+        if d > c1:
+            f = max(k2 * (d - c1) + c * (v - w), 0.0)
+        elif d < -c2:
+            f = min(k2 * (d + c2) + c * (v - w), 0.0)
+        vn = _motor_step(v, vcmd, z, a0 - mu * f, kv, fc, fs, vs, veps, h)
+        if ki > 0.0:
+            z += h * ki * (vcmd - vn)
+        w = _load_step(w + h * f, al, veps, h)
+        v = vn
+        x += h * v
+        yl += h * w
+    state[0], state[1], state[2], state[3], state[4] = x, yl, v, z, w
     return float(yl)
 
 
@@ -395,6 +486,11 @@ class ServoLoopModel:
         The coefficient of restitution of an impact on a flank, 0..1 (with ``mu > 0``).
     al : float
         The load's own friction as a deceleration, unit/s^2 (with ``mu > 0``).
+    wc : float
+        The gear contact's natural frequency on the load's inertia, rad/s (with ``mu > 0``; 0: a rigid
+        flank, the impacts of :func:`_advance_load`; > 0: the compliant contact of :func:`_advance_contact`).
+    zeta : float
+        The compliant contact's damping ratio (with ``wc > 0``).
     """
 
     structure: str
@@ -414,6 +510,8 @@ class ServoLoopModel:
     mu: float = 0.0
     e: float = 0.0
     al: float = 0.0
+    wc: float = 0.0
+    zeta: float = 0.0
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -421,7 +519,7 @@ class ServoLoopModel:
         validation.positive("sample_period_s", self.sample_period_s)
         for name in ("kp", "kv", "vs", "veps"):
             validation.positive(name, getattr(self, name))
-        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al"):
+        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta"):
             validation.non_negative(name, getattr(self, name))
         validation.in_unit_interval("e", self.e, open_low=False, open_high=False)
         validation.real("a0", self.a0)
@@ -447,9 +545,17 @@ class ServoLoopModel:
         """Whether the load has its own inertia (``mu > 0``: impacts on the flanks) rather than none."""
         return self.mu > 0.0
 
+    @property
+    def compliant(self) -> bool:
+        """Whether a massive load meets the flanks on a compliant contact (``wc > 0``) rather than in rigid impacts."""
+        return self.massive and self.wc > 0.0
+
     def names(self) -> tuple[str, ...]:
-        """The model's parameter names: :data:`PARAM_NAMES`, and :data:`LOAD_NAMES` for a massive load."""
-        return KERNEL_NAMES if self.massive else PARAM_NAMES
+        """The model's parameter names: :data:`PARAM_NAMES`, :data:`LOAD_NAMES` for a massive load, and
+        :data:`CONTACT_NAMES` for a compliant contact."""
+        if not self.massive:
+            return PARAM_NAMES
+        return KERNEL_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
 
     def vector(self) -> np.ndarray:
         """The parameters in the order of :data:`KERNEL_NAMES` (what :func:`simulate_kernel` takes)."""
@@ -457,7 +563,7 @@ class ServoLoopModel:
 
     @classmethod
     def from_vector(cls, structure: str, sample_period_s: float, p: np.ndarray) -> ServoLoopModel:
-        """The model of a parameter vector in the order of :data:`PARAM_NAMES` (and :data:`LOAD_NAMES`, optional).
+        """The model of a parameter vector in the order of :data:`KERNEL_NAMES` (:data:`PARAM_NAMES` alone, or with :data:`LOAD_NAMES`, also).
 
         Parameters
         ----------
@@ -473,7 +579,7 @@ class ServoLoopModel:
         ServoLoopModel
         """
         p = np.asarray(p, dtype=np.float64)
-        names = KERNEL_NAMES if p.size == len(KERNEL_NAMES) else PARAM_NAMES
+        names = next((n for n in (PARAM_NAMES + LOAD_NAMES, KERNEL_NAMES) if p.size == len(n)), PARAM_NAMES)
         values = {name: float(v) for name, v in zip(names, p, strict=True)}
         return cls(structure=structure, sample_period_s=float(sample_period_s), **values)
 
