@@ -167,3 +167,24 @@ def test_a_compliant_contact_keeps_momentum_and_rebounds_as_its_damping_says(zet
     assert v + model.mu * w == pytest.approx(1.0, rel=1e-6)
     assert w - v == pytest.approx(np.exp(-zeta * np.pi / np.sqrt(1.0 - zeta**2)), abs=0.03)
     assert -model.c2 < state[0] - state[1] < model.c1  # apart again, inside the play
+
+
+def test_the_profile_over_the_play_of_a_horn_on_a_contact_has_its_minimum_at_its_play() -> None:
+    # the model's own simulation (a light horn on a contact of 800 rad/s, 4096 counts, 0.3 count of noise), the rest
+    # held at the truth: the profile over the play is lowest at the true play, at the record's floor; the massless
+    # load with the same loop is far above it (the horn's ringing is in the record)
+    truth = _light(PLAY_IN_LOOP, c1=0.011, c2=0.011, mu=0.03, al=20.0, wc=800.0, zeta=0.1)
+    t = np.arange(2000) * 0.01
+    u = 0.08 * np.sin(2 * np.pi * 0.4 * t) + 0.04 * np.sin(2 * np.pi * 1.1 * t + 1.0)
+    q = 2 * np.pi / 4096
+    y = np.round((truth.simulate(u) + np.random.default_rng(2).normal(0.0, 0.3 * q, u.size)) / q) * q
+    floor = np.sqrt(1.0 / 12.0 + 0.3**2)
+    factors = np.linspace(0.85, 1.15, 7)
+    rms = [
+        np.sqrt(np.mean((dataclasses.replace(truth, c1=f * 0.011, c2=f * 0.011).simulate(u) - y) ** 2)) / q
+        for f in factors
+    ]
+    assert factors[int(np.argmin(rms))] == pytest.approx(1.0)
+    assert min(rms) < 1.05 * floor and max(rms[0], rms[-1]) > 1.5 * floor
+    massless = dataclasses.replace(truth, mu=0.0, wc=0.0)
+    assert np.sqrt(np.mean((massless.simulate(u) - y) ** 2)) / q > 1.25 * floor
