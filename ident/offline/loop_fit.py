@@ -71,7 +71,14 @@ from servoid import validation
 from servoid.errors import ConfigError, ModelError
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import free_run_nrmse, nrmse
-from servoid.ident.models.servo_loop import KERNEL_NAMES, LOAD_NAMES, ServoLoopModel, simulate_kernel, substeps
+from servoid.ident.models.servo_loop import (
+    KERNEL_NAMES,
+    LOAD_NAMES,
+    ServoLoopModel,
+    simulate_kernel,
+    simulate_pair_kernel,
+    substeps,
+)
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline import _threads
 from servoid.ident.offline._oefit import single_threaded_blas
@@ -417,7 +424,14 @@ class _Problem:
 
     def residual(self, z: np.ndarray, buffer: np.ndarray | None = None) -> np.ndarray:
         """The residual at ``z``, simulated into ``buffer`` (default: the problem's own)."""
-        y_hat = self.simulate(self.vector(z), buffer)
+        return self.scored(self.simulate(self.vector(z), buffer))
+
+    def simulate_pair(self, p: np.ndarray, q: np.ndarray, buffers: tuple[np.ndarray, np.ndarray]) -> None:
+        """:meth:`simulate` of two parameter vectors at once (:func:`simulate_pair_kernel`), into ``buffers``."""
+        simulate_pair_kernel(p, q, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, *buffers)
+
+    def scored(self, y_hat: np.ndarray) -> np.ndarray:
+        """The residual of the simulated output ``y_hat`` (:meth:`simulate`'s) on the scored samples."""
         r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
         # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
         limit = 10.0 * (float(np.ptp(self.y)) + 1.0)
@@ -436,9 +450,10 @@ class _Problem:
 
         scipy's relative ``diff_step`` shrinks with ``|z|``, and ``z`` starts at 0: its steps would
         be far below the sub-step roughness of the simulation, whose slope a 3 % step sees.
-        The columns are independent simulations, each into its own buffer: they run at once
-        (:func:`._threads.each`; the kernel releases the GIL) and give the same numbers as
-        one after the other.
+        The columns are independent simulations, each into its own buffer: they run at once, two
+        by two in one kernel (:func:`simulate_pair_kernel`, which hides each one's latency behind
+        the other's) and the pairs on the threads (:func:`._threads.each`; the kernel releases the
+        GIL), and give the same numbers as one after the other.
         """
         z = np.asarray(z, dtype=np.float64)
         last = self._last
@@ -452,14 +467,25 @@ class _Problem:
         if len(self._buffers) < z.size:
             self._buffers = [np.empty(self.stop) for _ in range(z.size)]
 
-        def column(i: int) -> None:
-            step = DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP
+        steps = [DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP for i in range(z.size)]
+
+        def moved(i: int) -> np.ndarray:
             zi = z.copy()
-            zi[i] += step
-            jac[:, i] = (self.residual(zi, self._buffers[i]) - r0) / step
+            zi[i] += steps[i]
+            return self.vector(zi)
+
+        def columns(t: int) -> None:
+            """Columns ``2 t`` and ``2 t + 1`` (the last alone when the count is odd)."""
+            pair = range(2 * t, min(2 * t + 2, z.size))
+            if len(pair) == 2:
+                self.simulate_pair(moved(pair[0]), moved(pair[1]), (self._buffers[pair[0]], self._buffers[pair[1]]))
+            else:
+                self.simulate(moved(pair[0]), self._buffers[pair[0]])
+            for i in pair:
+                jac[:, i] = (self.scored(self._buffers[i]) - r0) / steps[i]
 
         self.evaluations += z.size  # here, not in the columns: ``+=`` from several threads could lose counts
-        _threads.each(column, z.size)
+        _threads.each(columns, (z.size + 1) // 2)
         return jac
 
 
@@ -508,20 +534,31 @@ def _scan(
     score: np.ndarray,
     plays: np.ndarray,
 ) -> tuple[dict[str, float], int]:
-    """The best start of a grid of plays x friction levels, simulated (not fitted) on the estimation blocks."""
+    """The best start of a grid of plays x friction levels, simulated (not fitted) on the estimation blocks.
+
+    The starts share the loop's rates, so their simulations run two by two (:meth:`_Problem.simulate_pair`).
+    """
     best: tuple[float, dict[str, float]] | None = None
-    evaluations = 0
-    for play in plays:
-        for friction in (0.3, 1.0, 3.0):
-            start = _start(kp, kv, v_typ, float(play), integrator=False, friction=friction)
-            prob = _Problem(u, y, period, structure, (), start, score, 1.0)
-            r = prob(np.zeros(0))
-            evaluations += 1
+    starts = [
+        _start(kp, kv, v_typ, float(play), integrator=False, friction=friction)
+        for play in plays
+        for friction in (0.3, 1.0, 3.0)
+    ]
+    none = np.zeros(0)
+    for at in range(0, len(starts), 2):
+        probs = [_Problem(u, y, period, structure, (), start, score, 1.0) for start in starts[at : at + 2]]
+        if len(probs) == 2 and probs[0].m == probs[1].m:
+            buffers = (probs[0].buffer, probs[1].buffer)
+            probs[0].simulate_pair(probs[0].vector(none), probs[1].vector(none), buffers)
+            residuals = [prob.scored(buffer) for prob, buffer in zip(probs, buffers, strict=True)]
+        else:
+            residuals = [prob(none) for prob in probs]
+        for start, r in zip(starts[at : at + 2], residuals, strict=True):
             cost = float(r @ r)
             if best is None or cost < best[0]:
                 best = (cost, start)
     assert best is not None
-    return best[1], evaluations
+    return best[1], len(starts)
 
 
 def _fit(
