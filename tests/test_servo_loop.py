@@ -46,15 +46,17 @@ def test_the_pair_kernel_gives_each_simulation_to_the_bit(structure: str) -> Non
     others = [
         _model(structure, kp=35.0, ki=0.0, vmax=0.4, fs=1.0, c1=0.02, s0=0.9),
         _model(structure, fs=2.0, veps=0.02),
-        _model(structure, mu=1.5, e=0.3, al=4.0),  # a massive load: the two one after the other
+        _model(structure, mu=1.5, e=0.3, al=4.0),  # a massive load beside a massless one: one after the other
     ]
-    for other in others:
-        m = first.substeps
+    pairs = [(first, other) for other in others]
+    # two massive loads: their impacts and contacts side by side
+    pairs.append((others[2], _model(structure, mu=0.4, e=0.0, al=8.0, ki=0.0, c2=0.005)))
+    for a, b in pairs:
         alone = [np.empty(650), np.empty(650)]
-        for model, out in zip((first, other), alone, strict=True):
-            simulate_kernel(model.vector(), first.feedback_load, u, 0.01, 0.01, m, out)
+        for model, out in zip((a, b), alone, strict=True):
+            simulate_kernel(model.vector(), a.feedback_load, u, 0.01, 0.01, a.substeps, out)
         both = [np.empty(650), np.empty(650)]
-        simulate_pair_kernel(first.vector(), other.vector(), first.feedback_load, u, 0.01, 0.01, m, *both)
+        simulate_pair_kernel(a.vector(), b.vector(), a.feedback_load, u, 0.01, 0.01, a.substeps, *both)
         assert np.array_equal(both[0], alone[0]) and np.array_equal(both[1], alone[1])
         assert not np.array_equal(both[0], both[1])
     slow = [np.empty(650), np.empty(650)]

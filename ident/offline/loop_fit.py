@@ -47,7 +47,8 @@ the play by well under its interval and cost half the simulations (``benchmarks/
 The final refit ends by the same rule (:data:`FINAL_STALL`) and then takes one Jacobian at its
 answer for the interval.
 The Jacobian's columns and the two places' searches run at once on the shared thread pool
-(:mod:`._threads`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
+(:mod:`._threads`), the columns and the scan's starts two by two in one kernel
+(:func:`~servoid.ident.models.servo_loop.simulate_pair_kernel`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
 is searched (steps 3-5 and 7) on its first :data:`SEARCH_SAMPLES` samples (fewer where they hold more than
 :data:`WINDOW_REVERSALS` reversals of the set point), with their own interleaved blocks; only the final refit (step 6) and what is read from it run on every sample
 (the starts of step 2 read all): the search's cost no longer grows with the record, and on the
@@ -381,6 +382,9 @@ class _Problem:
         self.score = score
         self.stop = int(np.flatnonzero(score)[-1]) + 1
         self.y_scored = y[: self.stop][score[: self.stop]]
+        self.scored_at = np.flatnonzero(score[: self.stop])
+        #: The residual of a simulation that ran away (:meth:`scored`).
+        self.runaway = 10.0 * (float(np.ptp(y)) + 1.0)
         self.a_scale = a_scale
         self.m = substeps(period, start["kv"])
         self.buffer = np.empty(self.stop)
@@ -435,11 +439,10 @@ class _Problem:
 
     def scored(self, y_hat: np.ndarray) -> np.ndarray:
         """The residual of the simulated output ``y_hat`` (:meth:`simulate`'s) on the scored samples."""
-        r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
+        r: np.ndarray = y_hat[self.scored_at] - self.y_scored
         # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
-        limit = 10.0 * (float(np.ptp(self.y)) + 1.0)
-        if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * limit):
-            r = np.full(r.size, limit)
+        if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * self.runaway):
+            r = np.full(r.size, self.runaway)
         return r
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
