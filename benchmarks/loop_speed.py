@@ -5,9 +5,10 @@ and its load stage where it runs) on the twins' records of ``real_servos.py``
 (gentle sines at 20x the loop bandwidth, seed 1, and one 20 000-sample record of
 the CiA 402 twin, 50 s at 400 Hz) twice: once with the servo-loop fit
 (:mod:`~servoid.ident.offline.loop_fit`) of the git revision ``--against`` (default
-``main``, read with ``git show``; the rest of the code is this tree's) and once with
-this tree's. Both on the thread rule's default (``SERVOID_THREADS`` to change it);
-best of ``--repeat``. The table gives ``identify``'s wall time, the servo-loop fit's
+``main``, read with ``git show``) and once with this tree's. The rest of the code is this
+tree's in both rows (the kernels, the thread pool, ``identify`` itself): a change there shows
+in both, and its time is measured against another tree's process, not here. Both on the
+thread rule's default (``SERVOID_THREADS`` to change it); best of ``--repeat``. The table gives ``identify``'s wall time, the servo-loop fit's
 own time and simulations, the place of the play, the play's error against the twin's
 truth, its 95 % interval over the truth and the loop fit over the record's floor, so
 that a faster path that moves the answer shows::

@@ -335,3 +335,73 @@ def test_each_task_runs_once_and_a_tasks_error_reaches_the_caller(monkeypatch: p
 
     with pytest.raises(ModelError, match="task 7"):
         _threads.each(fail, 12)
+
+
+def test_a_thread_waiting_for_its_tasks_runs_another_threads_tasks(monkeypatch: pytest.MonkeyPatch) -> None:
+    # two outer tasks, one short and one that opens tasks of its own which need two threads at once (a barrier):
+    # they only pass when the thread whose outer task ended runs them while it waits for the other
+    import threading
+
+    from servoid.ident.offline import _threads
+
+    monkeypatch.setenv(_threads.ENV, "2")
+    barrier = threading.Barrier(2, timeout=20.0)
+    ran: list[tuple[int, int]] = []
+
+    def inner(i: int) -> None:
+        barrier.wait()
+        ran.append((i, threading.get_ident()))
+
+    def outer(i: int) -> None:
+        if i == 1:
+            _threads.each(inner, 2)
+
+    _threads.each(outer, 2)
+    assert sorted(i for i, _ in ran) == [0, 1]
+    assert len({thread for _, thread in ran}) == 2
+
+
+def test_a_job_ahead_gives_its_value_or_its_error_and_is_joined(monkeypatch: pytest.MonkeyPatch) -> None:
+    import threading
+    import time
+
+    from servoid.ident.offline import _threads
+
+    monkeypatch.setenv(_threads.ENV, "2")
+    where: list[str] = []
+
+    def job() -> int:
+        where.append(threading.current_thread().name)
+        return 42
+
+    assert _threads.Ahead(job).result() == 42
+    assert where == ["servoid-ahead"]
+
+    def fails() -> int:
+        raise ModelError("the job failed")
+
+    with pytest.raises(ModelError, match="the job failed"):
+        _threads.Ahead(fails).result()
+    # one thread: the job runs where its result is asked for
+    with _threads.one_thread():
+        assert _threads.Ahead(job).result() == 42
+    assert where[-1] == threading.current_thread().name
+    # a call that starts a job and ends without asking for it still waits for it
+    release = threading.Event()
+    done: list[bool] = []
+
+    def slow() -> int:
+        release.wait(20.0)
+        time.sleep(0.2)  # still running when the caller raises
+        done.append(True)
+        return 1
+
+    @_threads.joins_ahead
+    def caller() -> None:
+        _threads.Ahead(slow)
+        release.set()
+        raise ConfigError("the caller failed")
+
+    with pytest.raises(ConfigError, match="the caller failed"):
+        caller()
+    assert done == [True]

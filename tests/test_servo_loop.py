@@ -17,6 +17,7 @@ from servoid.ident.models.servo_loop import (
     advance,
     initial_state,
     simulate_kernel,
+    simulate_pair_kernel,
 )
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 
@@ -38,6 +39,38 @@ def test_compiled_kernel_equals_python(structure: str) -> None:
     simulate_kernel(*args, fast)
     python_version(simulate_kernel)(*args, slow)
     np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_the_pair_kernel_gives_each_simulation_to_the_bit(structure: str) -> None:
+    # two simulations in one loop must be two simulations: other gains, limits, friction, no integrator
+    u = 0.1 * np.sin(np.arange(700) * 0.04) + np.random.default_rng(3).normal(0.0, 0.01, 700)
+    first = _model(structure)
+    others = [
+        _model(structure, kp=35.0, ki=0.0, vmax=0.4, fs=1.0, c1=0.02, s0=0.9),
+        _model(structure, fs=2.0, veps=0.02),
+        _model(structure, mu=1.5, e=0.3, al=4.0),  # a massive load beside a massless one: one after the other
+    ]
+    pairs = [(first, other) for other in others]
+    # two massive loads: their impacts and contacts side by side
+    pairs.append((others[2], _model(structure, mu=0.4, e=0.0, al=8.0, ki=0.0, c2=0.005)))
+    # a load on a compliant contact (its own sub-steps) beside a rigid one: one after the other
+    pairs.append((others[2], _model(structure, mu=0.4, al=8.0, wc=900.0, zeta=0.1)))
+    for a, b in pairs:
+        alone = [np.empty(650), np.empty(650)]
+        for model, out in zip((a, b), alone, strict=True):
+            simulate_kernel(model.vector(), a.feedback_load, u, 0.01, 0.01, a.substeps, out)
+        both = [np.empty(650), np.empty(650)]
+        simulate_pair_kernel(a.vector(), b.vector(), a.feedback_load, u, 0.01, 0.01, a.substeps, *both)
+        assert np.array_equal(both[0], alone[0]) and np.array_equal(both[1], alone[1])
+        assert not np.array_equal(both[0], both[1])
+    slow = [np.empty(650), np.empty(650)]
+    python_version(simulate_pair_kernel)(
+        first.vector(), others[0].vector(), first.feedback_load, u, 0.01, 0.01, 7, *slow
+    )
+    simulate_pair_kernel(first.vector(), others[0].vector(), first.feedback_load, u, 0.01, 0.01, 7, *both)
+    np.testing.assert_allclose(both[0], slow[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(both[1], slow[1], rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])

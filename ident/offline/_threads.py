@@ -14,6 +14,10 @@ The rule, first match wins:
 3. the CPUs this process may run on (``os.sched_getaffinity``, else
    ``os.cpu_count()``).
 
+A whole fit whose inputs are known before the work it waits behind can start early on a thread of
+its own (:class:`Ahead`, by the same rule: not where it gives one thread); the call that starts it
+is wrapped in :func:`joins_ahead`, so no such thread outlives it.
+
 The pool is made at the first use and kept (a Jacobian is computed some
 hundred times per fit); it is remade when the rule's answer changes, dropped in
 a forked child (its threads do not survive ``fork``), and its threads are
@@ -24,21 +28,28 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import os
 import queue
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from typing import Generic, ParamSpec, TypeVar
 
 from servoid.errors import ConfigError
 
-__all__ = ["ENV", "threads", "one_thread", "pool", "each"]
+__all__ = ["ENV", "threads", "one_thread", "pool", "each", "Ahead", "joins_ahead"]
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 #: The environment variable that sets the number of threads (a positive integer).
 ENV = "SERVOID_THREADS"
 
 # a context variable, not a global: a Dask worker with several threads runs each task in its own context
 _ONE: contextvars.ContextVar[bool] = contextvars.ContextVar("servoid_one_thread", default=False)
+# the :class:`Ahead` jobs started inside the innermost :func:`joins_ahead` call (None outside one)
+_STARTED: contextvars.ContextVar[list[Ahead[object]] | None] = contextvars.ContextVar("servoid_ahead", default=None)
 _lock = threading.Lock()
 _pool: ThreadPoolExecutor | None = None
 _size = 0
@@ -88,18 +99,74 @@ def pool() -> ThreadPoolExecutor | None:
         return _pool
 
 
+class _Batch:
+    """The tasks of one :func:`each` call: the indices not yet taken, the count not yet done, the first error."""
+
+    def __init__(self, func: Callable[[int], None], count: int) -> None:
+        self.func = func
+        self.owner = threading.get_ident()
+        self.tasks: queue.SimpleQueue[int] = queue.SimpleQueue()
+        for i in range(count):
+            self.tasks.put(i)
+        self.left = count
+        self.error: BaseException | None = None
+
+    def take(self) -> int | None:
+        try:
+            return self.tasks.get_nowait()
+        except queue.Empty:
+            return None
+
+    def run(self, i: int) -> None:
+        """Task ``i``; its error is kept for the owner, and its end counted (under :data:`_changed`)."""
+        try:
+            self.func(i)
+        except BaseException as exc:  # noqa: BLE001 - raised by the owner, once every task has ended
+            error: BaseException | None = exc
+        else:
+            error = None
+        with _changed:
+            if error is not None and self.error is None:
+                self.error = error
+            self.left -= 1
+            if self.left == 0:
+                _changed.notify_all()
+
+    def drain(self) -> None:
+        while (i := self.take()) is not None:
+            self.run(i)
+
+
+# every :func:`each` call's batch while it has tasks not done; a change (a batch opened, a batch done) is notified
+_changed = threading.Condition()
+_open: list[_Batch] = []
+
+
+def _lent(me: int) -> tuple[_Batch, int] | None:
+    """A task of a batch another thread opened, for a thread that waits for its own batch (``_changed`` held)."""
+    for batch in _open:
+        if batch.owner != me and (i := batch.take()) is not None:
+            return batch, i
+    return None
+
+
 def each(func: Callable[[int], None], count: int) -> None:
     """Call ``func(i)`` for every ``i < count``: on the calling thread and the pool's helpers, in any order.
 
     The calling thread takes tasks too, and a helper that has not started by the time the
     tasks are gone is cancelled, not waited for: on a busy machine a woken thread may wait
     milliseconds for a core (the same wait :func:`._oefit.single_threaded_blas` avoids), and the
-    caller then simply does the work itself. ``func`` must write only its own part of any output.
+    caller then simply does the work itself. A caller whose own tasks are all taken but not all
+    done runs tasks of the other threads' calls meanwhile (never its own outer calls', which could
+    hold it up): when the two places of the play are searched at once and one ends first, its
+    thread computes Jacobian columns of the other instead of waiting for it. ``func`` must write
+    only its own part of any output.
 
     Parameters
     ----------
     func : callable
-        Takes the task's index; its return value is ignored; an exception it raises is raised here.
+        Takes the task's index; its return value is ignored; an exception it raises is raised here
+        (the first, once every task has ended).
     count : int
         The number of tasks.
     """
@@ -108,30 +175,104 @@ def each(func: Callable[[int], None], count: int) -> None:
         for i in range(count):
             func(i)
         return
-    tasks: queue.SimpleQueue[int] = queue.SimpleQueue()
-    for i in range(count):
-        tasks.put(i)
-
-    def drain() -> None:
-        while True:
-            try:
-                i = tasks.get_nowait()
-            except queue.Empty:
-                return
-            func(i)
-
-    started = [helpers.submit(drain) for _ in range(min(_size, count - 1))]
+    batch = _Batch(func, count)
+    me = batch.owner
+    with _changed:
+        _open.append(batch)
+        _changed.notify_all()
+    started = [helpers.submit(batch.drain) for _ in range(min(_size, count - 1))]
     try:
-        drain()
+        batch.drain()
+        while True:
+            with _changed:
+                if batch.left == 0:
+                    break
+                lent = _lent(me)
+                if lent is None:
+                    _changed.wait()
+                    continue
+            lent[0].run(lent[1])
     finally:
+        with _changed:
+            _open.remove(batch)
         for future in started:
-            if not future.cancel():
-                future.result()
+            future.cancel()  # a helper that started drains only what is left, and its tasks are counted above
+    if batch.error is not None:
+        raise batch.error
+
+
+class Ahead(Generic[R]):
+    """``func()`` started now on a thread of its own, its value (or its exception) given by :meth:`result`.
+
+    Where :func:`threads` gives one thread it does not start: :meth:`result` calls ``func`` then,
+    where the caller would have. The thread runs in a copy of the caller's context (so
+    :func:`one_thread` reaches it) and joins the pool's helpers for its own parallel work; two
+    threads compute while the caller works on, which on two cores is the point. ``func`` must
+    only read what the caller may still change (pass it copies). Inside :func:`joins_ahead` the
+    job is joined when that call ends, however it ends.
+
+    Parameters
+    ----------
+    func : callable
+        Takes no arguments.
+    """
+
+    def __init__(self, func: Callable[[], R]) -> None:
+        self._func = func
+        self._value: R | None = None
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        if threads() > 1:
+            self._thread = threading.Thread(
+                target=contextvars.copy_context().run, args=(self._run,), name="servoid-ahead", daemon=True
+            )
+            started = _STARTED.get()
+            if started is not None:
+                started.append(self)  # type: ignore[arg-type]
+            self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            self._value = self._func()
+        except BaseException as exc:  # noqa: BLE001 - raised again by result(), in the caller's thread
+            self._error = exc
+
+    def join(self) -> None:
+        """Wait until the job has ended (at once when it never started)."""
+        if self._thread is not None:
+            self._thread.join()
+
+    def result(self) -> R:
+        """``func()``'s value, waited for; the exception it raised is raised here."""
+        if self._thread is None:
+            return self._func()
+        self._thread.join()
+        if self._error is not None:
+            raise self._error
+        return self._value  # type: ignore[return-value]
+
+
+def joins_ahead(func: Callable[P, R]) -> Callable[P, R]:
+    """``func`` that joins every :class:`Ahead` job it started before it returns or raises."""
+
+    @functools.wraps(func)
+    def run(*args: P.args, **kwargs: P.kwargs) -> R:
+        started: list[Ahead[object]] = []
+        token = _STARTED.set(started)
+        try:
+            return func(*args, **kwargs)
+        finally:
+            _STARTED.reset(token)
+            for job in started:
+                job.join()
+
+    return run
 
 
 def _forget_after_fork() -> None:
-    global _pool, _size, _lock
+    global _pool, _size, _lock, _changed, _open
     _pool, _size, _lock = None, 0, threading.Lock()  # the parent's lock may have been held by another thread
+    _changed, _open = threading.Condition(), []
 
 
 if hasattr(os, "register_at_fork"):

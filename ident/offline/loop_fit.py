@@ -47,7 +47,8 @@ the play by well under its interval and cost half the simulations (``benchmarks/
 The final refit ends by the same rule (:data:`FINAL_STALL`) and then takes one Jacobian at its
 answer for the interval.
 The Jacobian's columns and the two places' searches run at once on the shared thread pool
-(:mod:`._threads`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
+(:mod:`._threads`), the columns and the scan's starts two by two in one kernel
+(:func:`~servoid.ident.models.servo_loop.simulate_pair_kernel`), with the same answer to the bit. A record of at least twice :data:`SEARCH_SAMPLES`
 is searched (steps 3-5 and 7) on its first :data:`SEARCH_SAMPLES` samples (fewer where they hold more than
 :data:`WINDOW_REVERSALS` reversals of the set point), with their own interleaved blocks; only the final refit (step 6) and what is read from it run on every sample
 (the starts of step 2 read all): the search's cost no longer grows with the record, and on the
@@ -71,7 +72,14 @@ from servoid import validation
 from servoid.errors import ConfigError, ModelError
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import free_run_nrmse, nrmse
-from servoid.ident.models.servo_loop import KERNEL_NAMES, LOAD_NAMES, ServoLoopModel, simulate_kernel, substeps
+from servoid.ident.models.servo_loop import (
+    KERNEL_NAMES,
+    LOAD_NAMES,
+    ServoLoopModel,
+    simulate_kernel,
+    simulate_pair_kernel,
+    substeps,
+)
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline import _threads
 from servoid.ident.offline._oefit import single_threaded_blas
@@ -374,6 +382,9 @@ class _Problem:
         self.score = score
         self.stop = int(np.flatnonzero(score)[-1]) + 1
         self.y_scored = y[: self.stop][score[: self.stop]]
+        self.scored_at = np.flatnonzero(score[: self.stop])
+        #: The residual of a simulation that ran away (:meth:`scored`).
+        self.runaway = 10.0 * (float(np.ptp(y)) + 1.0)
         self.a_scale = a_scale
         self.m = substeps(period, start["kv"])
         self.buffer = np.empty(self.stop)
@@ -384,6 +395,9 @@ class _Problem:
         #: (:class:`_Stalled`) before its Jacobian; 0: never (scipy's own tests only).
         self.stall = 0.0
         self._cost: float | None = None
+        # the first Jacobian column simulated with the last trial point (its steps and vectors; :meth:`__call__`)
+        self._ahead: tuple[np.ndarray, list[float], list[np.ndarray]] | None = None
+        self._column: np.ndarray | None = None
 
     def values(self, z: np.ndarray) -> dict[str, float]:
         d = dict(self.start)
@@ -417,28 +431,59 @@ class _Problem:
 
     def residual(self, z: np.ndarray, buffer: np.ndarray | None = None) -> np.ndarray:
         """The residual at ``z``, simulated into ``buffer`` (default: the problem's own)."""
-        y_hat = self.simulate(self.vector(z), buffer)
-        r: np.ndarray = y_hat[self.score[: self.stop]] - self.y_scored
+        return self.scored(self.simulate(self.vector(z), buffer))
+
+    def simulate_pair(self, p: np.ndarray, q: np.ndarray, buffers: tuple[np.ndarray, np.ndarray]) -> None:
+        """:meth:`simulate` of two parameter vectors at once (:func:`simulate_pair_kernel`), into ``buffers``."""
+        simulate_pair_kernel(p, q, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, *buffers)
+
+    def scored(self, y_hat: np.ndarray) -> np.ndarray:
+        """The residual of the simulated output ``y_hat`` (:meth:`simulate`'s) on the scored samples."""
+        r: np.ndarray = y_hat[self.scored_at] - self.y_scored
         # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
-        limit = 10.0 * (float(np.ptp(self.y)) + 1.0)
-        if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * limit):
-            r = np.full(r.size, limit)
+        if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * self.runaway):
+            r = np.full(r.size, self.runaway)
         return r
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
         self.evaluations += 1
-        r = self.residual(z)
+        z = np.asarray(z, dtype=np.float64)
+        self._ahead = None
+        if z.size % 2:
+            # an odd count of columns leaves one alone in the Jacobian: it runs now, with the trial point in one
+            # kernel (a pair costs 1.1 simulations' time), and the Jacobian there, if the trial is kept, reads it
+            steps, moved = self._steps(z)
+            if self._column is None:
+                self._column = np.empty(self.stop)
+            self.simulate_pair(self.vector(z), moved[0], (self.buffer, self._column))
+            self._ahead = (z.copy(), steps, moved)
+            r = self.scored(self.buffer)
+        else:
+            r = self.residual(z)
         self._last = (z.copy(), r.copy())
         return r
+
+    def _steps(self, z: np.ndarray) -> tuple[list[float], list[np.ndarray]]:
+        """The Jacobian's steps at ``z`` (forward; backward at an upper bound) and the parameter vectors they reach."""
+        hi = self.bounds()[1]
+        steps = [DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP for i in range(z.size)]
+        moved = []
+        for i in range(z.size):
+            zi = z.copy()
+            zi[i] += steps[i]
+            moved.append(self.vector(zi))
+        return steps, moved
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
         """Forward differences with the absolute step :data:`DIFF_STEP` in the scaled coordinates.
 
         scipy's relative ``diff_step`` shrinks with ``|z|``, and ``z`` starts at 0: its steps would
         be far below the sub-step roughness of the simulation, whose slope a 3 % step sees.
-        The columns are independent simulations, each into its own buffer: they run at once
-        (:func:`._threads.each`; the kernel releases the GIL) and give the same numbers as
-        one after the other.
+        The columns are independent simulations, each into its own buffer: they run at once, two
+        by two in one kernel (:func:`simulate_pair_kernel`, which hides each one's latency behind
+        the other's) and the pairs on the threads (:func:`._threads.each`; the kernel releases the
+        GIL), and give the same numbers as one after the other. Of an odd count, the first column
+        ran with the trial point at ``z`` (:meth:`__call__`), which scipy keeps three times in four.
         """
         z = np.asarray(z, dtype=np.float64)
         last = self._last
@@ -447,19 +492,31 @@ class _Problem:
         if self.stall > 0.0 and self._cost is not None and self._cost - cost < self.stall * self._cost:
             raise _Stalled(z.copy())
         self._cost = cost
-        lo, hi = self.bounds()
         jac = np.empty((r0.size, z.size))
         if len(self._buffers) < z.size:
             self._buffers = [np.empty(self.stop) for _ in range(z.size)]
+        ahead = self._ahead
+        first = 0  # the columns from here on run now
+        if ahead is not None and np.array_equal(ahead[0], z):
+            _, steps, moved = ahead
+            assert self._column is not None
+            jac[:, 0] = (self.scored(self._column) - r0) / steps[0]
+            first = 1
+        else:
+            steps, moved = self._steps(z)
 
-        def column(i: int) -> None:
-            step = DIFF_STEP if z[i] + DIFF_STEP <= hi[i] else -DIFF_STEP
-            zi = z.copy()
-            zi[i] += step
-            jac[:, i] = (self.residual(zi, self._buffers[i]) - r0) / step
+        def columns(t: int) -> None:
+            """Columns ``first + 2 t`` and the next (the last alone when the count left is odd)."""
+            pair = range(first + 2 * t, min(first + 2 * t + 2, z.size))
+            if len(pair) == 2:
+                self.simulate_pair(moved[pair[0]], moved[pair[1]], (self._buffers[pair[0]], self._buffers[pair[1]]))
+            else:
+                self.simulate(moved[pair[0]], self._buffers[pair[0]])
+            for i in pair:
+                jac[:, i] = (self.scored(self._buffers[i]) - r0) / steps[i]
 
         self.evaluations += z.size  # here, not in the columns: ``+=`` from several threads could lose counts
-        _threads.each(column, z.size)
+        _threads.each(columns, (z.size - first + 1) // 2)
         return jac
 
 
@@ -508,20 +565,31 @@ def _scan(
     score: np.ndarray,
     plays: np.ndarray,
 ) -> tuple[dict[str, float], int]:
-    """The best start of a grid of plays x friction levels, simulated (not fitted) on the estimation blocks."""
+    """The best start of a grid of plays x friction levels, simulated (not fitted) on the estimation blocks.
+
+    The starts share the loop's rates, so their simulations run two by two (:meth:`_Problem.simulate_pair`).
+    """
     best: tuple[float, dict[str, float]] | None = None
-    evaluations = 0
-    for play in plays:
-        for friction in (0.3, 1.0, 3.0):
-            start = _start(kp, kv, v_typ, float(play), integrator=False, friction=friction)
-            prob = _Problem(u, y, period, structure, (), start, score, 1.0)
-            r = prob(np.zeros(0))
-            evaluations += 1
+    starts = [
+        _start(kp, kv, v_typ, float(play), integrator=False, friction=friction)
+        for play in plays
+        for friction in (0.3, 1.0, 3.0)
+    ]
+    none = np.zeros(0)
+    for at in range(0, len(starts), 2):
+        probs = [_Problem(u, y, period, structure, (), start, score, 1.0) for start in starts[at : at + 2]]
+        if len(probs) == 2 and probs[0].m == probs[1].m:
+            buffers = (probs[0].buffer, probs[1].buffer)
+            probs[0].simulate_pair(probs[0].vector(none), probs[1].vector(none), buffers)
+            residuals = [prob.scored(buffer) for prob, buffer in zip(probs, buffers, strict=True)]
+        else:
+            residuals = [prob(none) for prob in probs]
+        for start, r in zip(starts[at : at + 2], residuals, strict=True):
             cost = float(r @ r)
             if best is None or cost < best[0]:
                 best = (cost, start)
     assert best is not None
-    return best[1], evaluations
+    return best[1], len(starts)
 
 
 def _fit(
