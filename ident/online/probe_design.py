@@ -75,12 +75,14 @@ PLAY_MULTIPLE = 5.0
 NOISE_MULTIPLE = 30.0
 #: Fewest slow samples a level is held for.
 MIN_GROUPS = 3
-#: The fastest gentle-sine segment at full amplitude, as a share of the probe's loop bandwidth
-#: (0.3: on the XM430 twin at 200 Hz, -0.1 %; at 0.25 with 0.92x the amplitude the place of the play flipped, +236 %).
-#: Tuned, not derived: the play shows when the deceleration stays below the load's friction's (Coulomb torque over
-#: inertia), which the probe does not measure; the rule exceeds it on the CiA 402 and ODrive twins (docs/online.md).
-GENTLE_SHARE = 0.3
-#: The slow phase's fastest segment, as a share of the probe's loop bandwidth (a quarter of the fast phase's peak
+#: The fastest gentle-sine segment at full amplitude, as a share of the probe's loop bandwidth. Tuned between two
+#: limits, not derived: the play shows when the deceleration stays below the load's friction's (Coulomb torque over
+#: inertia), which the probe does not measure (the rule exceeds it on the CiA 402 and ODrive twins; at 0.4 the
+#: STS3215 twin's load coasted, -24/-27 %); and a horn encoder read without noise places the play only on faster
+#: sines (the XM430 twin at 200 Hz, 4096 counts, no noise: peak 8 rad/s^2 put it outside the loop at +152/+200 %,
+#: 12 inside at -8/-8/-8 %; at 0.3 live -25/+265 %, at 0.35 +18/+10/+3 %; docs/online.md, issue 15 fifth pass).
+GENTLE_SHARE = 0.35
+#: The slow phase's fastest segment, as a share of the probe's loop bandwidth (about a fifth of the fast phase's peak
 #: acceleration): below the load's friction's deceleration on the motor-side twins, where the fast phase is above it.
 #: Alone it broke the horn twins (XM430 +244 %, the place named wrong; docs/online.md): the refinement names the
 #: place and fits the loop on the fast phase, and refits a play outside the loop on this one.
