@@ -56,7 +56,7 @@ from servoid.ident.offline.operating_point import OperatingPoint, operating_poin
 from servoid.ident.offline.refine import Refinement, arx_start, refine
 from servoid.ident.offline.second_structure import LoopResult, black_box_better, needed, second_structure
 from servoid.ident.offline.structure import OrderChoice, select_orders
-from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
+from servoid.ident.online.mrgia import MARGIN_ROUNDING, MRGIAConfig, MRGIAResult, convergence_margin, run_mrgia
 from servoid.ident.reprs import html_table
 
 __all__ = ["Identification", "identify", "check_record", "POOR_FIT_NRMSE", "SELECTABLE"]
@@ -536,7 +536,7 @@ def identify(
         why = (
             f": its convergence condition |A(e^jw) - 1| < 1 fails for this linear block (margin {margin:.2f}); "
             "sample more slowly"
-            if margin < 0.0
+            if margin < -MARGIN_ROUNDING
             else " (a whiter input, e.g. uniform noise, helps the online estimate)"
         )
         warnings.append(

@@ -209,16 +209,51 @@ def fit_output_error(
         # works on J in place: at 10^6 samples a refinement's peak falls from 457 to 384 bytes per sample
         # (the rest is scipy's own copies of J). Short records keep the exact steps and their numbers.
         solver = "lsmr" if rows >= LSMR_FROM_ROWS else "exact"
-        sol = least_squares(
-            residual, start, bounds=(lower, upper),
-            method="trf", x_scale="jac", diff_step=1e-7, max_nfev=max_nfev, tr_solver=solver,
-        )  # fmt: skip
+        budget = 100 * start.size if max_nfev is None else max_nfev  # scipy's default for trf
+        sol = _search(residual, start, lower, upper, budget, solver)
+        nfev = int(sol.nfev)
+        # Restart a search that stopped on a small step or gain (ftol, xtol) from where it stopped, with a
+        # fresh trust region: at a jump of the free-run error (a switching instant moved) the forward
+        # differences mispredict, the region shrinks until a step gains under ftol, and the search stops
+        # far from the minimum (the paper's plant, held PRBS, from the ARX start: max relative error 0.61,
+        # 180 simulations; one restart: exact in 6 more). At a minimum a restart costs a few simulations.
+        for _ in range(MAX_RESTARTS):
+            if nfev >= budget or sol.status not in (2, 3, 4) or sol.cost == 0.0:  # ended on small steps only
+                break
+            again = _search(residual, sol.x, lower, upper, budget - nfev, solver)
+            nfev += int(again.nfev)
+            gained = again.cost < (1.0 - RESTART_GAIN) * sol.cost
+            if again.cost < sol.cost:
+                sol = again
+            if not gained:
+                break
         res = residual(sol.x)
         cov, stderr = covariance_from_jacobian(res, sol.jac, start.size)
     return OEFit(
         x=np.asarray(sol.x), residual=res, covariance=cov, stderr=stderr, jacobian=np.asarray(sol.jac),
-        nfev=int(sol.nfev), success=bool(sol.success), message=str(sol.message),
+        nfev=nfev, success=bool(sol.success), message=str(sol.message),
     )  # fmt: skip
+
+
+#: Most restarts of a search that stopped on a small step or gain (:func:`fit_output_error`).
+MAX_RESTARTS = 3
+
+#: A restart that lowers the cost by more than this share is restarted in turn (up to :data:`MAX_RESTARTS`).
+RESTART_GAIN = 1e-3
+
+
+def _search(
+    residual: Callable[[np.ndarray], np.ndarray],
+    start: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    max_nfev: int,
+    solver: str,
+) -> Any:
+    """One trust-region search of :func:`fit_output_error` (``start`` kept strictly inside the bounds)."""
+    x0 = np.clip(start, np.nextafter(lower, np.inf), np.nextafter(upper, -np.inf))
+    return least_squares(residual, x0, bounds=(lower, upper), method="trf", x_scale="jac", diff_step=1e-7,
+                         max_nfev=max(int(max_nfev), 1), tr_solver=solver)  # fmt: skip
 
 
 # ---- long records: normal equations summed as the simulations run ------------------------------------

@@ -53,6 +53,7 @@ __all__ = [
     "run_mrgia",
     "noise_epsilon",
     "convergence_margin",
+    "MARGIN_ROUNDING",
 ]
 
 
@@ -293,6 +294,11 @@ def noise_epsilon(noise_std: float) -> float:
         Standard deviation ``s`` of the output noise, unit of ``y``.
     """
     return float(np.sqrt(2.0 / np.pi) * validation.non_negative("noise_std", noise_std))
+
+
+#: A margin above minus this is on the boundary, not below it: the paper's own plant has margin 0, and a
+#: noise-free exact fit of it rounds to -5e-14 (which decided the "why" of identify's warning by its last bits).
+MARGIN_ROUNDING = 1e-9
 
 
 def convergence_margin(a: Sequence[float] | np.ndarray, *, points: int = 4096) -> float:
