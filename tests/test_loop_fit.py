@@ -173,9 +173,9 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     u = _gentle(0.1, period, 1200, seed=4)
     y = truth.simulate(u, y0=0.0)
     choice = fit_loop(u, y, period)
-    # eight searches on the window (and the hump restart where the winner lost its hump), then the final refit: its
-    # bridge on twice the window's reach (BRIDGE), then on all
-    assert len(read) in (10, 11) and max(read[:-2]) <= 600 and 600 < read[-2] < u.size and read[-1] == u.size
+    # eight searches on the window, four of the winner's place on the last window (LAST_WINDOW; the hump restart
+    # where the winner lost its hump), then the final refit: its bridge on twice the window's reach (BRIDGE), then on all
+    assert len(read) in (14, 15) and max(read[:-2]) <= 600 and 600 < read[-2] < u.size and read[-1] == u.size
     assert choice.structure == OUTPUT_BACKLASH
     assert choice.play == pytest.approx(truth.play, rel=0.02)
     assert choice.fit_nrmse < 0.01
@@ -405,3 +405,31 @@ def test_a_job_ahead_gives_its_value_or_its_error_and_is_joined(monkeypatch: pyt
     with pytest.raises(ConfigError, match="the caller failed"):
         caller()
     assert done == [True]
+
+
+def test_the_last_window_searches_the_winners_place_on_the_records_end() -> None:
+    # LAST_WINDOW: the winner's place searched again on the record's last window; its winner, that window's
+    # estimation blocks and the winner's cost on every sample come back, or nothing where the window never moves
+    period = 0.01
+    truth = _loop(OUTPUT_BACKLASH, period)
+    u = _gentle(0.1, period, 2400, seed=3)
+    y = truth.simulate(u, y0=0.0)
+    every = np.ones(y.size, dtype=bool)
+    v_typ = float(np.std(np.diff(y))) / period
+    starts = (25.0, 120.0, v_typ, 0.1 * 120.0 * v_typ)
+    grid = np.geomspace(1e-3, 0.03, 4)
+    best = loop_fit.LoopCandidate(
+        structure=OUTPUT_BACKLASH, integrator=False, model=truth, estimation_nrmse=0.0, validation_nrmse=0.0,
+        evaluations=0,
+    )  # fmt: skip
+    other, spent = loop_fit._last_window(u, y, every, period, 1000, starts, grid, best)
+    assert other is not None and spent > 0
+    d, search, cost = other
+    assert not search[:1400].any()
+    np.testing.assert_array_equal(search[1400:], block_mask(1000))
+    assert cost == loop_fit._cost(u, y, period, OUTPUT_BACKLASH, d, every)
+    assert d["play"] > 0.0  # (a window that starts in motion: the model starts at rest, its play need not be the truth)
+    # a record that ends at rest: no window to search there
+    held = np.concatenate([u[:1400], np.full(1000, u[1399])])
+    y_held = np.concatenate([y[:1400], np.full(1000, y[1399])])
+    assert loop_fit._last_window(held, y_held, every, period, 1000, starts, grid, best) == (None, 0)

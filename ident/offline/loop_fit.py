@@ -186,6 +186,11 @@ WINDOW_TIE = 3.84
 #: with the bridge the loop fit's simulated samples fell by 13 % (with the reversals' window, 34 % against 6000;
 #: its CPU time by about 10 %, the shorter window's fits landing on faster loops with more sub-steps).
 BRIDGE = 2
+#: Where the search ran on the record's first window, the winner's place is searched on the last window of the same
+#: length too, and that window's winner (when it has the first's integrator, and no load stage answers) starts the
+#: final refit instead where it costs less on every sample (one simulation each): two looks at the record whose
+#: minima differ (the CiA 402 twin's sines at 20x and 50x, seeds 1-5: see README, "LAST_WINDOW").
+LAST_WINDOW = True
 #: Free parameters of every candidate; see :func:`_free` for what each structure adds.
 _FREE = ("kp", "kv", "fc", "fs", "vs", "veps", "play")
 
@@ -730,16 +735,16 @@ def _search(
     period: float,
     starts: tuple[float, float, float, float],
     grid: np.ndarray,
+    places: tuple[str, ...] = (OUTPUT_BACKLASH, PLAY_IN_LOOP),
 ) -> tuple[list[tuple[LoopCandidate, dict[str, float]]], int, np.ndarray, np.ndarray]:
     """Steps 3-4 of the module docstring on ``us, ys`` (kept ``ks``): the candidates, best validation first.
 
-    ``starts`` is ``(kp, kv, v_typ, a_scale)`` of the linear start. Returns the candidates with their
+    ``starts`` is ``(kp, kv, v_typ, a_scale)`` of the linear start; ``places``: the places of the play searched. Returns the candidates with their
     parameters, the simulations spent, and the estimation and validation masks of these samples.
     """
     kp, kv, v_typ, a_scale = starts
     est = block_mask(us.size) & ks
     val = ~block_mask(us.size) & ks
-    places = (OUTPUT_BACKLASH, PLAY_IN_LOOP)
     found: list[list[tuple[LoopCandidate, dict[str, float]]]] = [[] for _ in places]
     spent = [0 for _ in places]
 
@@ -782,7 +787,7 @@ def _search(
         else:
             for i in range(len(places)):
                 place(i)
-    candidates = found[0] + found[1]
+    candidates = [c for f in found for c in f]
     candidates.sort(key=lambda c: c[0].validation_nrmse)
     return candidates, sum(spent), est, val
 
@@ -911,11 +916,18 @@ def fit_loop(
     # the final refit of the winner on every sample
     free = _free(best.structure, best.integrator) + (LOAD_NAMES if best.model.massive else ())
     search = None
+    start = best_d
     if w < yc.size:
         search = np.zeros(yc.size, dtype=bool)
         search[:w] = est
+        if LAST_WINDOW and not best.model.massive:
+            other, used = _last_window(uc, yc, kept, period, w, (kp, kv, v_typ, a_scale), grid, best)
+            evaluations += used
+            if other is not None and other[2] < _cost(uc, yc, period, best.structure, best_d, kept):
+                start, search = other[0], other[1]
+            evaluations += other is not None
     d, prob, sol, used = _final_fit(
-        uc, yc, period, best.structure, best.integrator, best_d, kept, a_scale, free, v_typ, search
+        uc, yc, period, best.structure, best.integrator, start, kept, a_scale, free, v_typ, search
     )  # fmt: skip
     evaluations += used
     final = _model(best.structure, period, d)
@@ -1061,6 +1073,34 @@ def _final_fit(
     )
     d, prob, sol, more = lower(*starts)
     return d, prob, sol, used + more
+
+
+def _last_window(
+    u: np.ndarray,
+    y: np.ndarray,
+    kept: np.ndarray,
+    period: float,
+    w: int,
+    starts: tuple[float, float, float, float],
+    grid: np.ndarray,
+    best: LoopCandidate,
+) -> tuple[tuple[dict[str, float], np.ndarray, float] | None, int]:
+    """The search of ``best``'s place on the record's last ``w`` samples (:data:`LAST_WINDOW`).
+
+    Returns its winner's values, the window's estimation samples (a mask of the record) and the winner's cost
+    on every kept sample (None where the last window keeps under :data:`MIN_SAMPLES` samples or does not move, or
+    where its winner's integrator is not ``best``'s), and the simulations spent.
+    """
+    a = y.size - w
+    if int(np.sum(kept[a:])) < MIN_SAMPLES or _moves(y[a:], kept[a:]) is not None:
+        return None, 0
+    found, spent, est, _ = _search(u[a:], y[a:], kept[a:], period, starts, grid, (best.structure,))
+    winner, winner_d = found[0]
+    if winner.integrator != best.integrator:
+        return None, spent
+    search = np.zeros(y.size, dtype=bool)
+    search[a:] = est
+    return (winner_d, search, _cost(u, y, period, winner.structure, winner_d, kept)), spent + 1
 
 
 def _cost(u: np.ndarray, y: np.ndarray, period: float, structure: str, d: dict[str, float], score: np.ndarray) -> float:
