@@ -430,7 +430,7 @@ def identify(
     if servo_loop and refine_model and loop is None and sample_period_s is not None and LOOP_AHEAD:
         ahead = _threads.Ahead(
             functools.partial(
-                second_structure, u_c.copy(), y_c.copy(), period, None, keep=None if keep is None else keep.copy()
+                second_structure, u_c.copy(), y_c.copy(), period, keep=None if keep is None else keep.copy()
             )
         )
 
@@ -596,7 +596,7 @@ def identify(
             elif ahead is not None:
                 loop = ahead.result()
             else:
-                loop = second_structure(u_c, y_c, period, black_box, keep=keep)
+                loop = second_structure(u_c, y_c, period, keep=keep)
         except ModelError as exc:  # a record that barely moves: the black box answers, and the verdict judges it
             warnings.append(f"the servo-loop model was not fitted: {exc}")
             loop = None

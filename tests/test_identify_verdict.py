@@ -158,7 +158,7 @@ def test_the_seam_carries_a_loop_result(monkeypatch):
 
     seen = []
     monkeypatch.setattr(
-        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or _FakeLoop()
+        pipeline, "second_structure", lambda u, y, period, keep=None: seen.append(period) or _FakeLoop()
     )
     u, y = _paper(800, 6, snr=5.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # coloured residual: the black box is not the whole story
@@ -180,9 +180,7 @@ def test_a_servo_record_at_the_black_boxs_floor_still_asks_where_the_play_is(mon
 
     seen = []
     answer = [_FakeLoop(fit_nrmse=10.0)]  # far worse than the black box
-    monkeypatch.setattr(
-        pipeline, "second_structure", lambda u, y, period, bb, keep=None: seen.append(period) or answer[0]
-    )
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, keep=None: seen.append(period) or answer[0])
     u, y = _paper(1500, 4)
     untimed = identify(u, y, MRGIAConfig())
     assert seen == [] and untimed.identifiable  # the paper's plant: at its floor, white, no time
@@ -317,7 +315,7 @@ def test_a_black_box_off_its_floor_does_not_place_the_play(monkeypatch):
 
     pipeline = importlib.import_module("servoid.ident.identify")
     worse = _FakeLoop(fit_nrmse=10.0, margin=0.4, play=0.2)  # far worse than the black box, the play inside
-    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, bb, keep=None: worse)
+    monkeypatch.setattr(pipeline, "second_structure", lambda u, y, period, keep=None: worse)
     u, y = _paper(800, 6, snr=43.0)
     y = y + 0.3 * np.sin(np.arange(y.size) / 7.0)  # an effect the black box lacks: far above its floor
     result = identify(u, y, MRGIAConfig(), sample_period_s=0.01)

@@ -119,7 +119,7 @@ def black_box_better(loop: LoopResult, black_box: BlackBox) -> bool:
 
 
 def second_structure(
-    u: np.ndarray, y: np.ndarray, sample_period_s: float, black_box: BlackBox | None, keep: np.ndarray | None = None
+    u: np.ndarray, y: np.ndarray, sample_period_s: float, keep: np.ndarray | None = None
 ) -> LoopResult | None:
     """Fit the servo-loop model with both places of the play and choose by validation (:func:`fit_loop`).
 
@@ -129,9 +129,6 @@ def second_structure(
         The record, centred on its operating point (``y`` is not read where ``keep`` is False).
     sample_period_s : float
         The sample period in seconds (1.0 when the record has no time).
-    black_box : BlackBox or None
-        The pseudo-Wiener result (the comparison; the loop model starts from its own scan and does not
-        read it: None for a fit started before the black box's, :data:`servoid.ident.identify.LOOP_AHEAD`).
     keep : ndarray of bool, optional
         The readings to score (a live record's validity mask: lost and late samples False); the
         servo-loop model is simulated through the others (:func:`fit_loop`'s ``keep``). Default: all.
