@@ -400,6 +400,15 @@ def test_a_runner_up_place_that_holds_the_record_too_leaves_the_place_undetermin
                              already=False, evidence=evidence) == ((), None)  # fmt: skip
         clear = SimpleNamespace(**{**vars(loop), "margin": PLACED_MARGIN})
         assert _place_doubts(clear, None, 0.0, 1e-4, already=False, evidence=evidence) == ((), None)
+        # neither place holds the record (the winner 2.6 times its floor): a runner-up within the floor rule's
+        # factor of the winner and under PLACED_MARGIN leaves the place open; one beyond that factor does not
+        failing = {winner: 2.6 * floor, other: 2.6 * floor * (1 + 0.9 * PLACED_MARGIN)}
+        both_off = SimpleNamespace(**{**vars(loop), "validation_nrmse": failing, "margin": 0.9 * PLACED_MARGIN})
+        doubts, play = _place_doubts(both_off, None, 0.0, 1e-4, already=False, evidence=evidence)
+        assert play == 0.0047 and doubts[0].startswith(f"structure undetermined: the runner-up {other} holds")
+        beyond = dict(failing, **{other: 2.6 * floor * 1.01 * MAX_FIT_TO_FLOOR})
+        assert _place_doubts(SimpleNamespace(**{**vars(both_off), "validation_nrmse": beyond}), None, 0.0, 1e-4,
+                             already=False, evidence=evidence) == ((), None)  # fmt: skip
         # a small margin that holds throughout the record (Diebold-Mariano) places a play in the loop only
         for z in (PLACE_Z, 0.99 * PLACE_Z):
             tested = SimpleNamespace(**{**vars(loop), "place_z": z})
