@@ -85,7 +85,7 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                            "convergence condition holds on the probe's model)")  # fmt: skip
     live.add_argument("--hold", type=int, metavar="N",
                       help="held random levels of N samples instead of the designed gentle sines (whose fastest "
-                           "segment runs at 0.35x the probe's loop bandwidth)")  # fmt: skip
+                           "segment is set from the probe's loop bandwidth: docs/online.md)")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
