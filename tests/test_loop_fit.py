@@ -433,3 +433,27 @@ def test_the_last_window_searches_the_winners_place_on_the_records_end() -> None
     held = np.concatenate([u[:1400], np.full(1000, u[1399])])
     y_held = np.concatenate([y[:1400], np.full(1000, y[1399])])
     assert loop_fit._last_window(held, y_held, every, period, 1000, starts, grid, best) == (None, 0)
+
+
+def test_a_load_stage_grid_point_that_runs_away_fits_infinitely_badly() -> None:
+    # a heavy load the loop cannot hold runs away (its output past what a square holds): the grid ranks it
+    # last, with no overflow (an error under the tests' warnings rule; a live Feetech record met one)
+    from servoid.ident.metrics import free_run_nrmse
+    from servoid.ident.offline import load_stage as stage
+
+    n = 400
+    y = np.sin(np.arange(n) * 0.05)
+    est = np.arange(n) % 2 == 0
+    best = {"kp": 10.0, "kv": 50.0, "ki": 0.0, "fc": 0.1, "fs": 0.1, "vs": 0.1, "a0": 0.0, "play": 0.01, "al": 5.0}
+
+    def simulate(d: dict[str, float]) -> np.ndarray:
+        if d["play"] > 4.0 * best["play"]:  # the largest play factor of the grid: runs away
+            return np.full(n, 1e200)
+        return y + 0.1 * abs(d["play"] / best["play"] - 1.0) + 0.01 * d.get("mu", 0.0)
+
+    def fit(start: dict[str, float], free: tuple[str, ...], nfev: int) -> tuple[dict[str, float], float, int]:
+        return dict(start), free_run_nrmse(y[est], simulate(start)[est]), 1
+
+    d, evaluations, rivals = stage.load_stage(y, best, ("kp", "kv", "fc", "play", "al"), fit, simulate, est, ~est)
+    assert d["play"] == best["play"] and evaluations > 0
+    assert all(np.isfinite(nrmse) for _, nrmse in rivals)  # the runaway point never left the grid

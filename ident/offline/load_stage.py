@@ -134,9 +134,8 @@ def load_stage(
                 for name in _PER_INERTIA:
                     start[name] = (1.0 + mu) * best_d[name]
                 start.update(mu=mu, e=e, al=best_d["al"], play=factor * best_d["play"])
-                r = simulate(start)[est] - y[est]
-                cost = float(r @ r)
-                tries.append((cost if np.isfinite(cost) else np.inf, start))
+                # a grid point can run away (a load the loop cannot hold): it fits infinitely badly, not an error
+                tries.append((free_run_nrmse(y[est], simulate(start)[est]), start))
             evaluations += len(tries)
             starts.append(min(tries, key=lambda c: c[0])[1])
     score, d, used, rivals = _from_grid(y, starts, free, GRID_FREE, fit, simulate, est, val)
