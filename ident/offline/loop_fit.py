@@ -923,9 +923,10 @@ def fit_loop(
         if LAST_WINDOW and not best.model.massive:
             other, used = _last_window(uc, yc, kept, period, w, (kp, kv, v_typ, a_scale), grid, best)
             evaluations += used
-            if other is not None and other[2] < _cost(uc, yc, period, best.structure, best_d, kept):
-                start, search = other[0], other[1]
-            evaluations += other is not None
+            if other is not None:
+                evaluations += 1  # the winner's cost on every sample, against the last window's
+                if other[2] < _cost(uc, yc, period, best.structure, best_d, kept):
+                    start, search = other[0], other[1]
     d, prob, sol, used = _final_fit(
         uc, yc, period, best.structure, best.integrator, start, kept, a_scale, free, v_typ, search
     )  # fmt: skip
