@@ -87,6 +87,7 @@ from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
@@ -218,7 +219,7 @@ def main() -> None:
         lo, hi = (v / play0 for v in tracker.interval)  # the file's, against the unworn play it was fitted on
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
                  f"[{lo:.2f}, {hi:.2f}]x; {'doubt' if tracker.doubt else 'no doubt'}")  # fmt: skip
-        place = "in the loop" if file.structure == "play_in_loop" else "outside the loop"
+        place = "in the loop" if file.structure == PLAY_IN_LOOP else "outside the loop"
         rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}", doubt, f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
