@@ -457,3 +457,43 @@ def test_a_load_stage_grid_point_that_runs_away_fits_infinitely_badly() -> None:
     d, evaluations, rivals = stage.load_stage(y, best, ("kp", "kv", "fc", "play", "al"), fit, simulate, est, ~est)
     assert d["play"] == best["play"] and evaluations > 0
     assert all(np.isfinite(nrmse) for _, nrmse in rivals)  # the runaway point never left the grid
+
+
+def test_a_candidate_whose_play_collapsed_is_fitted_again_from_the_other_candidates_fit(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # COLLAPSE_RESTART: exact recovery of a play in the loop, where the search with an integrator is made to end
+    # at no play (the XM430 twin at 10x did so by itself); its sibling found the play, and the candidate fitted
+    # again from the sibling's fit comes back with it (the lower estimation cost kept); without the rule it stays
+    period = 0.01
+    truth = _loop(PLAY_IN_LOOP, period)
+    u = _gentle(0.1, period, 2000, seed=3)
+    y = truth.simulate(u, y0=0.0)
+    fit = loop_fit._fit
+    collapsed: list[bool] = []
+
+    def collapsing(*args: object, **kwargs: object) -> object:
+        d, prob, sol = fit(*args, **kwargs)  # type: ignore[arg-type]
+        search = kwargs.get("free") is None and kwargs.get("max_nfev") == loop_fit.CANDIDATE_NFEV
+        if search and kwargs["integrator"] and args[3] == PLAY_IN_LOOP and not collapsed:
+            collapsed.append(True)
+            return dict(d, play=1e-9), prob, sol
+        return d, prob, sol
+
+    monkeypatch.setattr(loop_fit, "_fit", collapsing)
+    uc, yc = u - u.mean(), y - u.mean()
+    v_typ = float(np.std(np.diff(yc))) / period
+    starts = (*loop_fit._linear_start(uc, yc, period), v_typ, 0.1 * 120.0 * v_typ)
+    grid = np.geomspace(1e-4, 0.03, 10)
+    every = np.ones(y.size, dtype=bool)
+    plays = {}
+    for rule in (True, False):
+        monkeypatch.setattr(loop_fit, "COLLAPSE_RESTART", rule)
+        collapsed.clear()
+        found, spent, _, _ = loop_fit._search(uc, yc, every, period, starts, grid, (PLAY_IN_LOOP,))
+        assert collapsed and spent > 0
+        plays[rule] = {c.integrator: d["play"] for c, d in found}
+        assert len(found) == 2
+    assert plays[False][True] == 1e-9
+    assert plays[True][True] == pytest.approx(truth.play, rel=0.05)
+    assert plays[True][False] == plays[False][False] == pytest.approx(truth.play, rel=0.05)
