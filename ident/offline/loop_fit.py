@@ -17,7 +17,9 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    (8 interleaved blocks; the simulation runs through the validation blocks but they are
    not scored). Each candidate starts from the scan (not the integrator's from the P loop's fit:
    tried, it inherited the P loop's basin and named the CiA 402 twin with friction x4 a play in
-   the loop at +200 %, identifiable).
+   the loop at +200 %, identifiable). Only a candidate whose play collapsed below what the record
+   resolves, where its sibling found one, is fitted again from the sibling's fit
+   (:data:`COLLAPSE_RESTART`).
 5. **Select** the candidate with the smallest free-run NRMSE on the validation blocks; the
    **margin** is the best candidate of the other place relative to it (``val_other / val_best - 1``).
 6. **Final refit** of the winner on all samples (a winner that lost its Stribeck hump is
