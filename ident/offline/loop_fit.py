@@ -32,12 +32,12 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    grid of inertia x restitution with the loop refitted at each point, kept only when it
    validates :data:`LOAD_MARGIN` better. ``identify`` runs it where the motor-side winner is off
    its floor (a load coasting across the play: the ODrive twin's -45 ... -80 % came to -14 ... +6 %).
-   It starts from that structure's candidate that validates best, with an integrator (ODrive
-   twin: -14 ... +2 % to -10 ... +2 %, 4 of 6 within 5 %): the massless fits cannot tell whether
-   a loop behind a heavy load integrates, and the stage frees only its start's parameters; where
-   the best has none, its values start one at :func:`_ki_start` (the ODrive twin at 20x, seed 4:
-   the candidate with an integrator validated 13 % worse at +165 % of play, and the stage from it
-   was not kept, -79 %; from the better one +2 %, kept).
+   It starts from that structure's candidate that validates best, with an integrator
+   (:func:`_stage_start`): the massless fits cannot tell whether a loop behind a heavy load
+   integrates, and the stage frees only its start's parameters (from the candidate with an
+   integrator, the ODrive twin's -14 ... +2 % came to -10 ... +2 %); where the best has none, its
+   values start one, since the candidate with an integrator can be the worse start (the ODrive
+   twin's sines at 10/20/50x, seeds 1-5: 10 -> 12 of 15 within 5 %, 20x s4 -79 -> +0.5 %).
 
 What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
 contact is the play operator, so the free-run output is continuous in the parameters;
