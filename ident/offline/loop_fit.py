@@ -34,9 +34,12 @@ The steps (the issue-12 study, Q3; :mod:`servoid.ident.models.servo_loop` is the
    grid of inertia x restitution with the loop refitted at each point, kept only when it
    validates :data:`LOAD_MARGIN` better. ``identify`` runs it where the motor-side winner is off
    its floor (a load coasting across the play: the ODrive twin's -45 ... -80 % came to -14 ... +6 %).
-   It starts from that structure's candidate with an integrator (ODrive twin: -14 ... +2 % to
-   -10 ... +2 %, 4 of 6 within 5 %): the massless fits cannot tell whether a loop behind a heavy
-   load integrates, and the stage frees only its start's parameters.
+   It starts from that structure's candidate that validates best, with an integrator
+   (:func:`_stage_start`): the massless fits cannot tell whether a loop behind a heavy load
+   integrates, and the stage frees only its start's parameters (from the candidate with an
+   integrator, the ODrive twin's -14 ... +2 % came to -10 ... +2 %); where the best has none, its
+   values start one, since the candidate with an integrator can be the worse start (the ODrive
+   twin's sines at 10/20/50x, seeds 1-5: 10 -> 12 of 15 within 5 %, 20x s4 -79 -> +0.5 %).
 
 What makes the cost usable (the study's Q3 finding 4): the friction is smooth and the
 contact is the play operator, so the free-run output is continuous in the parameters;
@@ -550,11 +553,16 @@ def _linear_start(u: np.ndarray, y: np.ndarray, period: float) -> tuple[float, f
     return min(kp, kv), kv
 
 
+def _ki_start(kp: float, kv: float) -> float:
+    """Where a velocity integrator starts, from the loop's rates: a fifth of ``kp kv`` (its zero well below the loop's)."""
+    return 0.2 * kp * kv
+
+
 def _start(kp: float, kv: float, v_typ: float, play: float, *, integrator: bool, friction: float) -> dict[str, float]:
     return {
         "kp": kp,
         "kv": kv,
-        "ki": 0.2 * kp * kv if integrator else 0.0,
+        "ki": _ki_start(kp, kv) if integrator else 0.0,
         "vmax": 0.0,
         "fc": 0.1 * kv * v_typ * friction,
         "fs": 0.15 * kv * v_typ * friction,
@@ -763,7 +771,7 @@ def _search(
         """One candidate fitted from ``start`` and the simulations of its two fits: the loop's rates and the play first
         (the linear start's rates are biased by the play), then everything."""
         s = dict(start)
-        s["ki"] = 0.2 * s["kp"] * s["kv"] if integrator else 0.0
+        s["ki"] = _ki_start(s["kp"], s["kv"]) if integrator else 0.0
         s, stage, _ = _fit(
             us, ys, period, structure, s, est, a_scale, integrator=integrator, max_nfev=STAGE_NFEV, free=_STAGE,
             ftol=FTOL, stall=STALL,
@@ -915,14 +923,7 @@ def fit_loop(
     # loop: where it coasts, the massless play in the loop can win by a hair), when that is off its floor
     base, base_d = (best, best_d) if load else next((c, d) for c, d in candidates if c.structure == OUTPUT_BACKLASH)
     if load or (load is None and base.validation_nrmse > LOAD_FIT_TO_FLOOR * floor_nrmse(ys, ks)):
-        # from that structure's candidate with an integrator: the massless fits cannot tell whether a loop
-        # behind a heavy load integrates (the ODrive twin at 20x validates 0.0538 without, 0.0541 with),
-        # and the stage frees only its start's parameters. From the one without, the
-        # ODrive twin's fine record came to ki 0, mu 0.10 on its limit, -9.6 %; from the one with, ki 473
-        # and mu 2.72 (truth 482, 2.84), +0.3 % at 0.4 times the error. A loop without one can fit ki -> 0.
-        base, base_d = next(
-            ((c, d) for c, d in candidates if c.structure == base.structure and c.integrator), (base, base_d)
-        )
+        base, base_d = _stage_start(candidates, base.structure)
         keep = (1.0 - LOAD_MARGIN) * best.validation_nrmse
         heavy, heavy_d, used, tried = _run_load_stage(us, ys, period, base, base_d, est, val, a_scale, keep)
         evaluations += used
@@ -1134,6 +1135,40 @@ def _cost(u: np.ndarray, y: np.ndarray, period: float, structure: str, d: dict[s
     """The sum of squared residuals of the model ``d`` on the samples ``score`` (one simulation)."""
     r = _Problem(u, y, period, structure, (), d, score, 1.0)(np.zeros(0))
     return float(r @ r)
+
+
+def _stage_start(
+    candidates: list[tuple[LoopCandidate, dict[str, float]]], structure: str
+) -> tuple[LoopCandidate, dict[str, float]]:
+    """Where the load stage starts: ``structure``'s candidate that validates best, with an integrator.
+
+    The massless fits cannot tell whether a loop behind a heavy load integrates (the ODrive twin at 20x
+    validates 0.0538 without, 0.0541 with), and the stage frees only its start's parameters: from the one
+    without, the ODrive twin's fine record came to ki 0, mu 0.10 on its limit, -9.6 %; from the one with,
+    ki 473 and mu 2.72 (truth 482, 2.84), +0.3 % at 0.4 times the error. Where the best has none, its values
+    start one (:func:`_ki_start`; its constant torque ``a0`` to 0, as every candidate with an integrator
+    has): the candidate with an integrator can be the worse start (the ODrive twin at 20x, seed 4: 0.0569
+    against 0.0505, +165 % of play; the stage from it was not kept and the answer was -79 %).
+
+    Parameters
+    ----------
+    candidates : list of (LoopCandidate, dict)
+        The massless candidates and their values, best validation first.
+    structure : str
+        The place of the play the stage extends.
+
+    Returns
+    -------
+    base : LoopCandidate
+        The candidate whose structure and integrator the stage fits (one with an integrator when there is one).
+    values : dict
+        The stage's start.
+    """
+    base, values = next((c, d) for c, d in candidates if c.structure == structure)
+    with_ki = next((c for c, _ in candidates if c.structure == structure and c.integrator), None)
+    if base.integrator or with_ki is None:
+        return base, values
+    return with_ki, dict(values, ki=_ki_start(values["kp"], values["kv"]), a0=0.0)
 
 
 def _run_load_stage(
