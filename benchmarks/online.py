@@ -117,7 +117,7 @@ def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> li
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out, seed)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 11, f"{wall:.0f}", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 12, f"{wall:.0f}", outcome(error)]
     verdict = result["online"]
     online_gap = verdict["online_gap"] / scale
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale

@@ -71,13 +71,16 @@ import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.servo_loop import ServoLoopModel
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.offline.loop_fit import LoopChoice
 
 __all__ = [
     "WindowConfig",
@@ -217,7 +220,7 @@ class SlowSearch:
         Samples it covered (from ``start`` to the slow phase's end).
     """
 
-    choice: Any
+    choice: LoopChoice
     start: int
     samples: int
 
@@ -287,7 +290,7 @@ def _refit(
     ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``); ``load``:
     :func:`fit_loop`'s load stage in the fit from scratch.
     Returns the model, its row, and from the first fit the best model of the other place of
-    the play (the rival the refinement of the whole record starts that place from; None after).
+    the play (the rival the later windows refit beside it; None after).
     """
     from servoid.ident.offline.intervals import floor_nrmse
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
