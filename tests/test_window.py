@@ -234,7 +234,7 @@ def test_a_slow_phase_whose_search_puts_the_play_inside_the_loop_leaves_the_wind
     assert searched == [slow] and est.result().slow_search is None
 
 
-def test_every_later_window_names_the_place_by_the_better_fit_of_the_two_places(monkeypatch) -> None:
+def test_every_later_window_names_the_place_by_the_better_fit_and_searches_afresh_when_it_changes(monkeypatch) -> None:
     from types import SimpleNamespace
 
     from servoid.ident.models.structure_names import OUTPUT_BACKLASH
@@ -242,16 +242,23 @@ def test_every_later_window_names_the_place_by_the_better_fit_of_the_two_places(
 
     u, y = _record(25.0, seed=11)  # the play inside the loop
     wrong = dataclasses.replace(TRUTH, structure=OUTPUT_BACKLASH, c1=0.008, c2=0.008)
-    right = dataclasses.replace(TRUTH, kp=10.0, c1=0.012, c2=0.012)
-    # a first fit that named the wrong place, its best model of the other place a rough one
+    rough = dataclasses.replace(TRUTH, kp=10.0, c1=0.012, c2=0.012)
+    # a first fit that named the wrong place, its best model of the other place a rough one; later searches are real
     first = SimpleNamespace(
-        structure=OUTPUT_BACKLASH, model=wrong, candidates=[SimpleNamespace(structure=PLAY_IN_LOOP, model=right)]
+        structure=OUTPUT_BACKLASH, model=wrong, candidates=[SimpleNamespace(structure=PLAY_IN_LOOP, model=rough)]
     )
-    monkeypatch.setattr(loop_fit, "fit_loop", lambda *a, **k: first)
+    real, searched = loop_fit.fit_loop, []
+
+    def fit(u_: np.ndarray, *args, **kwargs):
+        searched.append(u_.size)
+        return first if len(searched) == 1 else real(u_, *args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", fit)
     est = WindowRefit(WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0), background=False)
     _feed(est, u, y, np.zeros(u.size, dtype=bool))
     result = est.result()
     places = [r.structure for r in result.history]
     assert places[0] == OUTPUT_BACKLASH and set(places[1:]) == {PLAY_IN_LOOP}
+    assert len(searched) == 2  # the first window, and the window where the place changed; not after
     assert result.rival is not None and result.rival.structure == OUTPUT_BACKLASH  # the other place, still refitted
     assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05

@@ -22,7 +22,10 @@ a receding-horizon fit:
   file's loop: the monitor); every later one is :func:`refit_loop` from the
   previous answer, and the first fit's best model of the other place of the play
   beside it: the better fit of the window names the place (a first window of 10 s
-  named it wrong on the CiA 402 and XM430 twins where 40 s did not; issue 15). The
+  named it wrong on the CiA 402 and XM430 twins where 40 s did not; issue 15), and
+  when the other place fits better the window is searched afresh (the other
+  place's model came from the short first window: on the XM430 twin's seed-1
+  record its warm refits stayed at +47 %, a search of 15 s found -6 %). The
   first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
 * after a live design's slow phase (``slow``: its first samples, set aside, the
@@ -327,11 +330,14 @@ def _refit_later(
     config: WindowConfig,
     t_s: float,
     slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
+    load: bool | None = False,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
     """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
 
     The last window's model (``fast``) and the other place's (``rival``) are refitted warm on the
-    window; the better fit names the place. With the play outside the loop and ``slow`` (the slow
+    window; the better fit names the place. When that is the rival's (the place changed), the
+    window is searched afresh (:func:`fit_loop` with ``load``, both places): the rival came from a
+    shorter first window and a warm refit does not leave its play. With the play outside the loop and ``slow`` (the slow
     phase's ``u, y, keep``, the stream index of its first sample, and its model: None before the
     search) the slow phase answers: searched afresh (:func:`fit_loop`, ``load=None``, as the live
     answer searches it; standing only when it too puts the play outside the loop), else its model
@@ -347,9 +353,15 @@ def _refit_later(
     score[: min(config.samples(config.burn_in_s), u.size - 2)] = False
     fits = [refit_loop(u, y, m, score=score, max_nfev=config.max_nfev) for m in (fast, rival) if m is not None]
     best = min(fits, key=lambda f: f.fit_nrmse)
+    won, q = best.model, best.fit_nrmse
     other = next((f.model for f in fits if f is not best), None)
-    model, q, floor, part, search = best.model, best.fit_nrmse, floor_nrmse(y[score]), LAST, None
-    if slow is not None and best.model.structure != PLAY_IN_LOOP:
+    if best is not fits[0]:  # the place changed: both places searched afresh on this window
+        idx = np.flatnonzero(keep)
+        choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
+        won, q = choice.model, choice.fit_nrmse
+        other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
+    model, floor, part, search = won, floor_nrmse(y[score]), LAST, None
+    if slow is not None and won.structure != PLAY_IN_LOOP:
         su, sy, sk, offset, held = slow
         if held is None:
             choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
@@ -362,7 +374,7 @@ def _refit_later(
             fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
             model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
     row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part)
-    return model, row, other, search, best.model
+    return model, row, other, search, won
 
 
 def _yield_cpu() -> None:
@@ -511,7 +523,7 @@ class WindowRefit:
             job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
                    self._load)  # fmt: skip
         else:
-            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job())
+            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load)
         if self._pool is None:
             self._store(work, job, t_s)
         else:
