@@ -160,3 +160,105 @@ def test_a_play_outside_the_loop_comes_from_the_slow_phase_and_the_place_from_th
     assert choice.structure == OUTPUT_BACKLASH and choice.simulated.size == u.size
     assert refined.fast_play is not None and abs(refined.fast_play / outside.play - 1) < 0.05
     assert abs(choice.play / wide.play - 1) < 0.05
+
+
+def _two_phase(seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray, int, ServoLoopModel, ServoLoopModel]:
+    """A motor-side servo whose slow phase (the first third) shows a wider play than its fast phase (where the load
+    coasts): the slow phase simulated with the wide play, the rest with the narrow one."""
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+
+    outside = dataclasses.replace(TRUTH, structure=OUTPUT_BACKLASH)
+    wide = dataclasses.replace(outside, c1=0.013, c2=0.013)
+    u, _ = _record(seconds, seed=seed)
+    slow = u.size // 3
+    y = np.concatenate([wide.simulate(u[:slow], y0=0.0), outside.simulate(u[slow:], y0=0.0)])
+    return u, y + 1e-4 * np.random.default_rng(seed + 1).standard_normal(u.size), slow, outside, wide
+
+
+def test_outside_the_loop_the_windows_score_the_slow_phase_and_the_answer_takes_their_search(monkeypatch) -> None:
+    from servoid.ident.online import refinement
+    from servoid.ident.online.window import SLOW
+
+    u, y, slow, outside, wide = _two_phase(24.0, seed=7)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=5.0)
+    est = WindowRefit(config, start=dataclasses.replace(outside, kp=10.0), background=False, slow=slow)
+    _feed(est, u, y, np.zeros(u.size, dtype=bool))
+    result = est.result()
+    parts = [r.part for r in result.history]
+    # the first window (after the slow phase, timed from its end) names the place on the fast phase; then the slow phase
+    assert parts[0] == "last" and parts[1:] == [SLOW] * (len(parts) - 1) and len(parts) == 4
+    assert result.history[0].t_s == 5.0 and abs(result.history[0].play / outside.play - 1) < 0.05
+    assert result.slow_search is not None and result.slow_search.samples == slow
+    assert result.model is not None and abs(result.model.play / wide.play - 1) < 0.05
+    # the answer takes the online estimate's search of the slow phase instead of running it again
+    calls = []
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].size)
+        return fit(*args, **kwargs)
+
+    fit = refinement.fit_loop
+    monkeypatch.setattr(refinement, "fit_loop", counted)
+    choice, refined = refinement.refine_online(u, y, result, slow=slow)
+    assert calls == [u.size - slow]  # the fast part's search only
+    assert refined.fast_play is not None and choice.play == result.slow_search.choice.play
+    assert abs(result.model.play / choice.play - 1) < 0.05  # the online estimate within 5 % of the answer
+
+
+def test_a_slow_phase_whose_search_puts_the_play_inside_the_loop_leaves_the_windows_on_the_last_window(
+    monkeypatch,
+) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.offline import loop_fit
+
+    u, y, slow, outside, _ = _two_phase(24.0, seed=9)
+    searched = []
+
+    def inside(u_: np.ndarray, *args, **kwargs):
+        searched.append(u_.size)
+        return SimpleNamespace(structure=PLAY_IN_LOOP, play=0.03, model=TRUTH, fit_nrmse=0.01)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", inside)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=5.0)
+    est = WindowRefit(config, start=outside, background=False, slow=slow)
+    _feed(est, u, y, np.zeros(u.size, dtype=bool))
+    result = est.result()
+    assert searched == [slow]  # searched once, at the second window
+    assert [r.part for r in result.history] == ["last"] * 4
+    assert result.slow_search is not None and result.slow_search.choice.structure == PLAY_IN_LOOP
+    assert result.model is not None and result.model.structure == outside.structure
+    # a play inside the loop never looks at the slow phase
+    est = WindowRefit(config, start=TRUTH, background=False, slow=slow)
+    _feed(est, u, y, np.zeros(u.size, dtype=bool))
+    assert searched == [slow] and est.result().slow_search is None
+
+
+def test_every_later_window_names_the_place_by_the_better_fit_and_searches_afresh_when_it_changes(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+    from servoid.ident.offline import loop_fit
+
+    u, y = _record(25.0, seed=11)  # the play inside the loop
+    wrong = dataclasses.replace(TRUTH, structure=OUTPUT_BACKLASH, c1=0.008, c2=0.008)
+    rough = dataclasses.replace(TRUTH, kp=10.0, c1=0.012, c2=0.012)
+    # a first fit that named the wrong place, its best model of the other place a rough one; later searches are real
+    first = SimpleNamespace(
+        structure=OUTPUT_BACKLASH, model=wrong, candidates=[SimpleNamespace(structure=PLAY_IN_LOOP, model=rough)]
+    )
+    real, searched = loop_fit.fit_loop, []
+
+    def fit(u_: np.ndarray, *args, **kwargs):
+        searched.append(u_.size)
+        return first if len(searched) == 1 else real(u_, *args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", fit)
+    est = WindowRefit(WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0), background=False)
+    _feed(est, u, y, np.zeros(u.size, dtype=bool))
+    result = est.result()
+    places = [r.structure for r in result.history]
+    assert places[0] == OUTPUT_BACKLASH and set(places[1:]) == {PLAY_IN_LOOP}
+    assert len(searched) == 2  # the first window, and the window where the place changed; not after
+    assert result.rival is not None and result.rival.structure == OUTPUT_BACKLASH  # the other place, still refitted
+    assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05

@@ -19,7 +19,9 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    the answer's validation;
 4. after a live design's slow phase (``slow``), steps 1-3 run on the fast part; an answer
    with the play outside the loop is replaced by the search on the slow part when that
-   search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %).
+   search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %); when
+   the online estimate searched the same slow phase already (:attr:`WindowResult.slow_search`,
+   its windows having put the play outside the loop), that search is taken, not run again.
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -165,7 +167,11 @@ def refine_online(
     uc, yc = u_arr - centre, y_arr - centre
     fast_play = None
     if choice.structure != PLAY_IN_LOOP:
-        slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)
+        done = online.slow_search
+        if done is not None and done.samples == head:  # the online estimate's search of the same samples
+            slow_choice = done.choice
+        else:
+            slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)
         if (
             slow_choice.structure != PLAY_IN_LOOP
         ):  # else the slow part does not confirm the place: the fast answer stands

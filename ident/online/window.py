@@ -16,10 +16,31 @@ a receding-horizon fit:
   :attr:`WindowConfig.first_s` have come, the last :attr:`WindowConfig.window_s`
   (all of it while shorter) are refitted. The first window has no answer to
   start from: it runs :func:`~servoid.ident.offline.loop_fit.fit_loop` (both
-  places of the play, chosen by validation), unless a start is given (a model
+  places of the play, chosen by validation; a live run's with the load stage,
+  ``load=None``, as its answer's search: without it the CiA 402 twin's first
+  window put the play in the loop at -59 %), unless a start is given (a model
   file's loop: the monitor); every later one is :func:`refit_loop` from the
-  previous answer. The first :attr:`WindowConfig.burn_in_s` of each window are
-  simulated, not scored: where in the play the motor side starts is unknown;
+  previous answer, and the first fit's best model of the other place of the play
+  beside it: the better fit of the window names the place (a first window of 10 s
+  named it wrong on the CiA 402 and XM430 twins where 40 s did not; issue 15), and
+  when the other place fits better the window is searched afresh (the other
+  place's model came from the short first window: on the XM430 twin's seed-1
+  record its warm refits stayed at +47 %, a search of 15 s found -6 %). The
+  first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
+  where in the play the motor side starts is unknown;
+* after a live design's slow phase (``slow``: its first samples, set aside, the
+  windows timed from its end) the place of the play decides what a window
+  scores (issue 15): inside the loop the last window, as above; outside it the
+  slow phase, whose set point decelerates gently enough for the load to show the
+  whole play at each reversal where the fast phase lets it coast (the CiA 402 and
+  ODrive twins: the last windows' play -47 ... -74 %). The first time a window does, it
+  searches the slow phase afresh, as the live answer does
+  (:func:`~servoid.ident.online.refinement.refine_online`, step 4: a warm refit
+  of the fast phase's model on it does not leave that model's play), and that
+  search stands only when it too puts the play outside the loop (else the windows
+  stay on the last window); later windows refit its answer warm on the slow
+  phase. The search is kept (:attr:`WindowResult.slow_search`): the refinement
+  takes it instead of running it again;
 * the refit runs on one worker thread (``background=True``): the simulation is
   numba-compiled with ``nogil``, so the sampler keeps its GIL share; the
   feed only hands over a copy of the window (:attr:`WindowResult.stall_s` is
@@ -53,13 +74,16 @@ import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.servo_loop import ServoLoopModel
+
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.offline.loop_fit import LoopChoice
 
 __all__ = [
     "WindowConfig",
@@ -73,6 +97,7 @@ __all__ = [
     "SWITCH_INTERVAL_S",
     "HISTORY_ROWS",
     "LaterFit",
+    "SlowSearch",
 ]
 
 #: Servo seconds refitted each time: long enough for tens of reversals at a designed
@@ -93,6 +118,8 @@ WORKER_NICENESS = 10
 SWITCH_INTERVAL_S = 0.0005
 #: A window's fit after the first: ``(u, y, score, held) -> (model, nrmse)`` (:class:`WindowRefit`'s ``later``).
 LaterFit = Callable[[np.ndarray, np.ndarray, np.ndarray, ServoLoopModel], tuple[ServoLoopModel, float]]
+#: Where a window's scored samples come from (:attr:`WindowRow.part`): the last window, or the design's slow phase.
+LAST, SLOW = "last", "slow"
 #: Refits :attr:`WindowResult.history` keeps (the last ones): a monitor refits for days, identify's
 #: refits every 5 s fill it in 5.7 h.
 HISTORY_ROWS = 4096
@@ -164,6 +191,8 @@ class WindowRow:
         Wall time of the refit.
     structure : str
         Where the play sits in the refitted model.
+    part : str
+        The samples it scored: ``"last"`` (the last window) or ``"slow"`` (the design's slow phase).
     """
 
     t_s: float
@@ -172,11 +201,31 @@ class WindowRow:
     floor: float
     seconds: float
     structure: str
+    part: str = LAST
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
-                "seconds": self.seconds, "structure": self.structure}  # fmt: skip
+                "seconds": self.seconds, "structure": self.structure, "part": self.part}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class SlowSearch:
+    """The window refit's search of a live design's slow phase (:class:`WindowRefit`'s ``slow``).
+
+    Attributes
+    ----------
+    choice : LoopChoice
+        :func:`~servoid.ident.offline.loop_fit.fit_loop` (``load=None``) on the slow phase.
+    start : int
+        Index, in the stream, of the slow phase's first measured sample, where the search starts.
+    samples : int
+        Samples it covered (from ``start`` to the slow phase's end).
+    """
+
+    choice: LoopChoice
+    start: int
+    samples: int
 
 
 @dataclass(frozen=True)
@@ -199,8 +248,10 @@ class WindowResult:
     errors : tuple of str
         Refits that failed, with why.
     rival : ServoLoopModel or None
-        The first fit's best model with the play in the other place (None when the run started
-        from a given model): where the refinement of the whole record starts that place from.
+        The model with the play in the other place: the first fit's best one, refitted on every
+        later window beside the named place's (None when the run started from a given model).
+    slow_search : SlowSearch or None
+        The search of the design's slow phase, when a window ran it (whichever place it named).
     """
 
     model: ServoLoopModel | None
@@ -210,6 +261,7 @@ class WindowResult:
     stall_s: float
     errors: tuple[str, ...] = field(default=())
     rival: ServoLoopModel | None = None
+    slow_search: SlowSearch | None = None
 
     @property
     def plays(self) -> np.ndarray:
@@ -220,7 +272,10 @@ class WindowResult:
         """For JSON (the history as rows)."""
         return {"model": None if self.model is None else self.model.to_dict(),
                 "history": [r.to_dict() for r in self.history], "config": self.config.to_dict(),
-                "dropped": self.dropped, "stall_s": self.stall_s, "errors": list(self.errors)}  # fmt: skip
+                "dropped": self.dropped, "stall_s": self.stall_s, "errors": list(self.errors),
+                "slow_search": None if self.slow_search is None else {
+                    "structure": self.slow_search.choice.structure, "play": self.slow_search.choice.play,
+                    "samples": self.slow_search.samples}}  # fmt: skip
 
 
 def _refit(
@@ -231,12 +286,14 @@ def _refit(
     config: WindowConfig,
     t_s: float,
     later: LaterFit | None = None,
+    load: bool | None = False,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
     """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
 
-    ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``).
+    ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``); ``load``:
+    :func:`fit_loop`'s load stage in the fit from scratch.
     Returns the model, its row, and from the first fit the best model of the other place of
-    the play (the rival the refinement of the whole record starts that place from; None after).
+    the play (the rival the later windows refit beside it; None after).
     """
     from servoid.ident.offline.intervals import floor_nrmse
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
@@ -250,7 +307,7 @@ def _refit(
         # warm refits leave them out), from the first measured one
         idx = np.flatnonzero(keep)
         filled = np.interp(np.arange(u.size), idx, y[idx])
-        choice = fit_loop(u, filled, config.sample_period_s)
+        choice = fit_loop(u, filled, config.sample_period_s, load=load)
         model = choice.model
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
@@ -262,6 +319,62 @@ def _refit(
         model, q = fit.model, fit.fit_nrmse
     row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure)
     return model, row, rival
+
+
+def _refit_later(
+    u: np.ndarray,
+    y: np.ndarray,
+    keep: np.ndarray,
+    fast: ServoLoopModel,
+    rival: ServoLoopModel | None,
+    config: WindowConfig,
+    t_s: float,
+    slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
+    load: bool | None = False,
+) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
+    """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
+
+    The last window's model (``fast``) and the other place's (``rival``) are refitted warm on the
+    window; the better fit names the place. When that is the rival's (the place changed), the
+    window is searched afresh (:func:`fit_loop` with ``load``, both places): the rival came from a
+    shorter first window and a warm refit does not leave its play. With the play outside the loop and ``slow`` (the slow
+    phase's ``u, y, keep``, the stream index of its first sample, and its model: None before the
+    search) the slow phase answers: searched afresh (:func:`fit_loop`, ``load=None``, as the live
+    answer searches it; standing only when it too puts the play outside the loop), else its model
+    refitted warm. Returns the estimate, its row, the other place's model, the search (None: none
+    ran) and the winning place's model of the last window.
+    """
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+    from servoid.ident.offline.intervals import floor_nrmse
+    from servoid.ident.offline.loop_fit import fit_loop, refit_loop
+
+    t0 = time.perf_counter()
+    score = keep.copy()
+    score[: min(config.samples(config.burn_in_s), u.size - 2)] = False
+    fits = [refit_loop(u, y, m, score=score, max_nfev=config.max_nfev) for m in (fast, rival) if m is not None]
+    best = min(fits, key=lambda f: f.fit_nrmse)
+    won, q = best.model, best.fit_nrmse
+    other = next((f.model for f in fits if f is not best), None)
+    if best is not fits[0]:  # the place changed: both places searched afresh on this window
+        idx = np.flatnonzero(keep)
+        choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
+        won, q = choice.model, choice.fit_nrmse
+        other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
+    model, floor, part, search = won, floor_nrmse(y[score]), LAST, None
+    if slow is not None and won.structure != PLAY_IN_LOOP:
+        su, sy, sk, offset, held = slow
+        if held is None:
+            choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
+            search = SlowSearch(choice, offset, int(su.size))
+            if choice.structure != PLAY_IN_LOOP:
+                model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
+        else:
+            sscore = sk.copy()
+            sscore[: min(config.samples(config.burn_in_s), su.size - 2)] = False
+            fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
+            model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
+    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part)
+    return model, row, other, search, won
 
 
 def _yield_cpu() -> None:
@@ -292,6 +405,13 @@ class WindowRefit:
         ``held`` the first fit's model (the monitor's play-only estimate,
         :func:`servoid.ident.monitoring.play_fit.fit_play`); default
         :func:`~servoid.ident.offline.loop_fit.refit_loop` from the last answer.
+    slow : int
+        How many of the stream's first samples are a live design's slow phase: kept aside, the
+        windows timed from its end, scored by the windows once they put the play outside the
+        loop (the module's text; 0: none).
+    load : bool or None
+        :func:`~servoid.ident.offline.loop_fit.fit_loop`'s load stage in the first fit (a live
+        run: None, as the live answer's search; default False).
     """
 
     def __init__(
@@ -302,6 +422,8 @@ class WindowRefit:
         background: bool = True,
         wait: bool = False,
         later: LaterFit | None = None,
+        slow: int = 0,
+        load: bool | None = False,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -332,10 +454,18 @@ class WindowRefit:
         self._switch = sys.getswitchinterval()
         if background:
             sys.setswitchinterval(min(self._switch, SWITCH_INTERVAL_S))
-        self._future: Future[tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]] | None = None
+        self._future: Future[tuple[Any, ...]] | None = None
         self._rival: ServoLoopModel | None = None
         self._wait = bool(wait)
         self._waited = 0.0  # of the current sample, on a virtual clock: not a stall of a real sampler
+        self._slow = validation.integer("slow", slow, minimum=0)
+        self._slow_u: list[float] = []
+        self._slow_y: list[float] = []
+        self._slow_keep: list[bool] = []
+        self._search: SlowSearch | None = None  # the slow phase's search, once a window ran it
+        self._slow_model: ServoLoopModel | None = None  # the slow phase's estimate, once searched
+        self._fast: ServoLoopModel | None = None  # the last window's model of the place it named
+        self._load = load
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -350,6 +480,11 @@ class WindowRefit:
         self._take(float(u), math.nan, False)
 
     def _take(self, u: float, y: float, keep: bool) -> None:
+        if len(self._slow_u) < self._slow:  # the design's slow phase: set aside, the windows timed from its end
+            self._slow_u.append(u)
+            self._slow_y.append(y)
+            self._slow_keep.append(keep)
+            return
         t0 = time.perf_counter()
         self._waited = 0.0
         self._u.append(u)
@@ -380,24 +515,54 @@ class WindowRefit:
         lo += int(np.argmax(keep))  # the simulation starts at a measured sample
         if size - lo < 4 * self.config.samples(self.config.burn_in_s) or int(np.sum(keep)) < 50:
             return
-        job = (np.array(self._u[lo:]), np.array(self._y[lo:]), np.array(self._keep[lo:], dtype=np.bool_),
-               self.model if first or self._later is None else self._held, self.config,
-               n * self.config.sample_period_s, None if first else self._later)  # fmt: skip
-        if self._pool is None:
-            self._store(job)
+        t_s = n * self.config.sample_period_s
+        window = (np.array(self._u[lo:]), np.array(self._y[lo:]), np.array(self._keep[lo:], dtype=np.bool_))
+        work: Callable[..., Any] = _refit
+        job: tuple[Any, ...]
+        if first or self._later is not None:
+            job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
+                   self._load)  # fmt: skip
         else:
-            self._future = self._pool.submit(_refit, *job)
+            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load)
+        if self._pool is None:
+            self._store(work, job, t_s)
+        else:
+            self._future = self._pool.submit(work, *job)
 
-    def _store(self, job: tuple[Any, ...]) -> None:
+    def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
+        """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
+        so far); None without one, with too few samples, or when its search put the play inside the loop."""
+        from servoid.ident.models.structure_names import PLAY_IN_LOOP
+        from servoid.ident.offline.loop_fit import MIN_SAMPLES
+
+        if self._search is not None and self._search.choice.structure == PLAY_IN_LOOP:
+            return None  # the slow phase's search did not confirm the place
+        keep = np.array(self._slow_keep, dtype=np.bool_)
+        if int(keep.sum()) < MIN_SAMPLES:
+            return None
+        lo = int(np.argmax(keep))  # the simulation starts at a measured sample
+        return np.array(self._slow_u[lo:]), np.array(self._slow_y[lo:]), keep[lo:], lo, self._slow_model
+
+    def _store(self, work: Callable[..., Any], job: tuple[Any, ...], t_s: float) -> None:
         try:
-            self._keep_fit(*_refit(*job))
+            self._keep_fit(*work(*job))
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
-            self._errors.append(f"window ending at {job[5]:.1f} s: {exc}")
+            self._errors.append(f"window ending at {t_s:.1f} s: {exc}")
 
-    def _keep_fit(self, model: ServoLoopModel, row: WindowRow, rival: ServoLoopModel | None) -> None:
+    def _keep_fit(
+        self,
+        model: ServoLoopModel,
+        row: WindowRow,
+        rival: ServoLoopModel | None,
+        search: SlowSearch | None = None,
+        fast: ServoLoopModel | None = None,
+    ) -> None:
+        self._search = search if search is not None else self._search
+        self._slow_model = model if row.part == SLOW else self._slow_model
+        self._fast = model if fast is None else fast
         self.model = model
         self._held = model if self._held is None else self._held
-        self._rival = rival if rival is not None else self._rival
+        self._rival = rival
         self._history.append(row)
         if len(self._history) > 2 * HISTORY_ROWS:
             del self._history[:-HISTORY_ROWS]
@@ -476,4 +641,4 @@ class WindowRefit:
             self._pool = None
             sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history[-HISTORY_ROWS:]), self.config, self._dropped,
-                            self._stall, tuple(self._errors), self._rival)  # fmt: skip
+                            self._stall, tuple(self._errors), self._rival, self._search)  # fmt: skip

@@ -206,7 +206,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         )
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
-        window = WindowRefit(WindowConfig(config.period_s), wait=virtual)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None)
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
@@ -222,7 +222,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
 
             try:
                 result = run_session(
-                    driver, u, config, recording=path, metadata=meta, listeners=[online, _After(slow_samples, EstimatorFeed(window))],
+                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(window)],
                     on_progress=None if quiet else update,
                 )  # fmt: skip
             except BaseException:
@@ -251,21 +251,6 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
-
-
-class _After:
-    """Hands a listener the samples after the first ``first`` (the window refit starts after a design's slow phase:
-    its first window names the place of the play, which the slow phase names wrong on a horn twin, XM430 +272 %).
-    """
-
-    def __init__(self, first: int, listener: Any) -> None:
-        self.first, self.listener = first, listener
-
-    def on_sample(self, sample: Any, usable: bool) -> None:
-        if self.first > 0:
-            self.first -= 1
-        else:
-            self.listener.on_sample(sample, usable)
 
 
 def _described(designed: str | None, slow: tuple[str, float] | None, slow_samples: int) -> str:
