@@ -428,9 +428,9 @@ def test_a_winner_further_off_its_floor_than_ahead_of_the_runner_up_does_not_pla
     from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, PLACE_Z
 
     floor = 0.01
-    evidence = Evidence(play=0.013, interval=(np.nan, np.nan), reversals=40, fit_nrmse=0.035, floor=floor)
     for ratio in (3.5, 1.01 * MAX_FIT_TO_FLOOR):
         winner = ratio * floor
+        evidence = Evidence(play=0.013, interval=(np.nan, np.nan), reversals=40, fit_nrmse=winner, floor=floor)
         edge = np.sqrt(2.0 * winner**2 - floor**2)  # the runner-up whose excess equals what the winner misses
         for place, other in ((OUTPUT_BACKLASH, PLAY_IN_LOOP), (PLAY_IN_LOOP, OUTPUT_BACKLASH)):
             rival = SimpleNamespace(structure=other, validation_nrmse=0.0, model=SimpleNamespace(play=0.005))
@@ -443,9 +443,13 @@ def test_a_winner_further_off_its_floor_than_ahead_of_the_runner_up_does_not_pla
                 assert bool(said) == open_ and (play == 0.005 if open_ else True)
                 if ratio > 2:  # the relative margin alone would have placed it
                     assert margin > PLACED_MARGIN and (open_ or (doubts, play) == ((), None))
-    # a winner within the floor rule is judged by the margin rules alone (this one compares what is missing)
-    at_floor = {OUTPUT_BACKLASH: 0.99 * MAX_FIT_TO_FLOOR * floor, PLAY_IN_LOOP: 1.3 * MAX_FIT_TO_FLOOR * floor}
-    loop = SimpleNamespace(structure=OUTPUT_BACKLASH, margin=0.3, validation_nrmse=at_floor,
-                           candidates=(SimpleNamespace(structure=PLAY_IN_LOOP, validation_nrmse=0.0,
+    # an answer the fit rule accepts on the whole record is judged by the margin rules alone, however far its
+    # validation is off the floor (validation blocks sit above the whole record's fit): just inside, just outside
+    off = {PLAY_IN_LOOP: 1.3 * floor, OUTPUT_BACKLASH: 1.35 * floor}
+    loop = SimpleNamespace(structure=PLAY_IN_LOOP, margin=0.0385, validation_nrmse=off, place_z=2 * PLACE_Z,
+                           candidates=(SimpleNamespace(structure=OUTPUT_BACKLASH, validation_nrmse=0.0,
                                                        model=SimpleNamespace(play=0.005)),))  # fmt: skip
-    assert _place_doubts(loop, None, 0.0, 1e-4, already=False, evidence=evidence) == ((), None)
+    for fit, open_ in ((0.99 * MAX_FIT_TO_FLOOR * floor, False), (1.01 * MAX_FIT_TO_FLOOR * floor, True)):
+        evidence = Evidence(play=0.013, interval=(np.nan, np.nan), reversals=40, fit_nrmse=fit, floor=floor)
+        doubts, _ = _place_doubts(loop, None, 0.0, 1e-4, already=False, evidence=evidence)
+        assert bool(doubts) == open_
