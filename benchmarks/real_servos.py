@@ -160,9 +160,19 @@ def run(u: np.ndarray, y: np.ndarray, period: float | None) -> tuple[Identificat
 
 
 def grid_of(
-    full: bool, presets: list[str], rates: list[float] | None, kinds: list[str], frictions: list[float] | None
+    full: bool,
+    presets: list[str],
+    rates: list[float] | None,
+    kinds: list[str] | None,
+    frictions: list[float] | None,
 ) -> list[tuple[str, float, float, str]]:
-    """The twin runs: (preset, rate x bandwidth, friction factor, excitation kind)."""
+    """The twin runs: (preset, rate x bandwidth, friction factor, excitation kind).
+
+    ``kinds`` None is the default, sines and steps, the steps on the horn-encoder presets only; named
+    kinds run on every preset named (the held steps of the motor-side twins, too).
+    """
+    steps_on = ("xm430", "sts3215") if kinds is None else tuple(presets)
+    kinds = kinds or ["sines", "steps"]
     rates_ = tuple(rates) if rates else ((5.0, 10.0, 20.0, 50.0, 100.0) if full else (5.0, 20.0))
     grid: list[tuple[str, float, float, str]] = []
     for name in presets:
@@ -172,7 +182,7 @@ def grid_of(
                     grid.append((name, mult, friction, "sines"))
             if not full and frictions is None and rates is None:
                 grid.append((name, 20.0, 4.0, "sines"))
-        if "steps" in kinds and name in ("xm430", "sts3215"):
+        if "steps" in kinds and name in steps_on:
             steps_rates = tuple(rates) if rates else ((20.0, 50.0) if full else (20.0,))
             grid += [(name, mult, 1.0, "steps") for mult in steps_rates]
     return grid
@@ -367,7 +377,9 @@ def main() -> None:
         "--rates", help="comma-separated rates, multiples of the loop bandwidth (default 5,20; --full 5-100)"
     )
     ap.add_argument("--frictions", help="comma-separated motor friction factors (default 1, and 4 at 20x)")
-    ap.add_argument("--kinds", default="sines,steps", help="excitations: sines (gentle), steps (held)")
+    ap.add_argument(
+        "--kinds", help="excitations: sines (gentle), steps (held); default both, the steps on the horn presets only"
+    )
     ap.add_argument("--no-paper", action="store_true", help="skip the paper's example")
     ap.add_argument("--no-real", action="store_true", help="skip the real recordings")
     ap.add_argument("--load", action="store_true", help="also fit each twin record with the opt-in load stage")
@@ -384,7 +396,11 @@ def main() -> None:
         paper()
     if not args.no_real:
         real()
-    twins(grid_of(args.full, presets, rates, args.kinds.split(","), frictions), seeds, load=args.load)
+    twins(
+        grid_of(args.full, presets, rates, args.kinds.split(",") if args.kinds else None, frictions),
+        seeds,
+        load=args.load,
+    )
 
 
 if __name__ == "__main__":
