@@ -164,6 +164,10 @@ class WindowRow:
         Wall time of the refit.
     structure : str
         Where the play sits in the refitted model.
+    reversals : int
+        Reversals of the window's scored readings by more than twice the play the window's fit
+        started from (:func:`~servoid.ident.offline.intervals.reversals`, identify's rule): each
+        is the motor crossing the play, what the window says about it. -1: not counted.
     """
 
     t_s: float
@@ -172,11 +176,12 @@ class WindowRow:
     floor: float
     seconds: float
     structure: str
+    reversals: int = -1
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
-                "seconds": self.seconds, "structure": self.structure}  # fmt: skip
+                "seconds": self.seconds, "structure": self.structure, "reversals": self.reversals}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -238,7 +243,7 @@ def _refit(
     Returns the model, its row, and from the first fit the best model of the other place of
     the play (the rival the refinement of the whole record starts that place from; None after).
     """
-    from servoid.ident.offline.intervals import floor_nrmse
+    from servoid.ident.offline.intervals import floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
     t0 = time.perf_counter()
@@ -255,12 +260,13 @@ def _refit(
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
         model, rival = start, None
+    turns = reversals(y[score], 2.0 * model.play)
     if later is not None:
         model, q = later(u, y, score, model)
     else:
         fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
         model, q = fit.model, fit.fit_nrmse
-    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure)
+    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure, turns)
     return model, row, rival
 
 
