@@ -56,6 +56,23 @@ sines' segments by -13 ... +28 %, one false alarm in 10^5 samples), so the
 table is measured with both files, and the default stays the recording for
 comparison with the tables before it (docs/monitor.md).
 
+``--input``: the monitoring input after the first fit (the first 10 s, the
+whole loop's refit, stay the identification's gentle sines, whose segments of
+many amplitudes and accelerations the loop's parameters need). ``sine``
+(default): one segment kind, the identification's highest amplitude at its
+highest acceleration (8 rad/s^2), a steady sine of 2.8-6.4 reversals a second
+(3-7 in a window).
+The monitor drives the servo, so this is its choice: the window plays held at
+one loop carry a bias that depends on the segment (on the XM430 twin held at
+the wrong place +10 % on slow segments, +6 % on large ones; on the ODrive -4 %
+on small ones, and its false alarm was 5 windows at -19 ... -21 % across the
+junction of a large segment and one of 2.5 times the play), and gentle sines of many segments made that bias wander over
+seconds: the 2 s scatter that set the alarm's delay, and every false alarm of
+10^6 samples. One segment kind holds the bias still (the baseline takes it
+out). ``ident``: the identification's sines throughout, the tables before.
+``--min-reversals``: fewest reversals a window's readings must hold for its
+play to count (``LoopWearTracker``'s rule; 0: every window, as before).
+
 ``--fresh``: the first fit searches both places of the play from scratch on the
 monitor's first 10 s (``LoopWearTracker(fresh=True)``) instead of refitting the
 file's loop: what a monitor could do when the file does not place the play.
@@ -89,7 +106,7 @@ from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
-from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
+from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
 from servoid.recording import write_recording
@@ -106,6 +123,19 @@ def _excitation(name: str, n: int, seed: int) -> np.ndarray:
     """The gentle sines servoid designs for a play in the loop, ``n`` samples."""
     spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=8.0)
     return sample(spec, n, seed=seed + 1000)
+
+
+#: The monitoring input after the first fit by name: (amplitude over the identification's, spread, smallest) of
+#: gentle sines at the same highest acceleration. ``ident``: the identification's own (segments of many amplitudes
+#: and accelerations); ``sine``: one amplitude at the highest acceleration, a steady sine (docstring).
+MONITOR_INPUTS = {"ident": (1.0, 8.0, 0.25), "sine": (1.0, 1.0, 1.0)}
+
+
+def _monitor_input(name: str, n: int, seed: int, kind: str) -> np.ndarray:
+    """The monitoring input after the first fit (:data:`MONITOR_INPUTS`), ``n`` samples."""
+    scale, spread, smallest = MONITOR_INPUTS[kind]
+    spec = GentleSpec(amplitude=scale * SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=spread, smallest=smallest)
+    return sample(spec, n, seed=seed + 2000)
 
 
 def _live_file(name: str, seed: int) -> ModelFile:
@@ -137,7 +167,7 @@ def _model_file(name: str, seed: int) -> ModelFile:
 
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
-         chunk_s: float = CHUNK_S, fresh: bool = False):  # fmt: skip
+         chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS):  # fmt: skip
     """The twin's reference part, then ``seconds`` of monitoring from ``file`` with the play at ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
@@ -145,13 +175,16 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     n_ref = int(REFERENCE_S * RATE)
     n = int(seconds * RATE)
     u = _excitation(name, n_ref + n, seed)
+    if monitor_input != "ident":
+        first = int(FIRST_FIT_S * RATE)  # the whole loop's first fit on the identification's input
+        u[n_ref + first :] = _monitor_input(name, n - first, seed, monitor_input)
     twin.sample(u[:n_ref], 1.0 / RATE)
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
     model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
     low, high = (math.nan if v is None else float(v) for v in file.play_interval)
     tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
-                              identifiable=file.identifiable, fresh=fresh)  # fmt: skip
+                              identifiable=file.identifiable, fresh=fresh, min_reversals=min_reversals)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -189,6 +222,18 @@ def main() -> None:
         action="store_true",
         help="the first fit searches both places of the play from scratch (not the file's loop)",
     )
+    parser.add_argument(
+        "--input",
+        choices=sorted(MONITOR_INPUTS),
+        default="sine",
+        help="the monitoring input after the first fit (default sine; ident: the identification's)",
+    )
+    parser.add_argument(
+        "--min-reversals",
+        type=int,
+        default=MIN_REVERSALS,
+        help=f"fewest reversals for a window's play to count (default {MIN_REVERSALS}; 0: every window)",
+    )
     args = parser.parse_args()
     quiet = 1_000_000 if args.full else args.quiet
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -198,7 +243,14 @@ def main() -> None:
         started = time.perf_counter()
         file = _live_file(name, 1) if args.file == "live" else _model_file(name, 1)
         model, tracker, tr, t, at, play0 = _run(
-            name, args.track, lambda s: 1.0 + 0.5 * s / args.track, 1, file, fresh=args.fresh
+            name,
+            args.track,
+            lambda s: 1.0 + 0.5 * s / args.track,
+            1,
+            file,
+            fresh=args.fresh,
+            monitor_input=args.input,
+            min_reversals=args.min_reversals,
         )
         sel = t >= SCORED_FROM_S
         mean = np.array([r.mean for r in tr])[sel]
@@ -208,13 +260,32 @@ def main() -> None:
         growth = float(np.sqrt(np.mean((mean / mean[0] - truth / truth[0]) ** 2)))
         raw_window = float(np.sqrt(np.mean((window / truth - 1.0) ** 2)))
         cost = np.array([r.window.seconds for r in tr[1:]])
+        counted = np.array([r.counted for r in tr[1:]])
+        turns = np.array([r.window.reversals for r in tr[1:]])
         _, step, _, _, _, _ = _run(
-            name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, 2, file, fresh=args.fresh
+            name,
+            STEP_AT_S + 20.0,
+            lambda s: 1.2 if s >= STEP_AT_S else 1.0,
+            2,
+            file,
+            fresh=args.fresh,
+            monitor_input=args.input,
+            min_reversals=args.min_reversals,
         )
         raised = _raised(step)
         after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
         before = [x for x in raised if x < STEP_AT_S]
-        _, calm, _, _, _, _ = _run(name, quiet / RATE, lambda s: 1.0, 3, file, chunk_s=1.0, fresh=args.fresh)
+        _, calm, _, _, _, _ = _run(
+            name,
+            quiet / RATE,
+            lambda s: 1.0,
+            3,
+            file,
+            chunk_s=1.0,
+            fresh=args.fresh,
+            monitor_input=args.input,
+            min_reversals=args.min_reversals,
+        )
         base = calm.baseline()
         lo, hi = (v / play0 for v in tracker.interval)  # the file's, against the unworn play it was fitted on
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
@@ -225,13 +296,14 @@ def main() -> None:
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
                      f"{base['tau']:.1f} / {base['h']:.1f} / "
                      f"{base['false_alarm_samples']:.1e}",
+                     f"{counted.mean():.0%} / {np.median(turns):.0f}",
                      f"{1e3 * np.median(cost):.1f} / {1e3 * np.max(cost):.0f}", f"{time.perf_counter() - started:.0f}"])  # fmt: skip
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
         ["preset", "model file play vs unworn truth, place", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "track RMS growth", "window RMS raw",
          "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
-         "estimate ms med/max", "wall s"],
+         "windows counted / reversals (median)", "estimate ms med/max", "wall s"],
         rows,
     )  # fmt: skip
 

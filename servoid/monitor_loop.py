@@ -17,7 +17,9 @@ later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``
     estimate (``dead_zone_mean``: the mean of the last 5 s of window plays), the
     CUSUM's statistic in standard deviations (``cusum``; the alarm is raised
     above the threshold the ``baseline`` event gives), the loop gains ``kp``,
-    ``kv`` (held after the first row), the window's free-run NRMSE and floor, the
+    ``kv`` (held after the first row), the window's free-run NRMSE and floor, its
+    ``reversals`` (a window with fewer than
+    :data:`~servoid.ident.monitoring.loop_wear.MIN_REVERSALS` does not count), the
     estimate's wall time, the active alarms (and ``true_play`` for a simulated twin).
 ``events.jsonl``
     Start and stop; ``baseline`` (the median play, its scatter and the bound on it, the correlation
@@ -59,7 +61,7 @@ METHOD = "window-tracking"
 
 #: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
 LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
-                "refit_s", "alarms")  # fmt: skip
+                "reversals", "refit_s", "alarms")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -340,7 +342,7 @@ class _LoopRun:
         active = "+".join(e.bound.quantity for e in self.tracker.active.values())
         values: list[Any] = [k, row.t_s, row.play, self.tracker.std, tracked.mean, tracked.statistic,
                              model.kp if model else math.nan, model.kv if model else math.nan, row.nrmse, row.floor,
-                             row.seconds, active]  # fmt: skip
+                             row.reversals, row.seconds, active]  # fmt: skip
         if self.true_play is not None:
             values.append(self.true_play(k))
         assert self._csv is not None

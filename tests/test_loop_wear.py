@@ -109,3 +109,52 @@ def test_one_wild_window_play_does_not_raise_the_alarm_and_a_step_past_the_bound
     assert base["scatter"] == pytest.approx(0.02 * LOOP.play, rel=0.3) and base["h"] > 0.0
     raised = [round((e.sample / RATE - t) / 0.25) - 1 for e in tracker.events if e.raised]
     assert raised and 300 <= raised[0] < 310  # not at the wild window: it adds at most CLIP robust scales
+
+
+def test_windows_with_too_few_reversals_do_not_count_and_a_step_in_windows_that_hold_them_still_raises() -> None:
+    from servoid.ident.monitoring.loop_wear import MIN_REVERSALS, PLAY, LoopWearTracker
+    from servoid.ident.online.window import WindowRow
+
+    def run(turns_in_wild: int) -> tuple[list[int], list[bool]]:
+        tracker = LoopWearTracker(LOOP, [Bound(quantity=PLAY, low=0.9 * LOOP.play, high=1.1 * LOOP.play)],
+                                  background=False, rebase=True)  # fmt: skip
+        noise = np.random.default_rng(12).standard_normal(400)
+        t = 10.0
+        tracker._take(WindowRow(t, LOOP.play, 0.01, 0.01, 0.0, PLAY_IN_LOOP, reversals=0))  # the first fit
+        plays = LOOP.play * (1.0 + 0.02 * noise)
+        turns = np.full(plays.size, MIN_REVERSALS + 2)
+        plays[150:200] *= 1.3  # a slow stretch of the input (one reversal a window) reading high for 12.5 s
+        turns[150:200] = turns_in_wild
+        plays[300:] *= 1.2  # then the play steps up by 20 %, in windows that cross it often
+        for i, (p, n) in enumerate(zip(plays, turns, strict=True)):
+            tracker._take(WindowRow(t + 0.25 * (i + 1), float(p), 0.01, 0.01, 0.0, PLAY_IN_LOOP, reversals=int(n)))
+        rows = tracker.rows_since(0)[1:]
+        return [round((e.sample / RATE - t) / 0.25) - 1 for e in tracker.events if e.raised], [r.counted for r in rows]
+
+    raised, counted = run(MIN_REVERSALS - 1)
+    assert raised and 300 <= raised[0] < 310  # the stretch without reversals raised nothing, the step did
+    assert not any(counted[150:200]) and all(counted[:150]) and all(counted[200:])
+    raised, _ = run(MIN_REVERSALS)  # the same stretch, counted: it raises (what the rule removes)
+    assert raised and 150 <= raised[0] < 200
+
+
+def test_a_window_row_counts_the_reversals_of_its_scored_readings_by_more_than_twice_the_play() -> None:
+    from servoid.ident.online.window import WindowConfig, WindowRefit
+
+    period = 1 / RATE
+    n = int(4.0 * RATE)
+    k = np.arange(n)
+    u = 0.1 * np.sin(2 * np.pi * 2.0 * k * period)  # 2 Hz: 4 reversals a second
+    y = LOOP.simulate(u)
+    refit = WindowRefit(WindowConfig(period, window_s=1.6, every_s=1.0, first_s=2.0, burn_in_s=0.4), start=LOOP,
+                        background=False, later=fit_play)  # fmt: skip
+    for ui, yi in zip(u, y, strict=True):
+        refit.update(float(ui), float(yi))
+    rows = refit.result(final=False).history
+    assert len(rows) >= 2 and all(4 <= r.reversals <= 5 for r in rows[1:])  # 1.2 s scored at 4 a second
+    still = WindowRefit(WindowConfig(period, window_s=1.6, every_s=1.0, first_s=2.0, burn_in_s=0.4), start=LOOP,
+                        background=False, later=fit_play)  # fmt: skip
+    wiggle = 0.5 * LOOP.play * np.sin(2 * np.pi * 2.0 * k * period)  # reversals smaller than the play: none count
+    for ui in wiggle:
+        still.update(float(ui), float(ui))
+    assert all(r.reversals == 0 for r in still.result(final=False).history)

@@ -25,6 +25,14 @@ with :class:`~servoid.ident.online.window.WindowRefit`:
    step within a second. Each is a row (:class:`PlayRow`);
    the tracking estimate is the mean of the last :data:`TRACK_S` of them
    (the window plays scatter; the mean lags a growth by ``TRACK_S / 2``).
+   A window counts (baseline, CUSUM, tracking) only when its scored readings
+   reverse at least :data:`MIN_REVERSALS` times by more than twice the held
+   play (:attr:`~servoid.ident.online.window.WindowRow.reversals`): each
+   reversal is the motor crossing the play, all a window knows of it. On the
+   XM430 twin held at the wrong place, every false alarm of 10^6 quiet
+   samples (5) came from stretches of slow segments of the gentle sines whose
+   windows hold one reversal or none, reading +10 ... +24 % for 6-12 s; with
+   the rule, none (``benchmarks/monitor_loop.py``, docs/monitor.md).
 3. **Scatter.** The play-only estimates of the next ``baseline_s`` give the
    median play, their scatter and the correlation time ``tau`` of the
    overlapping windows. The CUSUM's ``sigma`` is the upper
@@ -89,6 +97,7 @@ __all__ = [
     "FALSE_ALARM_SAMPLES",
     "SIGMA_CONFIDENCE",
     "CLIP",
+    "MIN_REVERSALS",
     "ROWS_KEPT",
     "play_config",
     "file_doubt",
@@ -114,6 +123,9 @@ FALSE_ALARM_SAMPLES = 1e8
 SIGMA_CONFIDENCE = 0.95
 #: Window plays are clipped to this many robust scales (1.4826 MAD of the baseline's) beyond the bounds.
 CLIP = 3.0
+#: Fewest reversals of a window's scored readings (by more than twice the held play: the motor
+#: crossing it, :attr:`~servoid.ident.online.window.WindowRow.reversals`) for its play to count.
+MIN_REVERSALS = 2
 #: Rows the tracker keeps (the last ones; a caller copies new ones with :meth:`LoopWearTracker.rows_since`).
 ROWS_KEPT = 4096
 
@@ -170,11 +182,15 @@ class PlayRow:
         The tracking estimate: the mean window play over the last :data:`TRACK_S`.
     statistic : float
         The CUSUM after this estimate, in standard deviations (NaN before the baseline is known).
+    counted : bool
+        Whether the window's play counted (baseline, CUSUM, tracking estimate): it held at least
+        the tracker's ``min_reversals``.
     """
 
     window: WindowRow
     mean: float
     statistic: float
+    counted: bool = True
 
 
 class LoopWearTracker:
@@ -207,6 +223,8 @@ class LoopWearTracker:
         (:func:`~servoid.ident.offline.loop_fit.fit_loop` on the first ``first_s``) instead of
         refitting the start's loop; the start then gives only the bounds' reference play
         (measured in ``benchmarks/monitor_loop.py --fresh``; not what ``servoid monitor`` does).
+    min_reversals : int
+        Fewest reversals a window's readings must hold for its play to count (:data:`MIN_REVERSALS`).
     """
 
     def __init__(
@@ -223,6 +241,7 @@ class LoopWearTracker:
         interval: tuple[float, float] | None = None,
         identifiable: bool | None = None,
         fresh: bool = False,
+        min_reversals: int = MIN_REVERSALS,
     ) -> None:
         self.window = WindowRefit(config or play_config(start.sample_period_s), start=None if fresh else start,
                                   background=background, wait=wait, later=fit_play)  # fmt: skip
@@ -232,6 +251,7 @@ class LoopWearTracker:
         self._start_play = start.play
         self.baseline_s = validation.positive("baseline_s", baseline_s)
         self.false_alarm_samples = validation.positive("false_alarm_samples", false_alarm_samples)
+        self.min_reversals = validation.integer("min_reversals", min_reversals, minimum=0)
         self.events: list[AlarmEvent] = []
         self.alarms = Cusum(self.bounds, math.inf)  # replaced when the baseline is known
         self._seen = 0
@@ -264,10 +284,15 @@ class LoopWearTracker:
 
     def _take(self, row: WindowRow) -> None:
         stat = math.nan
+        counted = True
         if self._first is None:  # the baseline fit of the whole loop
             self._first = row
             mean = row.play
             self.doubt = file_doubt(self._start_play, row.play, self._interval, self._identifiable)
+        elif 0 <= row.reversals < self.min_reversals:  # too few crossings of the play: the window's play does not count
+            counted = False
+            mean = self._rows[-1].mean if self._rows else row.play
+            stat = self.alarms.statistic(PLAY) if self.bounds and not math.isnan(self._std) else math.nan
         else:
             self._recent.append(row.play)
             mean = float(np.mean(self._recent))
@@ -279,7 +304,7 @@ class LoopWearTracker:
                 k = int(round(row.t_s / self.window.config.sample_period_s))
                 self.events += self.alarms.check(k, {PLAY: (self._clip(row.play), self._std)})
                 stat = self.alarms.statistic(PLAY) if self.bounds else math.nan
-        self._rows.append(PlayRow(row, mean, stat))
+        self._rows.append(PlayRow(row, mean, stat, counted))
         if len(self._rows) > 2 * ROWS_KEPT:
             del self._rows[:-ROWS_KEPT]
             self._gone += ROWS_KEPT

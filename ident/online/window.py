@@ -193,6 +193,10 @@ class WindowRow:
         Where the play sits in the refitted model.
     part : str
         The samples it scored: ``"last"`` (the last window) or ``"slow"`` (the design's slow phase).
+    reversals : int
+        Reversals of the window's scored readings by more than twice the play the window's fit
+        started from (:func:`~servoid.ident.offline.intervals.reversals`, identify's rule): each
+        is the motor crossing the play, what the window says about it. -1: not counted.
     """
 
     t_s: float
@@ -202,11 +206,13 @@ class WindowRow:
     seconds: float
     structure: str
     part: str = LAST
+    reversals: int = -1
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
-                "seconds": self.seconds, "structure": self.structure, "part": self.part}  # fmt: skip
+                "seconds": self.seconds, "structure": self.structure, "part": self.part,
+                "reversals": self.reversals}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -295,7 +301,7 @@ def _refit(
     Returns the model, its row, and from the first fit the best model of the other place of
     the play (the rival the later windows refit beside it; None after).
     """
-    from servoid.ident.offline.intervals import floor_nrmse
+    from servoid.ident.offline.intervals import floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
     t0 = time.perf_counter()
@@ -312,12 +318,15 @@ def _refit(
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
         model, rival = start, None
+    turns = reversals(y[score], 2.0 * model.play)
     if later is not None:
         model, q = later(u, y, score, model)
     else:
         fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
         model, q = fit.model, fit.fit_nrmse
-    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure)
+    row = WindowRow(
+        t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure, reversals=turns
+    )
     return model, row, rival
 
 
@@ -345,12 +354,13 @@ def _refit_later(
     ran) and the winning place's model of the last window.
     """
     from servoid.ident.models.structure_names import PLAY_IN_LOOP
-    from servoid.ident.offline.intervals import floor_nrmse
+    from servoid.ident.offline.intervals import floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
     t0 = time.perf_counter()
     score = keep.copy()
     score[: min(config.samples(config.burn_in_s), u.size - 2)] = False
+    turns = reversals(y[score], 2.0 * fast.play)
     fits = [refit_loop(u, y, m, score=score, max_nfev=config.max_nfev) for m in (fast, rival) if m is not None]
     best = min(fits, key=lambda f: f.fit_nrmse)
     won, q = best.model, best.fit_nrmse
@@ -368,12 +378,14 @@ def _refit_later(
             search = SlowSearch(choice, offset, int(su.size))
             if choice.structure != PLAY_IN_LOOP:
                 model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
+                turns = reversals(sy[sk], 2.0 * fast.play)
         else:
             sscore = sk.copy()
             sscore[: min(config.samples(config.burn_in_s), su.size - 2)] = False
             fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
             model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
-    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part)
+            turns = reversals(sy[sscore], 2.0 * held.play)
+    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, reversals=turns)
     return model, row, other, search, won
 
 
