@@ -1,8 +1,8 @@
 """Real-time scheduling for the thread that keeps a servo's clock: the host's sampling loop, an emulated device.
 
 On a loaded host the scheduler, not the link, spoils the slots: on this
-2-core machine at load 4.3-6.5, a 10 s session at 200 Hz against the
-emulators (``benchmarks/twins.py``'s ``LIVE``) had 7-16 % of its slots late
+2-core machine at load 4.3-6.5, a 10 s ``run_session`` at 200 Hz against each
+emulator (``benchmarks/twins.py``'s ``LIVE``) had 5-16 % of its slots late
 and 6-13 % missed; with the sampling thread and the emulators at
 ``SCHED_FIFO`` 0-0.9 % and 0-0.4 % (``chrt -f 10`` on the same command, the
 same minute). A missed or late slot is a lost sample, and on a device on its
