@@ -37,6 +37,7 @@ from dataclasses import dataclass
 from typing import IO
 
 from servoid import validation
+from servoid.drivers.realtime import make_realtime
 from servoid.drivers.serial.build import firmware_binary
 from servoid.drivers.servos import DEFAULT_SERVO, Servo, parse_servo
 from servoid.errors import ConfigError, DriverError
@@ -228,6 +229,7 @@ class FirmwareEmulator:
             [str(binary), *self.options.arguments()], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
             start_new_session=True,  # Ctrl-C in the terminal reaches the Python side, which stops it cleanly
         )  # fmt: skip
+        make_realtime(self.process.pid)  # the firmware's clock first, where permitted (servoid.drivers.realtime)
         lines = self._first_lines(2)
         if len(lines) < 2 or not lines[0].startswith("port ") or not lines[1].startswith("boot "):
             err = self.stop()

@@ -125,6 +125,7 @@ def _print_event(line: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers.can.simulated import simulated_drive
+    from servoid.drivers.realtime import make_realtime
     from servoid.drivers.servos import parse_servo
 
     if args.interface == "virtual":
@@ -160,6 +161,7 @@ def run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = signal.signal(signal.SIGTERM, _terminate)
+    make_realtime()  # the drive's clock first, where permitted (servoid.drivers.realtime); before its threads
     try:
         with drive:
             print(drive.url(), flush=True)

@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 from servoid.cli import _term
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
+from servoid.drivers.realtime import SAMPLER_PRIORITY
 from servoid.drivers.servo_facts import DEFAULT_RATE_HZ
 from servoid.errors import ConfigError
 
@@ -486,6 +487,12 @@ def _on_record(loop: LoopChoice | None, result: SessionResult, record: Record, f
     return dataclasses.replace(loop, simulated=full[at] - float(np.mean(record.u)), reasons=reasons)
 
 
+#: Why a busy host spoils slots, said where late and missed slots cost a run (servoid.drivers.realtime).
+NOT_REALTIME = ("the sampling loop ran without real-time priority, which this user may not take: on a busy host "
+                "the scheduler makes slots late or missed; run as root, with CAP_SYS_NICE or an RLIMIT_RTPRIO "
+                f"of at least {SAMPLER_PRIORITY}")  # fmt: skip
+
+
 def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Path) -> dict[str, Any]:
     """How many samples a live run could not use; refuse (one line) beyond ``max_lost`` unless ``allow``.
 
@@ -512,6 +519,8 @@ def check_lost(result: SessionResult, max_lost: float, *, allow: bool, path: Pat
     if share > max_lost:
         what = (f"{n - usable} of {n} samples ({100 * share:.0f} %) could not be used: {not_measured} lost, "
                 f"{late} late, {guarded} in guard windows after them")  # fmt: skip
+        if not result.realtime and counts["late"] + counts["missed"]:
+            what += f" ({NOT_REALTIME})"
         if not allow:
             raise ConfigError(f"{what}; above --max-lost {max_lost:g}, no model is reported (the recording is in {path}; "
                               "--allow-lost reports one anyway)")  # fmt: skip

@@ -52,6 +52,7 @@ Presentation stays out of here: progress goes to a callback.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import logging
 import math
@@ -68,6 +69,7 @@ from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
 from servoid.drivers.bus import BusDriver
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
+from servoid.drivers.realtime import realtime_thread
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError, ServoidError
 from servoid.ident.online.estimator import Estimator
@@ -220,6 +222,9 @@ class SessionResult:
     usable_flags : ndarray of bool or None
         The usable-sample rule's verdict on each kept sample, as the listeners
         got it; set by :func:`run_session`.
+    realtime : bool
+        Whether the sampling loop ran at ``SCHED_FIFO`` (:mod:`servoid.drivers.realtime`: where the
+        system permits it, on the real clock).
     """
 
     samples: tuple[Sample, ...]
@@ -232,6 +237,7 @@ class SessionResult:
     stopped: str | None = None
     slot_counts: Mapping[str, int] | None = None
     usable_flags: np.ndarray | None = None
+    realtime: bool = False
     _arrays: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
 
     def __len__(self) -> int:
@@ -316,6 +322,7 @@ class SessionResult:
             "commands_clamped": stats.clamped,
             "stopped": self.stopped,
             "estimator_error": self.estimator_error,
+            "realtime": self.realtime,
         }
 
     @property
@@ -443,8 +450,12 @@ def run_session(
     one: Any = driver  # a Driver, or a BusDriver for the bus sampler
     sampler = sampler_class(one, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
     sampler.writer = writer
+    # the real clock's slots at SCHED_FIFO where permitted (servoid.drivers.realtime: on a loaded host the
+    # scheduler, not the link, spoils them); a virtual clock keeps no time to be late for
+    realtime = realtime_thread() if isinstance(use_clock, MonotonicClock) else contextlib.nullcontext(False)
     try:
-        sampler.run(excitation)
+        with realtime as sampler.realtime:
+            sampler.run(excitation)
     except KeyboardInterrupt:
         sampler.stopped = "interrupted"
     except DriverError as exc:
@@ -520,6 +531,8 @@ class _Sampler:
         self._period_s = config.period_s
         self.keep_samples = keep_samples
         self._slack_s = config.period_s / 2 + driver.clock_resolution_s
+        #: Whether the loop ran at SCHED_FIFO (set by :func:`run_session`).
+        self.realtime = False
 
     # ---- the loop -----------------------------------------------------------------
     def run(self, excitation: Iterable[float]) -> None:
@@ -723,6 +736,7 @@ class _Sampler:
             stopped=self.stopped,
             slot_counts=dict(self.counts),
             usable_flags=np.array(self.flags, dtype=np.bool_) if self.keep_samples else None,
+            realtime=self.realtime,
         )
 
 
