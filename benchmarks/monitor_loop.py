@@ -61,7 +61,8 @@ whole loop's refit, stay the identification's gentle sines, whose segments of
 many amplitudes and accelerations the loop's parameters need). ``sine``
 (default): one segment kind, the identification's highest amplitude at its
 highest acceleration (8 rad/s^2), a steady sine of 2.8-6.4 reversals a second
-(3-7 in a window).
+(3-7 in a window), built by :func:`servoid.excitation.monitor_input.monitor_spec`, as
+``servoid monitor`` builds its default input for a servo-loop model file with a design.
 The monitor drives the servo, so this is its choice: the window plays held at
 one loop carry a bias that depends on the segment (on the XM430 twin held at
 the wrong place +10 % on slow segments, +6 % on large ones; on the ODrive -4 %
@@ -103,7 +104,7 @@ from servoid.cli import main as servoid_main
 from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
-from servoid.excitation.specs import GentleSpec
+from servoid.excitation.monitor_input import IDENT, MONITOR_INPUTS, monitor_spec
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, LoopWearTracker, PlayRow
@@ -121,21 +122,12 @@ SCORED_FROM_S = 30.0
 
 def _excitation(name: str, n: int, seed: int) -> np.ndarray:
     """The gentle sines servoid designs for a play in the loop, ``n`` samples."""
-    spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=8.0)
-    return sample(spec, n, seed=seed + 1000)
-
-
-#: The monitoring input after the first fit by name: (amplitude over the identification's, spread, smallest) of
-#: gentle sines at the same highest acceleration. ``ident``: the identification's own (segments of many amplitudes
-#: and accelerations); ``sine``: one amplitude at the highest acceleration, a steady sine (docstring).
-MONITOR_INPUTS = {"ident": (1.0, 8.0, 0.25), "sine": (1.0, 1.0, 1.0)}
+    return sample(monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2), n, seed=seed + 1000)
 
 
 def _monitor_input(name: str, n: int, seed: int, kind: str) -> np.ndarray:
-    """The monitoring input after the first fit (:data:`MONITOR_INPUTS`), ``n`` samples."""
-    scale, spread, smallest = MONITOR_INPUTS[kind]
-    spec = GentleSpec(amplitude=scale * SINE_AMPLITUDE[name], accel=8.0 / RATE**2, spread=spread, smallest=smallest)
-    return sample(spec, n, seed=seed + 2000)
+    """The monitoring input after the first fit (:data:`~servoid.excitation.monitor_input.MONITOR_INPUTS`), ``n`` samples."""
+    return sample(monitor_spec(kind, SINE_AMPLITUDE[name], 8.0 / RATE**2), n, seed=seed + 2000)
 
 
 def _live_file(name: str, seed: int) -> ModelFile:

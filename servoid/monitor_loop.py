@@ -54,7 +54,7 @@ from servoid.monitor_run import drive
 from servoid.recording import RecordingWriter
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult
 
-__all__ = ["refusal", "LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
+__all__ = ["refusal", "design_sines", "LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
 
 #: ``method`` of the model files this monitor writes.
 METHOD = "window-tracking"
@@ -62,6 +62,41 @@ METHOD = "window-tracking"
 #: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
 LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
                 "reversals", "refit_s", "alarms")  # fmt: skip
+
+
+def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float] | None:
+    """The identification's largest amplitude and highest peak acceleration, from the model file's design.
+
+    What the monitor's steady sine is built from
+    (:func:`~servoid.excitation.monitor_input.monitor_stream`): the ``design`` section that ``servoid
+    identify --driver`` writes (the probe's gentle sines: ``amplitude``, ``accel`` per sample squared at
+    the live run's rate, ``estimator_rate_hz`` times ``factor``).
+
+    Parameters
+    ----------
+    model_file : ModelFile
+        The servo's model file.
+    period_s : float
+        The monitor's sample period, s.
+
+    Returns
+    -------
+    (float, float) or None
+        The amplitude (unit of ``u``) and the acceleration in unit of ``u`` per sample squared at
+        ``period_s``; None when the file holds no gentle-sines design (``identify --data``, a design of
+        held steps, ``--no-probe``).
+    """
+    design = model_file.extra.get("design")
+    if not isinstance(design, dict) or design.get("shape") != "gentle":
+        return None
+    try:
+        amplitude, accel = float(design["amplitude"]), float(design["accel"])
+        rate_hz = float(design["estimator_rate_hz"]) * int(design["factor"])
+    except (KeyError, TypeError, ValueError):
+        return None
+    if not all(math.isfinite(v) and v > 0.0 for v in (amplitude, accel, rate_hz)):
+        return None
+    return amplitude, accel * (rate_hz * period_s) ** 2
 
 
 @dataclass(frozen=True)

@@ -167,3 +167,111 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
     events = [json.loads(line) for line in (refused / "events.jsonl").read_text().splitlines()]
     assert [e["action"] for e in events if e["event"] == "doubt"] == ["refuse"]
     assert events[-1]["event"] == "stop" and events[-1]["t"] < 11.0  # stopped at the first refit (10 s)
+
+
+def _designed_loop_file(tmp_path):
+    """A servo-loop model file (play in the loop, 100 Hz) with the design ``identify --driver`` writes: gentle
+    sines of +/-0.08 rad at up to 8 rad/s^2, at a live run of 200 Hz (its acceleration per sample^2 there)."""
+    from servoid.ident import BacklashModel
+    from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP, SERVO_LOOP
+
+    loop = ServoLoopModel(structure=PLAY_IN_LOOP, sample_period_s=0.01, kp=20.0, kv=150.0, c1=0.004, c2=0.003)
+    black_box = BacklashModel(a=(-0.9,), b=(0.1,), delay=1, m2=1.0, c1=0.004, c2=0.003)
+    design = {"factor": 4, "shape": "gentle", "hold": 4, "amplitude": 0.08, "accel": 8.0 / 200.0**2,
+              "slow_accel": 0.0, "slow_part": 0.0, "margin": 0.5, "estimator_rate_hz": 50.0, "reasons": {}}  # fmt: skip
+    content = ModelFile(model=black_box, output_unit="rad", input_unit="rad", sample_period_s=0.01, band=0.001,
+                        structure=PLAY_IN_LOOP, form=SERVO_LOOP, identifiable=True, play=loop.play,
+                        loop=loop.params(), extra={"design": design})  # fmt: skip
+    return save_model(tmp_path / "loop.json", content)
+
+
+def _commands(monkeypatch):
+    """Every command the session sends (as limited and rounded by the driver), in order."""
+    import numpy as np
+
+    from servoid.drivers.base import Driver
+
+    sent: list[float] = []
+    begin = Driver.begin_exchange
+
+    def spy(self, u, *, slot=None):
+        pending = begin(self, u, slot=slot)
+        sent.append(pending.command)
+        return pending
+
+    monkeypatch.setattr(Driver, "begin_exchange", spy)
+    return sent, np
+
+
+def _reversals(u):
+    import numpy as np
+
+    step = np.diff(u)
+    step = step[step != 0.0]
+    return int(np.count_nonzero(np.diff(np.sign(step))))
+
+
+def test_a_servo_loop_model_is_driven_by_the_identifications_sines_then_one_steady_sine(tmp_path, monkeypatch, capsys):
+    # what benchmarks/monitor_loop.py measured: the first fit's 10 s on the identification's gentle sines, then one
+    # sine at their largest amplitude and highest acceleration (8 rad/s^2 here: 1.59 Hz at 0.08 rad)
+    model = _designed_loop_file(tmp_path)
+    sent, np = _commands(monkeypatch)
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "16",
+                 "--out", str(tmp_path / "sine")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    hz = np.sqrt(8.0 / 0.08) / (2.0 * np.pi)
+    assert f"then one steady sine +/-0.08 rad at {hz:.3g} Hz" in err
+    u = np.array(sent)
+    assert u.size == 1600
+    head, tail = u[:1000], u[1000:]
+    # the first 10 s: gentle sines of several amplitudes, none beyond the design's, at most its acceleration (but
+    # where one segment meets the next: the velocity changes there)
+    accel = np.abs(np.diff(u, 2)) / 0.01**2
+    assert np.max(np.abs(head)) <= 0.08 and np.mean(accel[:998] > 8.0 * 1.001) < 0.02
+    peaks = [np.max(np.abs(head[i : i + 100])) for i in range(0, 1000, 100)]
+    assert max(peaks) > 2.0 * min(peaks)
+    # then the steady sine: its amplitude, its reversals (two a period), its acceleration; no other segment kind
+    assert np.max(np.abs(tail)) == pytest.approx(0.08, rel=0.01)
+    assert _reversals(tail) / 6.0 == pytest.approx(2.0 * hz, rel=0.1)
+    assert np.mean(accel[1000:] > 8.0 * 1.001) < 0.02 and np.quantile(accel[1000:], 0.9) > 0.9 * 8.0
+    peaks = [np.max(np.abs(tail[i : i + 100])) for i in range(0, 600, 100)]
+    assert min(peaks) > 0.95 * 0.08
+    _, meta = read_estimates(tmp_path / "sine" / "estimates.csv")
+    assert "spread=1.0" in meta["excitation"] and "steady sine" in meta["input"]
+
+
+def test_the_steady_sine_stays_inside_the_drivers_limits(tmp_path, monkeypatch, capsys):
+    model = _designed_loop_file(tmp_path)
+    sent, np = _commands(monkeypatch)
+    driver = "sim://xm430?clock=virtual&centre=0.2&amplitude=0.05&max_step=0.004"
+    assert main(["monitor", "--driver", driver, "--model", str(model), "--duration", "12", "--out",
+                 str(tmp_path / "limited")]) == 0  # fmt: skip
+    assert "steady sine +/-0.05 rad" in capsys.readouterr().err  # the design's 0.08 capped by the band
+    u = np.array(sent)
+    # from the servo's place at enable (0) to the band at the rate limit, then inside it
+    inside = int(np.argmax(u >= 0.15))
+    assert 0 < inside <= 0.15 / 0.004 + 1 and np.all(np.abs(u[inside:] - 0.2) <= 0.05 + 1e-12)
+    assert np.max(np.abs(np.diff(u))) <= 0.004 + 1e-12
+    assert np.max(u[1000:]) == pytest.approx(0.25, abs=0.001)
+
+
+def test_excitation_overrides_the_steady_sine_and_a_file_without_a_design_says_so(tmp_path, monkeypatch, capsys):
+    model = _designed_loop_file(tmp_path)
+    sent, np = _commands(monkeypatch)
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "12",
+                 "--excitation", "uniform:amplitude=0.03", "--out", str(tmp_path / "own")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "input: operating none, excitation uniform:amplitude=0.03" in err and "steady sine" not in err
+    u = np.array(sent)
+    assert np.max(np.abs(u)) <= 0.03 and _reversals(u[1000:]) > 50  # white noise: a reversal most samples
+    # the same file without its design (identify --data): the monitor's default before, and the line says why
+    data = json.loads(model.read_text())
+    del data["design"]
+    (tmp_path / "plain.json").write_text(json.dumps(data))
+    sent.clear()
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(tmp_path / "plain.json"),
+                 "--duration", "12", "--out", str(tmp_path / "plain")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "excitation uniform:" in err and "holds no gentle-sines design" in err
+    assert _reversals(np.array(sent)[1000:]) > 50

@@ -58,7 +58,12 @@ loop is refitted on the first 10 s of servo time, then the play alone on 1.6 s
 windows every 0.25 s; their scatter over the next 20 s sets a CUSUM's threshold
 for one false alarm in 10^8 samples on average. --dead-zone bounds the play (a
 share P% is taken of the median play those windows see); --persist, --z, --m2
-and --fit do not apply (benchmarks/monitor_loop.py).
+and --fit do not apply (benchmarks/monitor_loop.py). Its input, without
+--operating and --excitation, is what that benchmark measured: the gentle
+sines of the file's design (`servoid identify --driver` writes it) for the
+first 10 s, then one steady sine at their largest amplitude and highest
+acceleration (inside the driver's limits); a file without that design gets the
+uniform noise below, and the header's "input:" line says which.
 
 The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
@@ -124,7 +129,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                           "levels:amplitude=0.5,count=4,dwell=2000 (default: none)")  # fmt: skip
     inp.add_argument("--excitation", metavar="SPEC",
                      help="excitation added to it, e.g. uniform:amplitude=0.05 (default: without --operating, "
-                          "uniform noise of the driver's reference amplitude; with it, none)")  # fmt: skip
+                          "for a servo-loop model with a design the identification's sines, then a steady sine; "
+                          "else uniform noise of the driver's reference amplitude; with --operating, none)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
     al = p.add_argument_group("alarms")
     al.add_argument(
@@ -441,13 +447,14 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         truth = simulated.twin_truth_at(k)
         return math.nan if truth is None else truth.play_rad
 
-    inputs, meta = _inputs(args, driver, total)
+    inputs, meta = _loop_inputs(args, driver, model_file, period, total)
     if not args.json:
         length = "until Ctrl-C" if total is None else f"{total} samples ({total * period:g} s)"
         _term.stderr.print(f"servoid monitor: {driver.describe()} at {1.0 / period:g} Hz, {length}; the servo-loop "
                            f"model ({model_file.structure}), its play {start.play:.4g} {unit} followed on short "
                            f"windows; bound {bound.describe() if bound else 'none'}; writing to {args.out}/",
                            markup=False, soft_wrap=True)  # fmt: skip
+        _term.stderr.print(f"  input: {meta['input']}", markup=False, soft_wrap=True)
     started = time.perf_counter()
     with _term.live_progress("monitor", total) as bar:
 
@@ -468,7 +475,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         raise ConfigError(refusal(result.doubt or "the model file's play is off"))
     if args.json:
         _term.print_json({**result.to_dict(), "unit": unit, "structure": model_file.structure,
-                          "start_play": start.play})  # fmt: skip
+                          "start_play": start.play, "input": meta["input"]})  # fmt: skip
     else:
         _term.stderr.print(f"servoid monitor: {result.samples} samples ({elapsed:.1f} s of wall time), {result.refits} "
                            f"estimates ({result.dropped} left out); play now {result.play:.4g} +/- "
@@ -477,6 +484,49 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         for name, path in result.files.items():
             _term.stderr.print(f"  {name:13s} {path}", markup=False, soft_wrap=True)
     return _exit_status(result)
+
+
+def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float,
+                 total: int | None) -> tuple[Iterator[float], dict[str, str]]:  # fmt: skip
+    """The servo-loop monitor's commands and their description (``input``: the line the header prints).
+
+    Without ``--operating`` and ``--excitation``: what ``benchmarks/monitor_loop.py`` measured, the
+    identification's gentle sines for the first fit, then one steady sine at their largest amplitude
+    and highest acceleration (:func:`~servoid.excitation.monitor_input.monitor_stream`), from the model
+    file's design (:func:`~servoid.monitor_loop.design_sines`), inside the driver's range and rate
+    limit; a file without that design gets the MRGIA monitor's default, and the line says why.
+    """
+    from servoid.excitation.gentle import segments
+    from servoid.excitation.monitor_input import IDENT, SINE, monitor_spec, monitor_stream
+    from servoid.ident.monitoring.loop_wear import FIRST_FIT_S
+    from servoid.monitor_loop import design_sines
+
+    unit = driver.command_unit.unit
+    sines = None if args.operating is not None or args.excitation is not None else design_sines(model_file, period)
+    if sines is None:
+        inputs, meta = _inputs(args, driver, total)
+        line = f"operating {meta['operating']}, excitation {meta['excitation']}"
+        if args.operating is None and args.excitation is None:
+            line += (f" ({args.model} holds no gentle-sines design from `servoid identify --driver`, so not the "
+                     "steady sine the monitor measured best with: give --excitation to choose)")  # fmt: skip
+        return inputs, {**meta, "input": line}
+    limits = driver.limits
+    amplitude = min(sines[0], limits.high - limits.centre, limits.centre - limits.low)
+    accel = sines[1]
+    first = int(round(FIRST_FIT_S / period))
+    inputs = monitor_stream(amplitude, accel, first, seed=args.seed, offset=limits.centre, rate=limits.max_step)
+    if total is not None:
+        inputs = itertools.islice(inputs, total)
+    ident = monitor_spec(IDENT, amplitude, accel, offset=limits.centre, rate=limits.max_step)
+    sine = monitor_spec(SINE, amplitude, accel, offset=limits.centre, rate=limits.max_step)
+    hz = float(segments(sine, args.seed, 0, 1)[1][0]) / period
+    line = (f"the identification's gentle sines (+/-{amplitude:.4g} {unit}, peak acceleration up to "
+            f"{accel / period**2:.4g} {unit}/s^2) for the first fit's {first * period:g} s, then one steady sine "
+            f"+/-{amplitude:.4g} {unit} at {hz:.3g} Hz ({2 * hz:.3g} reversals a second), from {args.model}'s "
+            "design; --excitation to choose another")  # fmt: skip
+    meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {first} samples, then {format_spec(sine)}",
+            "seed": str(args.seed), "input": line}  # fmt: skip
+    return inputs, meta
 
 
 def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorConfig, rate: float,

@@ -1,0 +1,87 @@
+"""The monitor's own input for a play inside the loop: the identification's gentle sines, then one steady sine.
+
+A monitor that follows the play alone (:mod:`servoid.ident.monitoring.loop_wear`)
+holds the loop it refitted first, so each window's play carries that loop's
+bias, and the bias depends on the segment of gentle sines the window sees
+(slow, large, small). One segment kind holds it still, and the baseline takes
+it out: after the first fit, one steady sine at the identification's largest
+amplitude and its highest peak acceleration (``benchmarks/monitor_loop.py``,
+docs/monitor.md "steady sine": the alarm within 2 s of a +20 % step on the
+twins whose file places the play, no false alarm in 10^6 samples). The first
+fit, which refits the whole loop, keeps the identification's sines: their
+segments of many amplitudes and accelerations are what the loop's parameters
+need.
+
+The benchmark and ``servoid monitor`` build both parts here (one owner).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterator
+
+from servoid.excitation.generate import stream
+from servoid.excitation.specs import GentleSpec
+
+__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "monitor_spec", "monitor_stream"]
+
+#: The identification's gentle sines (segments of many amplitudes and accelerations).
+IDENT = "ident"
+#: One steady sine: every segment at the highest amplitude and acceleration.
+SINE = "sine"
+
+#: Each input by name: (amplitude over the identification's, spread, smallest) of gentle sines at the
+#: identification's highest acceleration. ``ident``: the identification's own (``GentleSpec``'s defaults);
+#: ``sine``: one amplitude at the highest acceleration, a steady sine.
+MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25), SINE: (1.0, 1.0, 1.0)}
+
+
+def monitor_spec(
+    kind: str, amplitude: float, accel: float, *, offset: float = 0.0, rate: float = math.inf
+) -> GentleSpec:
+    """The gentle-sines spec of one monitoring input (:data:`MONITOR_INPUTS`).
+
+    Parameters
+    ----------
+    kind : str
+        ``"ident"`` or ``"sine"``.
+    amplitude : float
+        The identification's largest amplitude, unit of ``u``.
+    accel : float
+        The identification's highest peak acceleration, unit of ``u`` per sample squared (at the
+        monitor's own sample period).
+    offset : float
+        The centre, unit of ``u``.
+    rate : float
+        The servo's largest step per sample (the rate limit), unit of ``u``.
+
+    Returns
+    -------
+    GentleSpec
+    """
+    scale, spread, smallest = MONITOR_INPUTS[kind]
+    return GentleSpec(amplitude=scale * amplitude, accel=accel, spread=spread, smallest=smallest, offset=offset,
+                      rate=rate)  # fmt: skip
+
+
+def monitor_stream(
+    amplitude: float, accel: float, first: int, *, seed: int, offset: float = 0.0, rate: float = math.inf
+) -> Iterator[float]:
+    """The monitor's endless input: ``first`` samples of the identification's sines, then the steady sine.
+
+    Parameters
+    ----------
+    amplitude, accel, offset, rate : float
+        As :func:`monitor_spec`.
+    first : int
+        Samples of the identification's sines (the first fit's, ``FIRST_FIT_S`` at the session's rate).
+    seed : int
+        Seed of the identification's sines (the steady sine draws nothing: its segments are alike).
+
+    Returns
+    -------
+    iterator of float
+    """
+    head = stream(monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate), seed=seed, n=first)
+    return itertools.chain(head, stream(monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate), seed=seed))
