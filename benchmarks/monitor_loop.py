@@ -104,6 +104,7 @@ from servoid.cli import main as servoid_main
 from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
+from servoid.excitation.gentle import segment_end
 from servoid.excitation.monitor_input import IDENT, MONITOR_INPUTS, monitor_spec
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
@@ -168,8 +169,11 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     n = int(seconds * RATE)
     u = _excitation(name, n_ref + n, seed)
     if monitor_input != "ident":
-        first = int(FIRST_FIT_S * RATE)  # the whole loop's first fit on the identification's input
-        u[n_ref + first :] = _monitor_input(name, n - first, seed, monitor_input)
+        # the whole loop's first fit on the identification's input, to the end of its segment (as
+        # servoid monitor: monitor_stream), then the monitoring input from the offset: no step
+        ident = monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2)
+        cut = min(segment_end(ident, seed + 1000, n_ref + int(FIRST_FIT_S * RATE)), n_ref + n)
+        u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input)
     twin.sample(u[:n_ref], 1.0 / RATE)
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
     model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)

@@ -28,7 +28,7 @@ import numpy as np
 from servoid.excitation.specs import GentleSpec
 from servoid.excitation.streams import doubles
 
-__all__ = ["gentle", "segments", "whole_segments"]
+__all__ = ["gentle", "segment_end", "segments", "whole_segments"]
 
 #: Segments drawn per look-up batch while walking to a start index.
 _BATCH = 256
@@ -124,4 +124,35 @@ def whole_segments(spec: GentleSpec, seed: int, limit: int) -> int:
         inside = ends[ends <= limit]
         if inside.size < ends.size:
             return int(inside[-1]) if inside.size else begin
+        begin, j = int(ends[-1]), j + _BATCH
+
+
+def segment_end(spec: GentleSpec, seed: int, index: int) -> int:
+    """The end of the segment that holds sample ``index`` (``index`` itself when a segment starts there).
+
+    A signal that follows from there starts where the gentle sines are back at their offset (each
+    segment is whole periods of a sine): no step in the command (:func:`whole_segments` cuts before
+    a limit, this one after an index).
+
+    Parameters
+    ----------
+    spec : GentleSpec
+        The signal.
+    seed : int
+        Its seed.
+    index : int
+        A sample index, 0 or more.
+
+    Returns
+    -------
+    int
+    """
+    begin, j = 0, 0
+    while True:
+        ends = begin + np.cumsum(segments(spec, seed, j, _BATCH)[2])
+        after = ends[ends >= index]
+        if index <= begin:
+            return begin
+        if after.size:
+            return int(after[0])
         begin, j = int(ends[-1]), j + _BATCH

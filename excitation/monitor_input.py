@@ -22,6 +22,7 @@ import math
 from collections.abc import Iterator
 
 from servoid.excitation.generate import stream
+from servoid.excitation.gentle import segment_end
 from servoid.excitation.specs import GentleSpec
 
 __all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "monitor_spec", "monitor_stream"]
@@ -75,7 +76,10 @@ def monitor_stream(
     amplitude, accel, offset, rate : float
         As :func:`monitor_spec`.
     first : int
-        Samples of the identification's sines (the first fit's, ``FIRST_FIT_S`` at the session's rate).
+        Samples of the identification's sines at least (the first fit's, ``FIRST_FIT_S`` at the session's
+        rate); they run on to the end of the segment that holds sample ``first``
+        (:func:`~servoid.excitation.gentle.segment_end`), so the steady sine starts at the offset
+        where the sines are back at it: no step in the command.
     seed : int
         Seed of the identification's sines (the steady sine draws nothing: its segments are alike).
 
@@ -83,5 +87,6 @@ def monitor_stream(
     -------
     iterator of float
     """
-    head = stream(monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate), seed=seed, n=first)
+    ident = monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate)
+    head = stream(ident, seed=seed, n=segment_end(ident, seed, first))
     return itertools.chain(head, stream(monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate), seed=seed))

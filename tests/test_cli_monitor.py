@@ -215,16 +215,23 @@ def _reversals(u):
 def test_a_servo_loop_model_is_driven_by_the_identifications_sines_then_one_steady_sine(tmp_path, monkeypatch, capsys):
     # what benchmarks/monitor_loop.py measured: the first fit's 10 s on the identification's gentle sines, then one
     # sine at their largest amplitude and highest acceleration (8 rad/s^2 here: 1.59 Hz at 0.08 rad)
+    from servoid.excitation.gentle import segment_end
+    from servoid.excitation.monitor_input import IDENT, monitor_spec
+
     model = _designed_loop_file(tmp_path)
     sent, np = _commands(monkeypatch)
-    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "16",
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "22",
                  "--out", str(tmp_path / "sine")]) == 0  # fmt: skip
     err = capsys.readouterr().err
     hz = np.sqrt(8.0 / 0.08) / (2.0 * np.pi)
     assert f"then one steady sine +/-0.08 rad at {hz:.3g} Hz" in err
     u = np.array(sent)
-    assert u.size == 1600
-    head, tail = u[:1000], u[1000:]
+    assert u.size == 2200
+    # the sines run on to the end of the segment that holds the 10th second: back at the offset, no step
+    cut = segment_end(monitor_spec(IDENT, 0.08, 8.0 * 0.01**2), 0, 1000)
+    assert 1000 <= cut <= 1600 and abs(u[cut - 1]) < 0.08 * 0.2 and abs(u[cut]) < 0.08 * 0.2
+    assert np.max(np.abs(np.diff(u[cut - 50 : cut + 50]))) <= np.max(np.abs(np.diff(u[cut:])))
+    head, tail = u[:1000], u[cut : cut + 600]
     # the first 10 s: gentle sines of several amplitudes, none beyond the design's, at most its acceleration (but
     # where one segment meets the next: the velocity changes there)
     accel = np.abs(np.diff(u, 2)) / 0.01**2
@@ -234,7 +241,7 @@ def test_a_servo_loop_model_is_driven_by_the_identifications_sines_then_one_stea
     # then the steady sine: its amplitude, its reversals (two a period), its acceleration; no other segment kind
     assert np.max(np.abs(tail)) == pytest.approx(0.08, rel=0.01)
     assert _reversals(tail) / 6.0 == pytest.approx(2.0 * hz, rel=0.1)
-    assert np.mean(accel[1000:] > 8.0 * 1.001) < 0.02 and np.quantile(accel[1000:], 0.9) > 0.9 * 8.0
+    assert np.mean(accel[cut:] > 8.0 * 1.001) < 0.02 and np.quantile(accel[cut:], 0.9) > 0.9 * 8.0
     peaks = [np.max(np.abs(tail[i : i + 100])) for i in range(0, 600, 100)]
     assert min(peaks) > 0.95 * 0.08
     _, meta = read_estimates(tmp_path / "sine" / "estimates.csv")

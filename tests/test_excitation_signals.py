@@ -240,3 +240,17 @@ def test_whole_segments_end_at_a_segment_boundary_back_at_the_offset():
     # a whole segment is whole periods: the next sample is back at the offset
     cut = whole_segments(spec, 3, int(ends[10]) + 3)
     assert sample(spec, cut + 1, seed=3)[cut] == pytest.approx(0.02, abs=1e-12)
+
+
+def test_segment_end_is_the_end_of_the_segment_that_holds_an_index_back_at_the_offset():
+    from servoid.excitation.gentle import segment_end, segments
+
+    spec = GentleSpec(amplitude=0.1, accel=1e-3, offset=0.02)
+    ends = np.cumsum(segments(spec, 3, 0, 600)[2])  # past the walk's first batch of 256 segments
+    assert segment_end(spec, 3, 0) == 0
+    assert segment_end(spec, 3, 1) == ends[0] and segment_end(spec, 3, int(ends[0])) == ends[0]
+    for i in (4, 255, 256, 300):
+        assert segment_end(spec, 3, int(ends[i]) + 1) == ends[i + 1]
+        assert segment_end(spec, 3, int(ends[i + 1]) - 1) == ends[i + 1]
+    cut = segment_end(spec, 3, int(ends[10]) + 3)
+    assert sample(spec, cut + 1, seed=3)[cut] == pytest.approx(0.02, abs=1e-12)

@@ -496,7 +496,7 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     file's design (:func:`~servoid.monitor_loop.design_sines`), inside the driver's range and rate
     limit; a file without that design gets the MRGIA monitor's default, and the line says why.
     """
-    from servoid.excitation.gentle import segments
+    from servoid.excitation.gentle import segment_end, segments
     from servoid.excitation.monitor_input import IDENT, SINE, monitor_spec, monitor_stream
     from servoid.ident.monitoring.loop_wear import FIRST_FIT_S
     from servoid.monitor_loop import design_sines
@@ -520,11 +520,13 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     ident = monitor_spec(IDENT, amplitude, accel, offset=limits.centre, rate=limits.max_step)
     sine = monitor_spec(SINE, amplitude, accel, offset=limits.centre, rate=limits.max_step)
     hz = float(segments(sine, args.seed, 0, 1)[1][0]) / period
+    cut = segment_end(ident, args.seed, first)  # where monitor_stream switches: the sines back at the offset
     line = (f"the identification's gentle sines (+/-{amplitude:.4g} {unit}, peak acceleration up to "
-            f"{accel / period**2:.4g} {unit}/s^2) for the first fit's {first * period:g} s, then one steady sine "
+            f"{accel / period**2:.4g} {unit}/s^2) for the first fit's {first * period:g} s and to the end of "
+            f"their segment ({cut * period:.3g} s), then one steady sine "
             f"+/-{amplitude:.4g} {unit} at {hz:.3g} Hz ({2 * hz:.3g} reversals a second), from {args.model}'s "
             "design; --excitation to choose another")  # fmt: skip
-    meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {first} samples, then {format_spec(sine)}",
+    meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {cut} samples, then {format_spec(sine)}",
             "seed": str(args.seed), "input": line}  # fmt: skip
     return inputs, meta
 
