@@ -48,6 +48,7 @@ import contextlib
 import io
 import json
 import os
+import re
 import sys
 import tempfile
 import time
@@ -143,10 +144,18 @@ def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> li
         str(result["decimation"]["factor"]), f"{result['lost']['share_unusable']:.2f}", what, f"{online_gap:.5f}",
         f"{refined_gap:.5f}", f"{(online_gap - play) / play:+.0%}", f"{to5:.1f}",
         "never" if np.isnan(to_answer) else f"{to_answer:.1f}", f"{fit_ratio:.2f}",
-        f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {'ident.' if result['identifiable'] else 'not'})",
+        f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {_identified(result)})",
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}",
         f"{wall:.0f}", why,
     ]  # fmt: skip
+
+
+def _identified(result: dict) -> str:
+    """``ident.``, or ``not:`` and the head of the first reason (its words before a colon or a parenthesis)."""
+    if result["identifiable"]:
+        return "ident."
+    first = (result["reasons"] or ["?"])[0]
+    return "not: " + re.split(r"[:(]", first, maxsplit=1)[0].strip()[:40]
 
 
 def _seeded(cells: list[str], seed: int) -> list[str]:

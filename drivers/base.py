@@ -69,6 +69,12 @@ What a driver MAY implement
     limit, before ``_exchange`` sees it, and reports the rounded command as
     the one sent: what the servo got, to identify from (the rounding is
     otherwise an input error of up to half a step).
+``readings_side`` (instance attribute, set in ``__init__``)
+    Which shaft the position readings are of (:mod:`servoid.readings_side`):
+    ``"output"`` (the default) or ``"motor"`` (an ODrive's own encoder). The
+    base adds it to :attr:`Driver.identity` (so to ``model.json`` and the
+    recording's metadata); identification reads it: the play between motor
+    and output is not in a record read on the motor.
 ``from_url(cls, url)``
     Only if the defaults (options parsed into keyword arguments) do not fit.
 
@@ -106,7 +112,7 @@ from dataclasses import dataclass, field
 from types import FrameType
 from typing import Any, ClassVar
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.errors import ConfigError, DriverError, DriverTimeout, PositionOutOfRange, ServoidError
 
 __all__ = [
@@ -510,6 +516,8 @@ class Driver(abc.ABC):
         self.command_step: float | None = None
         #: The device's own watchdog as configured, s (None: none, or off); see the module docstring.
         self.watchdog_s: float | None = None
+        #: Which shaft the position readings are of: "output" or "motor" (:mod:`servoid.readings_side`).
+        self.readings_side: str = readings_side.OUTPUT
         self.stats = DriverStats()
         self.url: str = ""
         self._is_open = False
@@ -842,10 +850,14 @@ class Driver(abc.ABC):
 
     @property
     def identity(self) -> dict[str, Any]:
-        """What the servo says it is (empty when the driver cannot tell); cached."""
+        """What the servo says it is (only the readings' side when the driver cannot tell); cached.
+
+        Always holds ``readings``: which shaft the positions are of (:attr:`readings_side`).
+        """
         if self._identity_cache is None:
             self._identity_cache = dict(self._call(self._identity)) if self._is_open else {}
-        return dict(self._identity_cache)
+        side = readings_side.check("readings_side", self.readings_side)
+        return {**self._identity_cache, readings_side.METADATA_KEY: side}
 
     def describe(self) -> str:
         """A short name for messages: the URL, or the class name."""

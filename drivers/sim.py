@@ -35,7 +35,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.drivers import options as opt
 from servoid.drivers.base import Driver, DriverURL, Option, Reading, UnitConversion
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock, VirtualClock
@@ -253,6 +253,9 @@ class SimDriver(Driver):
         if self.servo.twin is not None:
             self._twin_params = self._with_noise(self.servo, self.noise_std, given=snr is not None or noise is not None)
             self.noise_std = self._twin_params.output_encoder_noise_counts * self._resolution()
+            # the host reads the twin's output encoder: on the motor, the play lies beyond the readings
+            if self._twin_params.output_encoder == "motor":
+                self.readings_side = readings_side.MOTOR
         self.latency_ns = int(round(validation.non_negative("latency", latency) * NS_PER_S))
         self.jitter_ns = int(round(validation.non_negative("jitter", jitter) * NS_PER_S))
         self.drop = validation.in_unit_interval("drop", drop, open_low=False, open_high=False)

@@ -23,7 +23,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.diagnosis.compare import compare
 from servoid.ident.diagnosis.residuals import is_white
@@ -37,6 +37,7 @@ from servoid.ident.offline._oefit import on_one_blas_thread
 from servoid.ident.offline.intervals import (
     MAX_FIT_TO_FLOOR,
     MIN_LOOP_REVERSALS,
+    MOTOR_SIDE_INTERVAL_NOTE,
     PLACE_Z,
     Evidence,
     Verdict,
@@ -350,6 +351,7 @@ def identify(
     sample_period_s: float | None = None,
     servo_loop: bool = True,
     loop: LoopResult | None = None,
+    readings: str = readings_side.OUTPUT,
 ) -> Identification:
     """Identify a backlash model from a record.
 
@@ -394,6 +396,10 @@ def identify(
         refined its online estimate: :func:`servoid.ident.online.refinement.refine_online`); it is
         used as it is instead of a fit from scratch, and the black box is still compared with it.
         Its ``simulated`` output must be on this record's samples.
+    readings : {"output", "motor"}
+        Which shaft ``y`` is of (:mod:`servoid.readings_side`; a live record's driver says it). Read on the
+        motor, the play between motor and output is not in the record: the model is fitted all the same,
+        its interval withheld and the verdict is not identifiable (:data:`~servoid.ident.offline.intervals.MOTOR_SIDE_REASON`).
 
     Returns
     -------
@@ -412,6 +418,7 @@ def identify(
     if unknown:
         raise ConfigError(f"select names {unknown}; expected some of {list(SELECTABLE)}")
     period = 1.0 if sample_period_s is None else validation.positive("sample_period_s", sample_period_s)
+    readings = readings_side.check("readings", readings)
     u_arr, y_arr, keep = _record(u, y, valid, config)
     first = 0 if keep is None else int(np.argmax(keep))
     y0 = float(y_arr[first])
@@ -622,9 +629,12 @@ def identify(
         evidence = replace(evidence, interval=interval)
     # an interval far above the floor is not honest: its model-error term assumes the structure holds
     interval_note = interval_withheld(evidence.fit_nrmse, floor)
+    if readings == readings_side.MOTOR:  # the play is not in a record read on the motor
+        interval_note = MOTOR_SIDE_INTERVAL_NOTE
     if interval_note is not None:
         interval = (float("nan"), float("nan"))
         evidence = replace(evidence, interval=interval, interval_note=interval_note)
+    evidence = replace(evidence, readings=readings)
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         doubts = (*doubts, *loop.reasons)

@@ -36,6 +36,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from servoid import readings_side
+
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.identify import Identification
     from servoid.ident.online.mrgia import MRGIAConfig
@@ -203,7 +205,8 @@ def _identify(rec: Recording, config: MRGIAConfig) -> Identification:
     from servoid.ident.identify import identify
     from servoid.session.samples import recording_usable
 
-    return identify(rec.u, rec.y, config, valid=recording_usable(rec), record_every=max(1, rec.u.size // 2000))
+    return identify(rec.u, rec.y, config, valid=recording_usable(rec), record_every=max(1, rec.u.size // 2000),
+                    readings=readings_side.of(rec.metadata))  # fmt: skip
 
 
 def _result_columns(rec: Recording, result: Identification) -> dict[str, Any]:
@@ -250,7 +253,7 @@ def _model_json(path: str, rec: Recording, result: Identification) -> str:
     from servoid.identify_outputs import Record, model_content
 
     record = Record(u=rec.u, y=rec.y, t=rec.t, source=str(path), output_unit=rec.metadata.get("unit", "unit"),
-                    input_unit=rec.metadata.get("input_unit", "unit"))  # fmt: skip
+                    input_unit=rec.metadata.get("input_unit", "unit"), readings=readings_side.of(rec.metadata))  # fmt: skip
     return model_content(record, result).to_json()
 
 

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from servoid import readings_side
 from servoid.compare_outputs import COMPARE_FILES, write_compare_plots
 from servoid.ident.diagnosis.compare import compare
 from servoid.ident.identify import Identification
@@ -81,6 +82,8 @@ class Record:
         online estimate as one more candidate (:func:`servoid.ident.online.refinement.refine_online`);
         identification takes it as its servo-loop answer (``identify(loop=)``)
         rather than fitting one again. None: not live, or no online model.
+    readings : {"output", "motor"}
+        Which shaft ``y`` is of (:mod:`servoid.readings_side`): the driver's, or the recording's metadata.
     """
 
     u: np.ndarray
@@ -98,6 +101,7 @@ class Record:
     online: MRGIAResult | None = None
     live: dict[str, Any] = field(default_factory=dict)
     loop: Any = None
+    readings: str = readings_side.OUTPUT
 
     @property
     def y_used(self) -> np.ndarray:

@@ -453,3 +453,43 @@ def test_a_winner_further_off_its_floor_than_ahead_of_the_runner_up_does_not_pla
         evidence = Evidence(play=0.013, interval=(np.nan, np.nan), reversals=40, fit_nrmse=fit, floor=floor)
         doubts, _ = _place_doubts(loop, None, 0.0, 1e-4, already=False, evidence=evidence)
         assert bool(doubts) == open_
+
+
+def test_a_record_read_on_the_motor_is_not_identifiable_whatever_its_other_evidence():
+    """The play lies between motor and output: read on the motor, the record cannot show it (an ODrive's own encoder)."""
+    from servoid.errors import ConfigError
+    from servoid.ident.offline.intervals import MOTOR_SIDE_INTERVAL_NOTE, MOTOR_SIDE_REASON
+
+    good = Evidence(play=1.0, interval=(0.9, 1.1), reversals=40, fit_nrmse=0.05, floor=0.05)
+    assert verdict(dataclasses.replace(good, readings="output")).identifiable
+    motor = verdict(dataclasses.replace(good, readings="motor", interval_note=MOTOR_SIDE_INTERVAL_NOTE))
+    assert not motor.identifiable and motor.reasons == (MOTOR_SIDE_REASON,)  # the withheld interval is not a 2nd
+    assert "motor side alone" in MOTOR_SIDE_REASON  # a model meant for the motor side is told what it holds
+    # the other rules still speak after it
+    worse = verdict(dataclasses.replace(good, readings="motor", reversals=3))
+    assert worse.reasons[0] == MOTOR_SIDE_REASON and "reversals" in worse.reasons[1]
+    with pytest.raises(ConfigError, match="readings"):
+        Evidence(play=1.0, interval=(0.9, 1.1), reversals=40, fit_nrmse=0.05, floor=0.05, readings="load")
+
+
+def test_a_recording_read_on_the_motor_says_so_and_export_refuses(tmp_path, capsys):
+    """The same clean paper record: identified as it is; with ``# readings: motor`` not, with the reason and no interval."""
+    from servoid.ident.offline.intervals import MOTOR_SIDE_INTERVAL_NOTE, MOTOR_SIDE_REASON
+
+    u, y = _paper(2000, 3)
+    rows = "u,y\n" + "\n".join(f"{a:.9g},{b:.9g}" for a, b in zip(u, y)) + "\n"
+    (tmp_path / "out.csv").write_text(rows)
+    (tmp_path / "motor.csv").write_text("# readings: motor\n" + rows)
+    argv = ["identify", "--no-plots", "--json", "--na", "2", "--nb", "0", "--delay", "1"]
+    assert main([*argv, "--data", str(tmp_path / "out.csv"), "--out", str(tmp_path / "a")]) == 0
+    output = json.loads(capsys.readouterr().out)
+    assert output["identifiable"] is True, output["reason"]
+    assert main([*argv, "--data", str(tmp_path / "motor.csv"), "--out", str(tmp_path / "b")]) == 0
+    motor = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} in --json"))
+    assert motor["identifiable"] is False and motor["reasons"] == [MOTOR_SIDE_REASON]
+    assert motor["play_interval"] == [None, None] and motor["play_interval_reason"] == MOTOR_SIDE_INTERVAL_NOTE
+    assert motor["model"] == output["model"]  # what the reading is does not change the fit, only the verdict
+    model = tmp_path / "b" / "model.json"
+    assert load_model(model).reason == MOTOR_SIDE_REASON
+    assert main(["export", str(model), "--format", "json"]) == 2
+    assert "the readings are the motor's" in capsys.readouterr().err

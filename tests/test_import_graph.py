@@ -17,8 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"servoid.ident": ROOT / "ident", "servoid.excitation": ROOT / "excitation",
             "servoid.drivers": ROOT / "drivers", "servoid": ROOT / "servoid"}  # fmt: skip
 #: the modules of the app layer every pillar may use: the exception root, the argument checks, the limits, the
-#: lazy package loader
-SHARED = {"servoid.errors", "servoid.validation", "servoid.limits", "servoid.lazy"}
+#: lazy package loader, the names of the readings' side (a driver states it, identification judges by it)
+SHARED = {"servoid.errors", "servoid.validation", "servoid.limits", "servoid.lazy", "servoid.readings_side"}
 
 
 def _modules() -> dict[str, Path]:

@@ -143,3 +143,13 @@ def test_live_identify_probes_designs_and_judges_by_default(tmp_path, capsys) ->
     answer = obj["answer"]
     assert answer["play"] == obj["play"] and saved["answer"] == answer
     assert answer["source"] in (("loop_search", "loop_online") if obj["form"] == "servo_loop" else ("offline_fit",))
+
+
+def test_the_probe_says_the_play_cannot_be_seen_on_a_servo_read_on_its_motor() -> None:
+    # the CiA 402 twin read on its output: the hysteresis at rest is its play; read on its motor
+    # encoder (the host reads the shaft an ODrive's estimates come from) the play lies beyond the readings
+    output = _probe("sim://cia402?clock=virtual")
+    motor = _probe("sim://cia402?clock=virtual&output_encoder=motor")
+    assert output.readings == "output" and output.play > 0 and "cannot be seen" not in output.rows()[4][1]
+    assert motor.readings == "motor" and "cannot be seen: the readings are the motor's" in motor.rows()[4][1]
+    assert type(motor).from_dict(json.loads(json.dumps(motor.to_dict()))) == motor

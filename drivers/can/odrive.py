@@ -45,7 +45,7 @@ import time
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.drivers.base import Limits, Option, Reading, UnitConversion
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import import_vendor
@@ -93,6 +93,12 @@ class OdriveDriver(CanDriver):
         None (default) leaves the board's own setting.
     endpoints : str, optional
         Path of the board's ``flat_endpoints.json`` (its endpoint ids).
+    readings : {"motor", "output"}
+        Which shaft Get_Encoder_Estimates reports (:attr:`~servoid.drivers.base.Driver.readings_side`):
+        the axis's own encoder, on the motor (the default, as a board is shipped), or ``"output"`` when
+        a load encoder was made the axis's position source (ODrive 0.6: ``axis.config.load_encoder``).
+        The board does not say which over CAN Simple; the play between motor and output is not in
+        a record read on the motor, and identification says so.
     """
 
     protocol = "odrive"
@@ -100,6 +106,11 @@ class OdriveDriver(CanDriver):
         **CanDriver.options,
         "watchdog": Option(float, "axis watchdog timeout to set, s, 0: off (needs endpoints=; default: the board's)"),
         "endpoints": Option(str, "path of the board's flat_endpoints.json, whose ids watchdog= is written with"),
+        "readings": Option(
+            str,
+            "which shaft the encoder estimates are of: motor (default, the axis's own encoder) or output "
+            "(a load encoder set as the axis's position source, ODrive 0.6 load_encoder)",
+        ),
     }
 
     def __init__(
@@ -115,6 +126,7 @@ class OdriveDriver(CanDriver):
         timeout: float = DEFAULT_TIMEOUT_S,
         watchdog: float | None = None,
         endpoints: str | None = None,
+        readings: str = readings_side.MOTOR,
         limits: Limits | None = None,
     ) -> None:
         turns = UnitConversion("rad", scale=_TWO_PI)
@@ -123,6 +135,7 @@ class OdriveDriver(CanDriver):
             bind=bind, timeout=timeout, limits=limits, position_unit=turns,
             command_unit=turns if mode == "position" else UnitConversion("Nm", scale=1.0),
         )  # fmt: skip
+        self.readings_side = readings_side.check("readings", readings)
         if self.node > 63:
             raise ConfigError(f"node (={self.node}) must be 0..63 for ODrive CAN Simple (11-bit ids)")
         self._bus: Any = None

@@ -67,7 +67,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.drivers.can import odrive_protocol as proto
 from servoid.drivers.can._bus import BusAddress, import_vendor
 from servoid.drivers.can._sim_axis import TORQUE_GAIN
@@ -155,6 +155,10 @@ class SimOdriveAxis(SimDrive):
         twin = servo.twin
         #: Turns of the shaft the axis counts per turn of the output (its loop encoder's shaft).
         self.turns_per_output_turn = 1.0 if twin is None or twin.loop_encoder == "load" else twin.gear_ratio
+        #: Which shaft the estimates are of (the driver's ``readings=``): the motor's when the loop is on it.
+        self.readings_side = (
+            readings_side.MOTOR if twin is not None and twin.loop_encoder == "motor" else readings_side.OUTPUT
+        )
         self.heartbeat_s = validation.positive("heartbeat_ms", heartbeat_ms) / 1000.0
         self.slot_source: Callable[[], int | None] | None = None
         self._axis_state = proto.IDLE
@@ -171,6 +175,10 @@ class SimOdriveAxis(SimDrive):
         self.watchdog_timeout = 0.0 if watchdog_s is None else validation.positive("watchdog_s", watchdog_s)
         self.enable_watchdog = watchdog_s is not None
         self._fed = time.monotonic()  # when a frame for the axis last came
+
+    def url(self, **options: Any) -> str:
+        """The ``can://`` URL that reaches this axis, with ``readings=`` saying which shaft its estimates are of."""
+        return super().url(**{readings_side.METADATA_KEY: self.readings_side, **options})
 
     # ---- life cycle ----------------------------------------------------------------------
     def start(self) -> SimOdriveAxis:

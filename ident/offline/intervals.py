@@ -25,9 +25,12 @@ from typing import Any
 
 import numpy as np
 
+from servoid import readings_side
 from servoid.ident.diagnosis.residuals import autocorrelation as _autocorrelation
 
 __all__ = [
+    "MOTOR_SIDE_REASON",
+    "MOTOR_SIDE_INTERVAL_NOTE",
     "Evidence",
     "Verdict",
     "verdict",
@@ -443,6 +446,18 @@ def interval_withheld(fit_nrmse: float, floor: float) -> str | None:
 
 
 # -- the verdict --------------------------------------------------------------------------------
+#: Why a record read on the motor cannot give the play (the first of :func:`verdict`'s reasons).
+MOTOR_SIDE_REASON = (
+    "the readings are the motor's (the drive reports its motor encoder): the play between motor and output is "
+    "not in the record, so its size cannot be seen; read the output's position (on an ODrive: a load encoder as "
+    "the axis's position source, readings=output) -- a model meant for the motor side alone, with no play, is "
+    "what this record gives: its linear block holds, its dead zone is not the gear's play"
+)
+
+#: The interval's note for a record read on the motor (:func:`servoid.ident.identify.identify` withholds it).
+MOTOR_SIDE_INTERVAL_NOTE = "the readings are the motor's: the play between motor and output is not in the record"
+
+
 @dataclass(frozen=True)
 class Evidence:
     """The numbers the "not identifiable" rules look at; any model form fills them.
@@ -476,6 +491,8 @@ class Evidence:
     place_z : float, optional
         For a play-in-loop answer: the Diebold-Mariano statistic of its validation errors against the
         motor side's (:func:`~servoid.ident.offline.place_test.place_z`); None: not tested.
+    readings : {"output", "motor"}
+        Which shaft the record's positions are of (:mod:`servoid.readings_side`; the driver says it).
     """
 
     play: float
@@ -489,6 +506,10 @@ class Evidence:
     residual_white: bool | None = None
     interval_note: str | None = None
     place_z: float | None = None
+    readings: str = readings_side.OUTPUT
+
+    def __post_init__(self) -> None:
+        readings_side.check("readings", self.readings)
 
 
 @dataclass(frozen=True)
@@ -524,7 +545,8 @@ class Verdict:
 def verdict(e: Evidence) -> Verdict:
     """Apply the rules of the research study (Q3, Q5, Q7) to ``e``.
 
-    Not identifiable when: the model fits worse than predicting the mean;
+    Not identifiable when: the readings are the motor's (:data:`MOTOR_SIDE_REASON`: the play
+    lies beyond them); the model fits worse than predicting the mean;
     the play is not positive and finite; fewer than :data:`MIN_REVERSALS`
     (a servo-loop answer: :data:`MIN_LOOP_REVERSALS`) output reversals larger than twice the play; the two places of the play
     differ by less than :data:`MIN_STRUCTURE_MARGIN` in validation fit (unless a play-in-loop answer's
@@ -551,7 +573,7 @@ def verdict(e: Evidence) -> Verdict:
     -------
     Verdict
     """
-    why: list[str] = []
+    why: list[str] = [MOTOR_SIDE_REASON] if e.readings == readings_side.MOTOR else []
     play = e.play
     if not np.isfinite(e.fit_nrmse) or e.fit_nrmse >= 1.0:
         why.append(f"the model fits worse than predicting the mean (free-run NRMSE {e.fit_nrmse:.3g} >= 1)")
@@ -582,7 +604,9 @@ def verdict(e: Evidence) -> Verdict:
             "and the play may be absorbing it"
         )
     low, high = e.interval
-    if e.interval_note is not None:
+    if e.readings == readings_side.MOTOR:
+        pass  # no interval, and the first reason says why
+    elif e.interval_note is not None:
         why.append(f"there is no 95 % interval: {e.interval_note}")
     elif np.isnan(low) or np.isnan(high):
         why.append("there is no 95 % interval: the data do not determine the play's standard error")

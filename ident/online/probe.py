@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.errors import ConfigError, DataError, ModelError
 
 __all__ = ["ProbePlan", "ProbeResult", "probe_input", "analyse_probe", "loop_denominator", "SATURATION_RATIO"]
@@ -142,6 +142,9 @@ class ProbeResult:
         The probe's sample rate.
     samples, lost : int
         Samples of the probe and how many were not usable.
+    readings : {"output", "motor"}
+        Which shaft the probe read (:mod:`servoid.readings_side`, the driver's): on the motor, the play
+        lies beyond the readings and :attr:`play` is not its size.
     """
 
     bandwidth_hz: float
@@ -162,6 +165,7 @@ class ProbeResult:
     rate_hz: float
     samples: int
     lost: int
+    readings: str = readings_side.OUTPUT
 
     def to_dict(self) -> dict[str, Any]:
         """For ``model.json`` and ``--json``: the fields by name."""
@@ -170,7 +174,7 @@ class ProbeResult:
                 "saturated": self.saturated, "saturated_half": self.saturated_half, "peak_speed": self.peak_speed, "hysteresis_at_rest": self.play,
                 "range_seen": [self.y_min, self.y_max], "amplitude": self.amplitude, "a": list(self.a),
                 "model_source": self.model_source, "rate_hz": self.rate_hz, "samples": self.samples,
-                "lost": self.lost}  # fmt: skip
+                "lost": self.lost, readings_side.METADATA_KEY: self.readings}  # fmt: skip
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> ProbeResult:
@@ -201,6 +205,7 @@ class ProbeResult:
                 y_min=math.nan if lo is None else float(lo), y_max=math.nan if hi is None else float(hi),
                 amplitude=num("amplitude"), a=tuple(float(v) for v in data["a"]), model_source=str(data["model_source"]),
                 rate_hz=num("rate_hz"), samples=int(data["samples"]), lost=int(data["lost"]),
+                readings=readings_side.of(data),
             )  # fmt: skip
         except (KeyError, TypeError, ValueError) as exc:
             raise DataError(f"the probe section is malformed ({type(exc).__name__}: {exc}): expected what "
@@ -216,7 +221,8 @@ class ProbeResult:
             ["noise / quantisation", f"{self.noise_std:.3g}{u} / {self.quantum:.3g}{u}"],
             ["saturation", f"{'yes' if self.saturated else 'no'} (speed ratio {self.speed_ratio:.2f}, 2 is linear; "
                            f"peak {self.peak_speed:.3g}{u}/s)"],
-            ["play (rough: hysteresis at rest)", f"{self.play:.3g}{u}"],
+            ["play (rough: hysteresis at rest)", f"{self.play:.3g}{u}" if self.readings != readings_side.MOTOR else
+             f"cannot be seen: the readings are the motor's, the play lies beyond them ({self.play:.3g}{u} at rest)"],
             ["range seen", f"[{self.y_min:.4g}, {self.y_max:.4g}]{u} (probe +/-{self.amplitude:.3g}{u})"],
             ["samples lost", f"{self.lost} of {self.samples}"],
         ]  # fmt: skip

@@ -20,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from servoid import readings_side
 from servoid.cli import _term
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.drivers.realtime import SAMPLER_PRIORITY
@@ -211,7 +212,8 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
-                "servo": _flat(identity), "decimate": str(factor)}  # fmt: skip
+                "servo": _flat(identity), "decimate": str(factor),
+                readings_side.METADATA_KEY: readings_side.of(identity)}  # fmt: skip
         if not quiet:
             _term.stderr.print(f"servoid identify: {driver.describe()} at {args.rate:g} Hz, {u.size} samples "
                                f"({u.size / args.rate:.1f} s), +/-{amplitude:g} {driver.command_unit.unit}; "
@@ -301,7 +303,7 @@ def _record(
     return Record(
         u=u[first:], y=y[first:], t=t[first:], source=source, input_unit=unit,
         output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
-        acquisition=acquisition(result), online=online if first == 0 else None,
+        acquisition=acquisition(result), online=online if first == 0 else None, readings=readings_side.of(identity),
     )  # fmt: skip
 
 

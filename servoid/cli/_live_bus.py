@@ -148,7 +148,7 @@ def run(args: argparse.Namespace, make_config: Callable[[float], MRGIAConfig]) -
             # with the record's time, so that the servo-loop model (the play inside the loop) is fitted too
             found = identify(record.u, record.y, make_config(args.epsilon if args.epsilon is not None else 0.0),
                              refine_model=not args.no_refine, valid=record.valid,
-                             sample_period_s=record.sample_period_s)  # fmt: skip
+                             sample_period_s=record.sample_period_s, readings=record.readings)  # fmt: skip
         except ServoidError as exc:  # this joint's samples do not identify it: say so, go on with the next
             _term.warn(f"joint {servo_id}: {exc}")
             joints.append({"id": servo_id, "error": str(exc)})

@@ -7,7 +7,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from servoid import limits
+from servoid import limits, readings_side
 from servoid.cli import _data, _live, _live_bus, _model, _term
 from servoid.errors import ConfigError
 from servoid.ident.paper import PAPER_INPUT_AMPLITUDE, PAPER_INPUT_VARIANCE
@@ -195,6 +195,7 @@ def _from_file(args: argparse.Namespace) -> tuple[Record, MRGIAConfig]:
     record = Record(
         u=rec.u, y=rec.y, t=rec.t, source=str(args.data), output_unit=unit,
         input_unit=rec.metadata.get("input_unit", "unit"), valid=_live.recording_valid(rec),
+        readings=readings_side.of(rec.metadata),
     )  # fmt: skip
     return record, _config(args, args.epsilon if args.epsilon is not None else 0.0)
 
@@ -247,7 +248,8 @@ def run(args: argparse.Namespace) -> int:
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online, select=_selected(args),
-                          sample_period_s=record.sample_period_s, loop=record.loop)  # fmt: skip
+                          sample_period_s=record.sample_period_s, loop=record.loop,
+                          readings=record.readings)  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)

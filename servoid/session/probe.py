@@ -8,6 +8,7 @@ uses every measured output, late ones included.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -51,4 +52,5 @@ def run_probe(
     # rises, levels and noise, which a sample measured a slot late barely moves, while the
     # estimator's rule (a Dynamixel's late slots open 10-sample windows) left 5 % of a loaded run
     measured = np.isfinite(session.y)
-    return analyse_probe(session.u, session.y, measured, plan), session
+    found = analyse_probe(session.u, session.y, measured, plan)
+    return dataclasses.replace(found, readings=driver.readings_side), session

@@ -142,3 +142,19 @@ def test_the_watchdog_needs_the_board_s_endpoints(tmp_path):
     wrong.write_text(json.dumps({"fw_version": "0.5.6", "endpoints": {}}))
     with pytest.raises(ConfigError, match=r"must be an ODrive flat_endpoints.json"):
         driver_from_url(f"can://virtual/x?protocol=odrive&node=3&watchdog=0.5&endpoints={wrong}")
+
+
+@pytest.mark.parametrize(("servo", "side"), [("odrive", "motor"), ("odrive?loop_encoder=load", "output"),
+                                             ("model", "output")])  # fmt: skip
+def test_the_axis_url_says_which_shaft_its_estimates_are_of_and_the_driver_records_it(servo, side):
+    # a twin's loop on its motor encoder: Get_Encoder_Estimates is the motor's, the play lies beyond it
+    with SimOdriveAxis(node=3, bus=private_bus(), servo=servo) as sim, driver_from_url(sim.url()) as driver:
+        assert f"readings={side}" in sim.url()
+        assert driver.readings_side == side and driver.identity["readings"] == side
+
+
+def test_the_driver_reads_the_motor_unless_told_and_refuses_another_side():
+    assert OdriveDriver(interface="virtual", channel="x").readings_side == "motor"
+    assert OdriveDriver(interface="virtual", channel="x", readings="output").readings_side == "output"
+    with pytest.raises(ConfigError, match=r"readings \(='load'\) must be one of output, motor"):
+        OdriveDriver(interface="virtual", channel="x", readings="load")

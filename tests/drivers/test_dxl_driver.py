@@ -64,7 +64,7 @@ def test_opening_reads_the_servo_and_leaves_the_torque_off(emulator):  # noqa: F
         assert d.identity == {
             "driver": "dxl", "vendor": "ROBOTIS", "protocol": "2.0", "model_number": 1020, "model": "XM430-W350",
             "firmware_version": 48, "id": 1, "baud": 1_000_000, "port": emulator.port,
-            "operating_mode": "current", "return_delay_us": 0,
+            "operating_mode": "current", "return_delay_us": 0, "readings": "output",
         }  # fmt: skip
         # the EEPROM write of the mode succeeded, so the torque went off first
         assert not servo.torque and servo.value(ct.OPERATING_MODE) == ct.OperatingMode.CURRENT

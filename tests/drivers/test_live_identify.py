@@ -60,7 +60,9 @@ import pytest
 from servoid.cli import main
 from servoid.drivers.model_plant import MODEL_PLANT
 from servoid.ident import BacklashModel
+from servoid.ident.offline.intervals import MOTOR_SIDE_INTERVAL_NOTE, MOTOR_SIDE_REASON
 from servoid.modelfile import load_model
+from servoid.recording import read_recording
 
 from .can_helpers import (
     buses_closed,  # noqa: F401 - autouse fixture
@@ -151,3 +153,11 @@ def test_identify_driver_runs_end_to_end_on_each_emulators_default_twin(servo, c
     assert result["acquisition"]["samples"] == 400 and "truth" not in result
     assert np.isfinite(result["model"]["c1"]) and np.isfinite(result["fit_nrmse"])
     assert load_model(tmp_path / "model.json").servo["driver"] == ("dxl" if servo is dxl else "can")
+    # the ODrive reports its own (motor) encoder, as a real board's CAN frames do: the play lies beyond
+    # the readings, and the verdict says so first; the others read the output
+    side = "motor" if servo is odrive else "output"
+    assert load_model(tmp_path / "model.json").servo["readings"] == side
+    assert read_recording(tmp_path / "recording.csv").metadata["readings"] == side
+    assert (result["reasons"][:1] == [MOTOR_SIDE_REASON]) == (servo is odrive), result["reasons"]
+    if servo is odrive:
+        assert result["identifiable"] is False and result["play_interval_reason"] == MOTOR_SIDE_INTERVAL_NOTE
