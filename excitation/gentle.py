@@ -118,13 +118,7 @@ def whole_segments(spec: GentleSpec, seed: int, limit: int) -> int:
     -------
     int
     """
-    begin, j = 0, 0
-    while True:
-        ends = begin + np.cumsum(segments(spec, seed, j, _BATCH)[2])
-        inside = ends[ends <= limit]
-        if inside.size < ends.size:
-            return int(inside[-1]) if inside.size else begin
-        begin, j = int(ends[-1]), j + _BATCH
+    return _boundaries(spec, seed, limit)[0]
 
 
 def segment_end(spec: GentleSpec, seed: int, index: int) -> int:
@@ -147,12 +141,15 @@ def segment_end(spec: GentleSpec, seed: int, index: int) -> int:
     -------
     int
     """
+    return _boundaries(spec, seed, index)[1]
+
+
+def _boundaries(spec: GentleSpec, seed: int, index: int) -> tuple[int, int]:
+    """The last segment boundary at or before sample ``index`` and the first at or after it (0 is one)."""
     begin, j = 0, 0
     while True:
         ends = begin + np.cumsum(segments(spec, seed, j, _BATCH)[2])
-        after = ends[ends >= index]
-        if index <= begin:
-            return begin
-        if after.size:
-            return int(after[0])
+        if ends[-1] >= index:
+            bounds = np.concatenate(([begin], ends))
+            return int(bounds[bounds <= index][-1]), int(bounds[bounds >= index][0])
         begin, j = int(ends[-1]), j + _BATCH
