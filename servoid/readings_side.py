@@ -1,10 +1,11 @@
 """Which side of the play a driver's position readings are on: the one owner of the names.
 
 A drive reports the position of one shaft. Most report the output's (a
-Dynamixel's horn encoder, a CiA 402 drive's position actual value from the
-load encoder, the serial firmware's); an ODrive's CAN estimates are its loop
-encoder's, the motor's unless a load encoder was made the axis's position
-source. The play sits between motor and output, so a record read on the
+Dynamixel's horn encoder, a CiA 402 drive's load encoder, the serial
+firmware's); an ODrive's CAN estimates are its loop encoder's, the motor's
+unless a load encoder was made the axis's position source, and a CiA 402
+drive's position actual value (0x6064) is often the motor encoder's: the
+CAN drivers take ``readings=`` in their URL. The play sits between motor and output, so a record read on the
 motor cannot show it: identification then says the play is not identifiable
 (:func:`servoid.ident.offline.intervals.verdict`).
 """

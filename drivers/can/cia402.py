@@ -65,7 +65,7 @@ from collections import deque
 from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.drivers.base import Limits, Option, Reading, UnitConversion
 from servoid.drivers.can import cia402_od as profile
 from servoid.drivers.can._bus import import_vendor
@@ -157,6 +157,13 @@ class Cia402Driver(CanDriver):
         0: off).
     host_node : int
         Node id the host's heartbeat is sent as (1..127, not the drive's).
+    readings : {"output", "motor"}
+        Which shaft the position read is of (:attr:`~servoid.drivers.base.Driver.readings_side`):
+        ``output`` (default: a load encoder, as ``encoder=auto`` reads on this project's emulator, or a
+        drive whose one encoder is on the output), or ``motor`` for a drive whose 0x6064 is the motor
+        encoder and no load encoder is read. The drive does not say which over CANopen (0x60E4 and
+        dual-loop settings are vendor-specific); the play between motor and output is not in a
+        record read on the motor, and identification says so.
     """
 
     protocol = "cia402"
@@ -192,11 +199,12 @@ class Cia402Driver(CanDriver):
         fault_reset: bool = False,
         watchdog: float = DEFAULT_WATCHDOG_S,
         host_node: int = DEFAULT_HOST_NODE,
+        readings: str = readings_side.OUTPUT,
         limits: Limits | None = None,
     ) -> None:
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            bind=bind, timeout=timeout, limits=limits,
+            bind=bind, timeout=timeout, readings=readings, limits=limits,
         )  # fmt: skip
         if not 1 <= self.node <= 127:
             raise ConfigError(f"node (={self.node}) must be 1..127 for a CANopen drive")

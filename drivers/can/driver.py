@@ -19,7 +19,7 @@ from dataclasses import replace
 from typing import ClassVar
 from urllib.parse import unquote
 
-from servoid import validation
+from servoid import readings_side, validation
 from servoid.drivers.base import Driver, DriverURL, Limits, Option, UnitConversion
 from servoid.drivers.can._bus import BusAddress
 from servoid.errors import ConfigError
@@ -79,6 +79,9 @@ class CanDriver(Driver):
         Interface address, for ``udp_multicast`` (default: loopback only).
     timeout : float
         Longest wait for a reply, s (:data:`DEFAULT_TIMEOUT_S`).
+    readings : {"output", "motor"}
+        Which shaft the position read is of (:attr:`~servoid.drivers.base.Driver.readings_side`);
+        each protocol gives its default (a drive does not say which over the bus).
     limits : Limits, optional
         Safety limits on the command (rad, or Nm in torque mode).
     """
@@ -93,6 +96,11 @@ class CanDriver(Driver):
         "port": Option(int, "UDP port of the udp_multicast interface (default 43113)"),
         "bind": Option(str, "udp_multicast: IPv4 address of the interface to use (default 127.0.0.1, this host only)"),
         "timeout": Option(_positive_float, f"longest wait for a reply, s (default {DEFAULT_TIMEOUT_S})"),
+        readings_side.METADATA_KEY: Option(
+            str,
+            "which shaft the position read is of: output (CiA 402 default) or motor (ODrive default: the axis's "
+            "own encoder; a CiA 402 drive whose 0x6064 is the motor encoder, no load encoder)",
+        ),
     }
 
     def __init__(
@@ -106,6 +114,7 @@ class CanDriver(Driver):
         port: int | None = None,
         bind: str | None = None,
         timeout: float = DEFAULT_TIMEOUT_S,
+        readings: str = readings_side.OUTPUT,
         limits: Limits | None = None,
         position_unit: UnitConversion | None = None,
         command_unit: UnitConversion | None = None,
@@ -117,6 +126,7 @@ class CanDriver(Driver):
             raise ConfigError(f"mode (={mode!r}) must be one of {', '.join(MODE_NAMES)}")
         self.mode = mode
         self.timeout = validation.positive("timeout", timeout)
+        self.readings_side = readings_side.check("readings", readings)
 
     @classmethod
     def from_url(cls, url: DriverURL) -> Driver:

@@ -106,11 +106,6 @@ class OdriveDriver(CanDriver):
         **CanDriver.options,
         "watchdog": Option(float, "axis watchdog timeout to set, s, 0: off (needs endpoints=; default: the board's)"),
         "endpoints": Option(str, "path of the board's flat_endpoints.json, whose ids watchdog= is written with"),
-        "readings": Option(
-            str,
-            "which shaft the encoder estimates are of: motor (default, the axis's own encoder) or output "
-            "(a load encoder set as the axis's position source, ODrive 0.6 load_encoder)",
-        ),
     }
 
     def __init__(
@@ -132,10 +127,9 @@ class OdriveDriver(CanDriver):
         turns = UnitConversion("rad", scale=_TWO_PI)
         super().__init__(
             interface=interface, channel=channel, node=node, mode=mode, bitrate=bitrate, port=port,
-            bind=bind, timeout=timeout, limits=limits, position_unit=turns,
+            bind=bind, timeout=timeout, readings=readings, limits=limits, position_unit=turns,
             command_unit=turns if mode == "position" else UnitConversion("Nm", scale=1.0),
         )  # fmt: skip
-        self.readings_side = readings_side.check("readings", readings)
         if self.node > 63:
             raise ConfigError(f"node (={self.node}) must be 0..63 for ODrive CAN Simple (11-bit ids)")
         self._bus: Any = None

@@ -185,3 +185,17 @@ def test_the_watchdog_options_are_checked():
     with pytest.raises(ConfigError, match=r"option watchdog='70' is invalid"):
         driver_from_url("can://virtual/x?protocol=cia402&watchdog=70")
     assert driver_from_url("can://virtual/x?protocol=cia402&watchdog=0").watchdog_s is None
+
+
+@pytest.mark.parametrize(("options", "side"), [({}, "output"), ({"readings": "motor"}, "motor")])
+def test_the_url_says_which_shaft_the_position_is_of_and_the_identity_records_it(drive, options, side):
+    # the emulator reads its output (as a load encoder would); a drive whose 0x6064 is the motor's is told by the URL
+    with driver_from_url(drive.url(**options)) as servo:
+        assert servo.readings_side == side
+        assert servo.identity["readings"] == side
+        assert servo.identity["device_name"] == "servoid simulated CiA 402 drive"  # the drive's own, read at open
+
+
+def test_another_side_is_refused_in_one_line_naming_it():
+    with pytest.raises(ConfigError, match=r"^readings \(='load'\) must be one of output, motor$"):
+        driver_from_url("can://virtual/x?protocol=cia402&node=1&readings=load")
