@@ -202,7 +202,44 @@ def test_outside_the_loop_the_windows_score_the_slow_phase_and_the_answer_takes_
     choice, refined = refinement.refine_online(u, y, result, slow=slow)
     assert calls == [u.size - slow]  # the fast part's search only
     assert refined.fast_play is not None and choice.play == result.slow_search.choice.play
+    assert refined.score(choice.model, u, y) == pytest.approx(choice.fit_nrmse, rel=1e-9)  # the search's samples
     assert abs(result.model.play / choice.play - 1) < 0.05  # the online estimate within 5 % of the answer
+
+
+def test_the_fit_rule_compares_the_online_model_with_the_answer_on_the_samples_the_answer_was_scored_on(
+    monkeypatch,
+) -> None:
+    from types import SimpleNamespace
+
+    from servoid.cli import _live
+    from servoid.ident.online import refinement
+    from servoid.ident.online.verdict import FIT_RATIO, FIT_SLACK
+    from servoid.ident.online.window import WindowResult
+
+    u, y, slow, outside, wide = _two_phase(24.0, seed=7)
+    keep = np.random.default_rng(11).random(u.size) > 0.03
+    keep[0] = True
+    y[~keep] = np.nan
+    online = WindowResult(outside, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    choice, refined = refinement.refine_online(u, y, online, keep=keep, slow=slow)
+    head = slow + int(np.argmax(keep[slow:]))  # the fast part's first usable sample
+    assert refined.scored == (0, head) and abs(choice.play / wide.play - 1) < 0.05  # the slow phase answers
+    # the answer scored by the rule's own measure is the answer's fit; on the whole record (the rule before)
+    # the same model failed its own check: the fast part holds the narrower play
+    assert refined.score(choice.model, u, y, keep) == pytest.approx(choice.fit_nrmse, rel=1e-9)
+    whole = dataclasses.replace(refined, scored=(0, u.size)).score(choice.model, u, y, keep)
+    assert whole > FIT_RATIO * choice.fit_nrmse + FIT_SLACK
+    # through the live path: an online estimate equal to the answer passes the fit rule, one clearly worse on the
+    # same samples (its play halved) fails it
+    monkeypatch.setattr(refinement, "refine_online", lambda *args, **kwargs: (choice, refined))
+    session = SimpleNamespace(u=u, y=y, valid=keep)
+    worse = dataclasses.replace(choice.model, c1=choice.model.c1 / 2, c2=choice.model.c2 / 2)
+    for model, passes in ((choice.model, True), (worse, False)):
+        out, _ = _live.loop_online(dataclasses.replace(online, model=model), session, slow)  # type: ignore[arg-type]
+        verdict = out["verdict"]
+        assert any("worse than" in r for r in verdict["reasons"]) != passes
+        assert verdict["online_nrmse"] == pytest.approx(refined.score(model, u, y, keep))
+    assert verdict["online_nrmse"] > 3 * verdict["refined_nrmse"] + FIT_SLACK  # clearly worse, not at the edge
 
 
 def test_a_slow_phase_whose_search_puts_the_play_inside_the_loop_leaves_the_windows_on_the_last_window(

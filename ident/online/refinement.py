@@ -51,7 +51,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.diagnosis.friction_stall import stall_band
-from servoid.ident.metrics import nrmse
+from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline.intervals import quantum
@@ -89,12 +89,46 @@ class Refined:
     fast_play : float or None
         With a slow phase and the play outside the loop: the answer's play on the fast part,
         before its refit on the slow part (None: no such refit).
+    scored : tuple of int
+        The samples ``[start, stop)`` of the record on whose usable ones the answer's
+        ``fit_nrmse`` was computed: the whole record, or the fast or the slow part after a
+        slow phase (:meth:`score` scores another model there).
     """
 
     online: LoopCandidate
     search: LoopChoice
     online_won: bool
     fast_play: float | None = None
+    scored: tuple[int, int] = (0, 0)
+
+    def score(self, model: ServoLoopModel, u: Any, y: Any, keep: Any = None) -> float:
+        """Free-run NRMSE of ``model`` on the samples the answer's fit is on, computed as the answer's.
+
+        The record's part :attr:`scored`, centred on its command's mean, simulated from its first
+        sample, scored on its usable samples: the online estimate is then compared with the answer
+        like with like (the verdict's fit rule, :func:`~servoid.ident.online.verdict.judge_window`).
+
+        Parameters
+        ----------
+        model : ServoLoopModel
+            The model to score (the online estimate).
+        u, y, keep : array_like
+            The record :func:`refine_online` was given (``keep`` default all).
+
+        Returns
+        -------
+        float
+            The NRMSE (infinite when the free run runs away).
+        """
+        lo, hi = self.scored
+        u_arr = np.asarray(u, dtype=np.float64)[lo:hi]
+        y_arr = np.asarray(y, dtype=np.float64)[lo:hi]
+        kept = np.ones(u_arr.size, dtype=bool) if keep is None else np.asarray(keep, dtype=np.bool_)[lo:hi]
+        if u_arr.size == 0 or not kept[0]:
+            raise ConfigError(f"the answer's samples {lo}..{hi} do not start with a usable one in this record")
+        centre = float(np.mean(u_arr))
+        y_hat = model.simulate(u_arr - centre, y0=float(y_arr[0]) - centre)
+        return free_run_nrmse(y_arr[kept] - centre, y_hat[kept])
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the candidate's place, play and fits, the search's, and which answered."""
@@ -103,7 +137,7 @@ class Refined:
                                      "estimation_nrmse": c.estimation_nrmse, "validation_nrmse": c.validation_nrmse},
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
-                "online_won": self.online_won, "fast_play": self.fast_play}  # fmt: skip
+                "online_won": self.online_won, "fast_play": self.fast_play, "scored": list(self.scored)}  # fmt: skip
 
 
 def refine_online(
@@ -160,8 +194,10 @@ def refine_online(
     y_arr = np.where(kept, y_arr, y_arr[0])
     head = _fast_start(kept, validation.integer("slow", slow, minimum=0))
     if head == 0:
-        return _refine(u_arr, y_arr, kept, start, t0)
+        choice, refined = _refine(u_arr, y_arr, kept, start, t0)
+        return choice, dataclasses.replace(refined, scored=(0, u_arr.size))
     choice, refined = _refine(u_arr[head:], y_arr[head:], kept[head:], start, t0)
+    scored = (head, u_arr.size)
     # back on the whole record: a play outside the loop from the search on the slow part
     centre = float(np.mean(u_arr))
     uc, yc = u_arr - centre, y_arr - centre
@@ -175,7 +211,7 @@ def refine_online(
         if (
             slow_choice.structure != PLAY_IN_LOOP
         ):  # else the slow part does not confirm the place: the fast answer stands
-            fast_play = choice.play
+            fast_play, scored = choice.play, (0, head)
             choice = dataclasses.replace(
                 choice,
                 play=slow_choice.play,
@@ -190,7 +226,7 @@ def refine_online(
             )
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
-    return choice, dataclasses.replace(refined, fast_play=fast_play)
+    return choice, dataclasses.replace(refined, fast_play=fast_play, scored=scored)
 
 
 def _fast_start(kept: np.ndarray, slow: int) -> int:

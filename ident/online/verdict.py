@@ -12,8 +12,11 @@ trajectory
     the last ``tail`` of the run, and no recovery happened in it;
 fit
     when a refined fit of the same record is given: the online model's
-    free-run NRMSE is at most ``fit_ratio`` times the refined one (plus
-    ``fit_slack``), and its dead zone lies within ``gap_tol`` of the refined one.
+    free-run NRMSE, on the samples the refined one's was computed on (like
+    with like: after a live design's slow phase the refined fit scores one part
+    of the record, :meth:`~servoid.ident.online.refinement.Refined.score`),
+    is at most ``fit_ratio`` times the refined one (plus ``fit_slack``), and its
+    dead zone lies within ``gap_tol`` of the refined one.
 
 Every rule that fails is named in :attr:`OnlineVerdict.reasons`.
 
@@ -72,7 +75,7 @@ class OnlineVerdict:
     online_gap, refined_gap : float
         Dead zone ``c1 + c2`` of the online estimate and of the refined model (NaN when there is none).
     online_nrmse, refined_nrmse : float
-        Free-run NRMSE of each on the record (NaN when unknown).
+        Free-run NRMSE of each on the same samples of the record, the refined fit's (NaN when unknown).
     drift : float
         Relative movement of the online dead zone over the last part of the run.
     """
@@ -118,7 +121,7 @@ def judge_online(
     online : MRGIAResult
         The online run, with its parameter history.
     online_nrmse : float, optional
-        Free-run NRMSE of the online model on the record (None: not a valid model).
+        Free-run NRMSE of the online model on the record the refined fit is on (None: not a valid model).
     refined : BacklashModel, optional
         The refined model of the same record; without it only coverage and trajectory are judged.
     refined_nrmse : float, optional
@@ -203,7 +206,8 @@ def judge_window(
     online : WindowResult
         The run, with every refit.
     online_nrmse : float, optional
-        Free-run NRMSE of the online model on the whole record.
+        Free-run NRMSE of the online model on the samples the refined fit was scored on
+        (:meth:`~servoid.ident.online.refinement.Refined.score`).
     refined_play : float, optional
         The play of the refined fit of the same record; without it only trajectory and floor are judged.
     refined_nrmse : float, optional

@@ -434,7 +434,6 @@ def loop_online(
     """
     import numpy as np
 
-    from servoid.ident.metrics import nrmse
     from servoid.ident.online.refinement import refine_online
     from servoid.ident.online.verdict import judge_window
 
@@ -450,8 +449,8 @@ def loop_online(
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
-    online_nrmse = nrmse(y[keep], online.model.simulate(u, y0=float(y[0]))[keep])
-    verdict = judge_window(online, online_nrmse, choice.play, choice.fit_nrmse)
+    # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part of the record)
+    verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
     out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
