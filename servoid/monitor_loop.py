@@ -48,6 +48,7 @@ from servoid.drivers.base import Driver
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.monitoring.alarms import AlarmEvent, Bound
 from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
+from servoid.ident.online.probe_design import GENTLE
 from servoid.ident.serialise import dumps
 from servoid.modelfile import ModelFile
 from servoid.monitor_run import drive
@@ -87,7 +88,7 @@ def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float] 
         held steps, ``--no-probe``).
     """
     design = model_file.extra.get("design")
-    if not isinstance(design, dict) or design.get("shape") != "gentle":
+    if not isinstance(design, dict) or design.get("shape") != GENTLE:
         return None
     try:
         amplitude, accel = float(design["amplitude"]), float(design["accel"])
