@@ -618,6 +618,7 @@ def identify(
             reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,
             margin=float(loop.margin), dead_time_samples=loop.dead_time_samples, stall_band=float(loop.stall_band),
             place_z=float(getattr(loop, "place_z", math.nan)) if loop.structure == PLAY_IN_LOOP else None,
+            structure=loop.structure,
         )  # fmt: skip
     undetermined = verdict(evidence).structure_undetermined
     doubts, rival = _place_doubts(

@@ -72,7 +72,7 @@ def test_bic_compares_candidates_at_their_optima_not_where_a_short_fit_stopped()
 
 
 def test_each_rule_gives_its_reason():
-    good = Evidence(play=1.0, interval=(0.9, 1.1), reversals=40, fit_nrmse=0.05, floor=0.05)
+    good = Evidence(play=1.0, interval=(0.96, 1.04), reversals=40, fit_nrmse=0.05, floor=0.05)
     assert verdict(good).identifiable and verdict(good).reason == ""
     cases = {
         "reversals": dataclasses.replace(good, reversals=3),
@@ -95,6 +95,26 @@ def test_each_rule_gives_its_reason():
 
     assert verdict(dataclasses.replace(good, margin=0.01, place_z=PLACE_Z)).identifiable
     assert "structure undetermined" in verdict(dataclasses.replace(good, margin=0.01, place_z=0.99 * PLACE_Z)).reason
+
+
+def test_the_widest_interval_that_identifies_is_the_accuracy_asked_of_the_plays_place():
+    """+-5 % outside the loop (the black box's place too), +-15 % inside: an interval that covers the truth then
+    leaves the play within its place's target (an ODrive twin's answer at 50x, +9.8 %, had a +-5.5 % interval)."""
+    from servoid.ident.offline.intervals import MAX_REL_HALF_WIDTH, MAX_REL_HALF_WIDTH_MOTOR_SIDE, max_rel_half_width
+
+    assert (max_rel_half_width("output_backlash"), max_rel_half_width("play_in_loop")) == (0.05, 0.15)
+    assert (MAX_REL_HALF_WIDTH_MOTOR_SIDE, MAX_REL_HALF_WIDTH) == (0.05, 0.15)
+    within = dict(play=1.0, reversals=40, fit_nrmse=0.05, floor=0.05, margin=0.3, dead_time_samples=3.0, stall_band=0.0)
+    for structure, half in (("output_backlash", 0.05), ("play_in_loop", 0.15)):
+        assert verdict(
+            Evidence(interval=(1.0 - 0.99 * half, 1.0 + 0.99 * half), structure=structure, **within)
+        ).identifiable
+        wide = verdict(Evidence(interval=(1.0 - 1.01 * half, 1.0 + 1.01 * half), structure=structure, **within))
+        assert not wide.identifiable and f"wider than +-{half:.0%}" in wide.reason
+    from servoid.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="structure .* must be one of"):
+        Evidence(interval=(0.99, 1.01), structure="horn", **within)
 
 
 def test_reversals_count_only_turns_larger_than_the_threshold():
@@ -460,7 +480,7 @@ def test_a_record_read_on_the_motor_is_not_identifiable_whatever_its_other_evide
     from servoid.errors import ConfigError
     from servoid.ident.offline.intervals import MOTOR_SIDE_INTERVAL_NOTE, MOTOR_SIDE_REASON
 
-    good = Evidence(play=1.0, interval=(0.9, 1.1), reversals=40, fit_nrmse=0.05, floor=0.05)
+    good = Evidence(play=1.0, interval=(0.96, 1.04), reversals=40, fit_nrmse=0.05, floor=0.05)
     assert verdict(dataclasses.replace(good, readings="output")).identifiable
     motor = verdict(dataclasses.replace(good, readings="motor", interval_note=MOTOR_SIDE_INTERVAL_NOTE))
     assert not motor.identifiable and motor.reasons == (MOTOR_SIDE_REASON,)  # the withheld interval is not a 2nd

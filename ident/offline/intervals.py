@@ -26,7 +26,9 @@ from typing import Any
 import numpy as np
 
 from servoid import readings_side
+from servoid.errors import ConfigError
 from servoid.ident.diagnosis.residuals import autocorrelation as _autocorrelation
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, STRUCTURES
 
 __all__ = [
     "MOTOR_SIDE_REASON",
@@ -54,6 +56,8 @@ __all__ = [
     "MIN_STRUCTURE_MARGIN",
     "PLACE_Z",
     "MAX_REL_HALF_WIDTH",
+    "MAX_REL_HALF_WIDTH_MOTOR_SIDE",
+    "max_rel_half_width",
     "MIN_NOISE_WINDOWS",
     "Z95",
 ]
@@ -88,10 +92,32 @@ PLACE_Z = 2.33
 #: the loop (15 %). With the model-error term (:func:`model_error_halfwidth`) the half-width is the accuracy
 #: the record supports; a play known only to +-16-19 % (the STS3215 twin at 10x, -16.7 % off) is not identified.
 MAX_REL_HALF_WIDTH = 0.15
+#: The same for an answer with the play outside the loop (``Evidence.structure`` ``output_backlash``: the
+#: servo-loop model's motor-side answer and the black box, whose play is outside the loop): the issue's accuracy
+#: for that place, 5 %. "Identifiable" says the record holds the play to the accuracy its place is asked for; an
+#: interval of +-15 % that covers the truth leaves a motor-side play up to 15 % off, which the calibration
+#: (``benchmarks/verdict_calibration.py``, README issue 12) counts wrong. There the ODrive twin's answers at 5-100x
+#: (seeds 3-6) scatter -9.8 ... +9.8 % at 0.98-1.03 times the twin's true floor with white residuals, and the
+#: servo-loop model's own intervals are +-1.9-15 % wide: the wrong ones (5x s4 -9.8 %, 50x s6 +9.8 %) at
+#: +-11.5 and +-5.5 %, right ones at +-1.9-15 %. No run of the calibration changes verdict by it (every motor-side
+#: answer is withheld by the model-error term's width as well). With the white-share floor tried there (README)
+#: and the load reason dropped, +-15 % identified the ODrive's 50x s6 at +9.8 % (and three right ones at
+#: +0.9 ... +4.6 %); +-5 % withheld all four.
+MAX_REL_HALF_WIDTH_MOTOR_SIDE = 0.05
 #: Fewest fourth differences :func:`noise_std` estimates the noise from.
 MIN_NOISE_WINDOWS = 50
 #: Two-sided 95 % normal quantile.
 Z95 = 1.959963984540054
+
+
+def max_rel_half_width(structure: str) -> float:
+    """The widest 95 % interval, as a half-width relative to the play, that identifies a play in ``structure``'s place.
+
+    :data:`MAX_REL_HALF_WIDTH_MOTOR_SIDE` for ``output_backlash``, :data:`MAX_REL_HALF_WIDTH` for ``play_in_loop``.
+    """
+    if structure not in STRUCTURES:
+        raise ConfigError(f"structure (={structure!r}) must be one of {', '.join(STRUCTURES)}")
+    return MAX_REL_HALF_WIDTH_MOTOR_SIDE if structure == OUTPUT_BACKLASH else MAX_REL_HALF_WIDTH
 
 
 # -- reversals ----------------------------------------------------------------------------------
@@ -493,6 +519,9 @@ class Evidence:
         motor side's (:func:`~servoid.ident.offline.place_test.place_z`); None: not tested.
     readings : {"output", "motor"}
         Which shaft the record's positions are of (:mod:`servoid.readings_side`; the driver says it).
+    structure : {"output_backlash", "play_in_loop"}
+        The answer's place of the play (the black box's is outside the loop); it sets the widest interval that
+        identifies the play (:func:`max_rel_half_width`).
     """
 
     play: float
@@ -507,9 +536,11 @@ class Evidence:
     interval_note: str | None = None
     place_z: float | None = None
     readings: str = readings_side.OUTPUT
+    structure: str = OUTPUT_BACKLASH
 
     def __post_init__(self) -> None:
         readings_side.check("readings", self.readings)
+        max_rel_half_width(self.structure)  # a bad place fails here, in one line
 
 
 @dataclass(frozen=True)
@@ -552,8 +583,9 @@ def verdict(e: Evidence) -> Verdict:
     differ by less than :data:`MIN_STRUCTURE_MARGIN` in validation fit (unless a play-in-loop answer's
     record rejects the motor side by :data:`PLACE_Z`); the
     fit is more than :data:`MAX_FIT_TO_FLOOR` times the floor; the interval
-    is unbounded, reaches zero or is wider than :data:`MAX_REL_HALF_WIDTH`
-    of the play; the play's dead time at a reversal is under one sample;
+    is unbounded, reaches zero or is wider than the accuracy asked of the play's place
+    (:func:`max_rel_half_width`: :data:`MAX_REL_HALF_WIDTH_MOTOR_SIDE` outside the loop,
+    :data:`MAX_REL_HALF_WIDTH` inside); the play's dead time at a reversal is under one sample;
     the friction stall band is not smaller than the play; the black box is
     the answer and its residual is not white (servoid's addition to the
     study's rules: on the twins it withholds the black box's confident wrong
@@ -612,9 +644,11 @@ def verdict(e: Evidence) -> Verdict:
         why.append("there is no 95 % interval: the data do not determine the play's standard error")
     elif not (np.isfinite(low) and np.isfinite(high)) or low <= 0.0:
         why.append(f"the 95 % interval [{low:.3g}, {high:.3g}] reaches zero or has no finite ends")
-    elif 0.5 * (high - low) > MAX_REL_HALF_WIDTH * play:
+    elif 0.5 * (high - low) > max_rel_half_width(e.structure) * play:
         why.append(
-            f"the 95 % interval [{low:.4g}, {high:.4g}] is wider than +-{MAX_REL_HALF_WIDTH:.0%} of the play {play:.4g}"
+            f"the 95 % interval [{low:.4g}, {high:.4g}] is wider than +-{max_rel_half_width(e.structure):.0%} of the "
+            f"play {play:.4g} (the accuracy asked of a play {'inside' if e.structure == PLAY_IN_LOOP else 'outside'} "
+            "the loop)"
         )
     if e.dead_time_samples is not None and e.dead_time_samples < 1.0:
         faster = 1.0 / max(e.dead_time_samples, 1e-3)
