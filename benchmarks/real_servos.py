@@ -332,23 +332,29 @@ def paper() -> None:
           "median max rel. error", "worst", "time"], rows)  # fmt: skip
 
 
+def recordings() -> list[tuple[str, Path, object]]:
+    """The real recordings of ``DATA``: (label, path, the reader's options or None)."""
+    from servoid.readers import ReadOptions
+
+    emps = ReadOptions(columns={"u": "qg", "y": "qm", "t": "t"})
+    return [("EMPS (identification)", DATA / "emps" / "DATA_EMPS.mat", emps),
+            ("EMPS (pulses)", DATA / "emps" / "DATA_EMPS_PULSES.mat", emps),
+            ("BAM XL330", DATA / "bam" / "bam_xl330_raw_2026-01-15_10h28m10.json", None),
+            ("BAM STS3250", DATA / "bam" / "bam_feetech_2024-10-26_12h23m27.json", None)]  # fmt: skip
+
+
 def real() -> None:
     if not DATA.is_dir():
         print(f"\nreal recordings: {DATA} is absent; skipped")
         return
-    from servoid.readers import ReadOptions, read
+    from servoid.readers import read
 
-    emps = ReadOptions(columns={"u": "qg", "y": "qm", "t": "t"})
-    records = [("EMPS (identification)", DATA / "emps" / "DATA_EMPS.mat", emps),
-               ("EMPS (pulses)", DATA / "emps" / "DATA_EMPS_PULSES.mat", emps),
-               ("BAM XL330", DATA / "bam" / "bam_xl330_raw_2026-01-15_10h28m10.json", None),
-               ("BAM STS3250", DATA / "bam" / "bam_feetech_2024-10-26_12h23m27.json", None)]  # fmt: skip
     rows = []
-    for label, path, options in records:
+    for label, path, options in recordings():
         if not path.is_file():
             rows.append([label, "absent", "", "", "", "", ""])
             continue
-        rec = read(path, options)
+        rec = read(path, options)  # type: ignore[arg-type]
         period = float(np.median(np.diff(rec.t))) if rec.t is not None else None
         try:
             result, seconds = run(rec.u, rec.y, period)

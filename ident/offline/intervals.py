@@ -378,6 +378,19 @@ def resolution_floor_nrmse(y: np.ndarray, valid: np.ndarray | None = None) -> fl
     (:func:`model_error_halfwidth`) takes it so. Without a lattice (the paper's plant) the noise
     estimate is all there is.
 
+    The residual's white share was tried as the floor instead (issue 12 verdict session,
+    ``benchmarks/verdict_calibration.py score --white-floor``: ``sqrt(gamma_0 - gamma_1)`` of the
+    answer's residual, at most the noise estimate): sensor noise, independent of the motion, moves the
+    play only as much as the HAC interval says. It measures the noise where the model holds (the
+    motor-side twins: 0.97-1.03 times their true noise, fits 0.98-1.03 times the true floor), but not on
+    the STS3215 twin at 5-20x (1.08-1.31 times: the bounce is white too). On the calibration's 83
+    intervals coverage fell from 79 to 74 (89 %), and of the 7 STS3215 answers it identified two had
+    intervals that exclude the truth ([0.86, 0.97] at -8.6 %, [0.82, 0.96] at -9.6 %); with the dead-time and
+    stall rules also waived where the place is named it identified two wrong ones (-15.6 %, -17.3 %). The
+    motor-side twins show why the visible residual does not bound the model error there either: the
+    ODrive's answers fit at their floor with white residuals, yet the servo-loop model's own interval missed
+    4 of 20 (50x s6: +9.8 %, [1.03, 1.14]); counting the noise as model error is what makes them cover.
+
     Parameters
     ----------
     y : ndarray
@@ -595,6 +608,18 @@ def verdict(e: Evidence) -> Verdict:
     :func:`servoid.ident.identify.identify`, not a rule: the paper's own
     example crosses at ``x = -4`` and servoid's direction rule defines the
     output there.)
+
+    Calibrated on the twins (issue 12 verdict session, ``benchmarks/verdict_calibration.py``: seeds 3-6,
+    gentle sines at 5-100x, friction x4, held steps; 108 runs with the real recordings): 1 identifiable and
+    right (the STS3215 at 20x, -5.5 %), 0 identifiable and wrong, 79 of 83 intervals covering; on seeds
+    1-2 (10-50x, 24 runs) 0 identifiable. The rules that withhold right answers there were each checked
+    against the wrong answers in the same range. The dead time: the ODrive at 5x (0.03-0.07 sample) names
+    its place by 45-92 % in validation, yet three of four plays are 6.5-9.8 % off, so a named place does not
+    waive it. The stall band is on the play's scale on every twin (0.3-4.6 times it but once; the XM430's
+    play-in-loop answers, a P loop, 1.6-2.2); waived where the place is named, it gains nothing under the interval rule and, with a white
+    floor, identified the STS3215's 100x s5 at -17.3 %. A kept load stage (:func:`~servoid.ident.offline.loop_fit.fit_loop`'s
+    reason) is on every ODrive answer: at 0.98-1.03 times the true floor with white residuals, its own
+    interval missed 4 of 20 (50x s6: +9.8 %, [1.03, 1.14] times the truth), so the reason stays.
 
     Parameters
     ----------
