@@ -104,6 +104,7 @@ def dump(result: Identification, u: np.ndarray, y: np.ndarray) -> tuple[dict[str
         residual_white=None if loop is not None else (None if result.refinement is None else result.residual_white),
         interval_note=result.interval_note,
         place_z=float(loop.place_z) if loop is not None and loop.structure == PLAY_IN_LOOP else None,
+        **({"structure": result.structure} if "structure" in Evidence.__dataclass_fields__ else {}),
     )  # fmt: skip
     own = set(intervals.verdict(evidence).reasons)
     row = {

@@ -385,7 +385,8 @@ def resolution_floor_nrmse(y: np.ndarray, valid: np.ndarray | None = None) -> fl
     motor-side twins: 0.97-1.03 times their true noise, fits 0.98-1.03 times the true floor), but not on
     the STS3215 twin at 5-20x (1.08-1.31 times: the bounce is white too). On the calibration's 83
     intervals coverage fell from 79 to 74 (89 %), and of the 7 STS3215 answers it identified two had
-    intervals that exclude the truth ([0.86, 0.97] at -8.6 %, [0.82, 0.96] at -9.6 %); with the dead-time and
+    intervals that exclude the truth ([0.86, 0.97] at -8.6 %, [0.82, 0.96] at -9.6 %); on seeds 1-2 it
+    identified the STS3215's 10x s1 at -16.7 % with [0.77, 0.89] times the truth; with the dead-time and
     stall rules also waived where the place is named it identified two wrong ones (-15.6 %, -17.3 %). The
     motor-side twins show why the visible residual does not bound the model error there either: the
     ODrive's answers fit at their floor with white residuals, yet the servo-loop model's own interval missed
