@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 from _table import table
 from real_servos import BANDWIDTH_HZ, DURATION_S, MAX_SAMPLES, NOISE_COUNTS, SINE_AMPLITUDE
+from twin_effects import effects
 
 from servoid.drivers.twin import Twin, preset
-from servoid.errors import ConfigError
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident.models.servo_loop import LOAD_NAMES
@@ -47,29 +47,6 @@ SPREAD, PLAY_SPREAD = 0.15, 0.25
 NFEV, FTOL = 60, 1e-8
 #: The 95 % point of chi-square with one degree of freedom.
 LR95 = 3.84
-
-
-def effects(name: str) -> dict[str, dict[str, float]]:
-    """The twin's effects scaled one at a time (overrides of the preset; a stiffer gear's faster ring gets the sub-steps it needs)."""
-    b = preset(name)
-    cases = {
-        "as is": {},
-        "gear x100 stiffer": {"gear_stiffness_nm_rad": 100 * b.gear_stiffness_nm_rad, "gear_damping_nms": 10 * b.gear_damping_nms},
-        "gear lossless": {"gear_efficiency": 1.0},
-        "gear damping x5": {"gear_damping_nms": 5 * b.gear_damping_nms},
-        "load friction x0.1": {"load_coulomb_nm": 0.1 * b.load_coulomb_nm, "load_breakaway_nm": 0.1 * b.load_breakaway_nm, "load_viscous_nms": 0.1 * b.load_viscous_nms},
-        "load viscous 0": {"load_viscous_nms": 0.0},
-        "load break-away = Coulomb": {"load_breakaway_nm": b.load_coulomb_nm},
-        "motor friction x0.01": {"motor_coulomb_nm": 0.01 * b.motor_coulomb_nm, "motor_breakaway_nm": 0.01 * b.motor_breakaway_nm, "motor_viscous_nms": 0.01 * b.motor_viscous_nms},
-    }  # fmt: skip
-    for over in cases.values():
-        while True:
-            try:
-                preset(name, **over)
-                break
-            except ConfigError:
-                over["substeps"] = 2 * over.get("substeps", b.substeps)
-    return cases
 
 
 def record(name: str, mult: float, seed: int, fine: bool, extra: dict[str, float]) -> dict[str, Any]:

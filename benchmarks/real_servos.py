@@ -94,16 +94,19 @@ def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
 
 
 def twin_record(
-    name: str, mult: float, friction: float, kind: str, seed: int, **overrides: object
+    name: str, mult: float, friction: float, kind: str, seed: int, noise_seed: int | None = None, **overrides: object
 ) -> dict[str, object]:
-    """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments)."""
+    """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments).
+
+    ``seed`` draws the excitation (``seed + 1000``) and, unless ``noise_seed`` is given, the encoders' noise.
+    """
     base = preset(name)
     over: dict[str, object] = {"encoder_noise_counts": NOISE_COUNTS, "load_encoder_cpr": 4096}
     if friction != 1.0:
         over["motor_coulomb_nm"] = base.motor_coulomb_nm * friction
         over["motor_breakaway_nm"] = base.motor_breakaway_nm * friction
     over.update(overrides)
-    twin = Twin(preset(name, **over), seed=seed)
+    twin = Twin(preset(name, **over), seed=seed if noise_seed is None else noise_seed)
     twin.enable()
     rate = mult * BANDWIDTH_HZ[name]
     n = int(min(DURATION_S * rate, MAX_SAMPLES))
