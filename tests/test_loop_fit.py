@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -160,6 +161,9 @@ def test_a_long_record_is_searched_on_its_start_and_refitted_on_all(monkeypatch:
     # final refit scores the whole record, and the play of the model's own simulation is still recovered;
     # unless the window's winner predicts the rest worse than it validated: then the search runs on all
     monkeypatch.setattr(loop_fit, "SEARCH_SAMPLES", 600)  # half the record
+    monkeypatch.setattr(
+        loop_fit, "HUMP_CANDIDATES", ()
+    )  # the fits counted here are the window's (humps: their own test)
     read: list[int] = []
     fit = loop_fit._fit
 
@@ -487,33 +491,52 @@ def test_a_load_stage_grid_point_that_runs_away_fits_infinitely_badly() -> None:
     assert all(np.isfinite(nrmse) for _, nrmse in rivals)  # the runaway point never left the grid
 
 
+def _in_loop_search_record() -> tuple[float, ServoLoopModel, np.ndarray, np.ndarray, tuple, np.ndarray, np.ndarray]:
+    """The model's own simulation of a play in the loop, centred, with what :func:`loop_fit._search` takes besides:
+    the period, the truth, ``uc, yc``, the linear start, the play grid and the mask of every sample."""
+    period = 0.01
+    truth = _loop(PLAY_IN_LOOP, period)
+    u = _gentle(0.1, period, 2000, seed=3)
+    y = truth.simulate(u, y0=0.0)
+    uc, yc = u - u.mean(), y - u.mean()
+    v_typ = float(np.std(np.diff(yc))) / period
+    starts = (*loop_fit._linear_start(uc, yc, period), v_typ, 0.1 * 120.0 * v_typ)
+    return period, truth, uc, yc, starts, np.geomspace(1e-4, 0.03, 10), np.ones(y.size, dtype=bool)
+
+
+def _spoiled_searches(
+    monkeypatch: pytest.MonkeyPatch, spoil: Callable[[dict], dict], count: int, *, integrator_only: bool = False
+) -> list[bool]:
+    """Make the first ``count`` candidate searches of the play in the loop (with an integrator, ``integrator_only``)
+    end at ``spoil`` of their values; the list grows by one for each spoiled search."""
+    fit = loop_fit._fit
+    spoiled: list[bool] = []
+
+    def spoiling(*args: object, **kwargs: object) -> object:
+        d, prob, sol = fit(*args, **kwargs)  # type: ignore[arg-type]
+        search = kwargs.get("free") is None and kwargs.get("max_nfev") == loop_fit.CANDIDATE_NFEV
+        if (
+            search
+            and args[3] == PLAY_IN_LOOP
+            and (kwargs["integrator"] or not integrator_only)
+            and len(spoiled) < count
+        ):
+            spoiled.append(True)
+            return spoil(d), prob, sol
+        return d, prob, sol
+
+    monkeypatch.setattr(loop_fit, "_fit", spoiling)
+    return spoiled
+
+
 def test_a_candidate_whose_play_collapsed_is_fitted_again_from_the_other_candidates_fit(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     # COLLAPSE_RESTART: exact recovery of a play in the loop, where the search with an integrator is made to end
     # at no play (the XM430 twin at 10x did so by itself); its sibling found the play, and the candidate fitted
     # again from the sibling's fit comes back with it (the lower estimation cost kept); without the rule it stays
-    period = 0.01
-    truth = _loop(PLAY_IN_LOOP, period)
-    u = _gentle(0.1, period, 2000, seed=3)
-    y = truth.simulate(u, y0=0.0)
-    fit = loop_fit._fit
-    collapsed: list[bool] = []
-
-    def collapsing(*args: object, **kwargs: object) -> object:
-        d, prob, sol = fit(*args, **kwargs)  # type: ignore[arg-type]
-        search = kwargs.get("free") is None and kwargs.get("max_nfev") == loop_fit.CANDIDATE_NFEV
-        if search and kwargs["integrator"] and args[3] == PLAY_IN_LOOP and not collapsed:
-            collapsed.append(True)
-            return dict(d, play=1e-9), prob, sol
-        return d, prob, sol
-
-    monkeypatch.setattr(loop_fit, "_fit", collapsing)
-    uc, yc = u - u.mean(), y - u.mean()
-    v_typ = float(np.std(np.diff(yc))) / period
-    starts = (*loop_fit._linear_start(uc, yc, period), v_typ, 0.1 * 120.0 * v_typ)
-    grid = np.geomspace(1e-4, 0.03, 10)
-    every = np.ones(y.size, dtype=bool)
+    period, truth, uc, yc, starts, grid, every = _in_loop_search_record()
+    collapsed = _spoiled_searches(monkeypatch, lambda d: dict(d, play=1e-9), 1, integrator_only=True)
     plays = {}
     for rule in (True, False):
         monkeypatch.setattr(loop_fit, "COLLAPSE_RESTART", rule)
@@ -525,3 +548,25 @@ def test_a_candidate_whose_play_collapsed_is_fitted_again_from_the_other_candida
     assert plays[False][True] == 1e-9
     assert plays[True][True] == pytest.approx(truth.play, rel=0.05)
     assert plays[True][False] == plays[False][False] == pytest.approx(truth.play, rel=0.05)
+
+
+def test_the_place_behind_without_a_hump_is_fitted_again_from_one(monkeypatch: pytest.MonkeyPatch) -> None:
+    # HUMP_CANDIDATES: exact recovery of a play in the loop whose drive breaks away above its Coulomb level, where
+    # both play-in-loop candidates are made to end without the hump (fs below fc, where the cost has no slope in fs)
+    # and in a worse basin (kv three times the truth's), behind the play outside the loop (the XM430 twin's records:
+    # the place in the loop without its hump lost to the other with one); fitted again from humps, the place comes
+    # back with a hump, the truth's play and the lead; without the rule it stays behind
+    period, truth, uc, yc, starts, grid, every = _in_loop_search_record()  # the truth: fs 4 over fc 3
+    stripped = _spoiled_searches(monkeypatch, lambda d: dict(d, fs=0.5 * d["fc"], kv=3.0 * d["kv"]), 2)
+    monkeypatch.setattr(loop_fit, "PLACES_AT_ONCE", False)  # the stripped fits are the place's first two
+    ahead = {}
+    for rule in (loop_fit.HUMP_CANDIDATES, ()):
+        monkeypatch.setattr(loop_fit, "HUMP_CANDIDATES", rule)
+        stripped.clear()
+        found, _, _, _ = loop_fit._search(uc, yc, every, period, starts, grid, (OUTPUT_BACKLASH, PLAY_IN_LOOP))
+        assert len(stripped) == 2
+        ahead[bool(rule)] = found[0]  # the best validation
+    (won, d_won), (lost, _) = ahead[True], ahead[False]
+    assert lost.structure == OUTPUT_BACKLASH  # the stripped place behind, without the rule
+    assert won.structure == PLAY_IN_LOOP and d_won["fs"] > d_won["fc"]
+    assert d_won["play"] == pytest.approx(truth.play, rel=0.05)

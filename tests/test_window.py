@@ -242,6 +242,49 @@ def test_the_fit_rule_compares_the_online_model_with_the_answer_on_the_samples_t
     assert verdict["online_nrmse"] > 3 * verdict["refined_nrmse"] + FIT_SLACK  # clearly worse, not at the edge
 
 
+@pytest.mark.parametrize("behind", [0.02, 0.10])
+def test_the_slow_part_sizes_a_play_outside_the_loop_only_where_the_fast_part_names_the_place(
+    monkeypatch, behind: float
+) -> None:
+    from servoid.ident.offline.loop_fit import LoopCandidate, place_margin, widened_to_rivals
+    from servoid.ident.online import refinement
+    from servoid.ident.online.window import WindowResult
+
+    # the fast part's answer as it is, with a play-in-loop candidate of half the play added ``behind`` it in
+    # validation (and in its interval where fit_loop would take it in): 2 % is a tie (the structure margin, 5 %),
+    # 10 % names the place outside the loop
+    u, y, slow, outside, wide = _two_phase(24.0, seed=7)
+    inside = dataclasses.replace(TRUTH, c1=0.25 * outside.play, c2=0.25 * outside.play)
+    refine = refinement._refine
+
+    def with_rival(*args, **kwargs):
+        choice, refined = refine(*args, **kwargs)
+        best = choice.validation_nrmse[choice.structure]
+        rival = LoopCandidate(PLAY_IN_LOOP, False, inside, best, (1.0 + behind) * best, 0)
+        per = dict(choice.validation_nrmse, **{PLAY_IN_LOOP: (1.0 + behind) * best})
+        choice = dataclasses.replace(
+            choice, candidates=(*choice.candidates, rival), validation_nrmse=per,
+            margin=place_margin(per, choice.structure),
+            play_interval=widened_to_rivals(choice.play_interval, [(inside.play, (1.0 + behind) * best)], best),
+        )  # as fit_loop widens its interval to its rivals  # fmt: skip
+        return choice, refined
+
+    monkeypatch.setattr(refinement, "_refine", with_rival)
+    online = WindowResult(outside, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    choice, refined = refinement.refine_online(u, y, online, slow=slow)
+    low, high = choice.play_interval
+    assert choice.margin == pytest.approx(behind)
+    if behind < 0.05:  # a tie: the fast answer stands, the interval holds both places and the slow part's play
+        assert refined.fast_play is None and refined.slow_play is not None
+        assert abs(choice.play / outside.play - 1) < 0.05 and abs(refined.slow_play / wide.play - 1) < 0.05
+        assert low <= inside.play and high >= refined.slow_play
+        assert refined.scored == (slow, u.size)
+    else:  # the place named: the slow part sizes the play, its interval without the rejected place
+        assert refined.slow_play is None and refined.fast_play is not None
+        assert abs(choice.play / wide.play - 1) < 0.05 and low > inside.play
+        assert refined.scored == (0, slow)
+
+
 def test_a_slow_phase_whose_search_puts_the_play_inside_the_loop_leaves_the_windows_on_the_last_window(
     monkeypatch,
 ) -> None:

@@ -22,6 +22,15 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %); when
    the online estimate searched the same slow phase already (:attr:`WindowResult.slow_search`,
    its windows having put the play outside the loop), that search is taken, not run again.
+   Only where the fast part names the place: where its places tie (validation margin under
+   :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`) the fast answer stands and its
+   interval takes in the slow part's play (:attr:`Refined.slow_play`). The slow part cannot place
+   the play: on a horn servo (play in the loop) its gentle reversals sit in the motor's stall band,
+   which the play outside the loop takes for play (the XM430 twin's live records on ``sim://``, seeds
+   0-2, the slow part alone: outside at +252 ... +284 %, margins 17-37 %, intervals 3.5-4.1 times the
+   truth; the fast part: in the loop at +6 ... +10 %, margins 2-10 %), so its confirmation turned a
+   fast-part tie into +270 % with the slow part's interval (the XM430 through the real-clock
+   emulators: +272 ... +285 %).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -54,7 +63,7 @@ from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
-from servoid.ident.offline.intervals import quantum
+from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, quantum
 from servoid.ident.offline.loop_fit import (
     CANDIDATE_NFEV,
     FINAL_NFEV,
@@ -89,6 +98,10 @@ class Refined:
     fast_play : float or None
         With a slow phase and the play outside the loop: the answer's play on the fast part,
         before its refit on the slow part (None: no such refit).
+    slow_play : float or None
+        With a slow phase, the play outside the loop on the fast part and its places tied there
+        (validation margin under :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`): the
+        slow part's play outside the loop, taken into the interval only (None: no such tie).
     scored : tuple of int
         The samples ``[start, stop)`` of the record on whose usable ones the answer's
         ``fit_nrmse`` was computed: the whole record, or the fast or the slow part after a
@@ -99,6 +112,7 @@ class Refined:
     search: LoopChoice
     online_won: bool
     fast_play: float | None = None
+    slow_play: float | None = None
     scored: tuple[int, int] = (0, 0)
 
     def score(self, model: ServoLoopModel, u: Any, y: Any, keep: Any = None) -> float:
@@ -137,7 +151,8 @@ class Refined:
                                      "estimation_nrmse": c.estimation_nrmse, "validation_nrmse": c.validation_nrmse},
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
-                "online_won": self.online_won, "fast_play": self.fast_play, "scored": list(self.scored)}  # fmt: skip
+                "online_won": self.online_won, "fast_play": self.fast_play, "slow_play": self.slow_play,
+                "scored": list(self.scored)}  # fmt: skip
 
 
 def refine_online(
@@ -201,16 +216,22 @@ def refine_online(
     # back on the whole record: a play outside the loop from the search on the slow part
     centre = float(np.mean(u_arr))
     uc, yc = u_arr - centre, y_arr - centre
-    fast_play = None
+    fast_play = slow_play = None
     if choice.structure != PLAY_IN_LOOP:
         done = online.slow_search
         if done is not None and done.samples == head:  # the online estimate's search of the same samples
             slow_choice = done.choice
         else:
             slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)
-        if (
-            slow_choice.structure != PLAY_IN_LOOP
-        ):  # else the slow part does not confirm the place: the fast answer stands
+        if slow_choice.structure == PLAY_IN_LOOP:
+            pass  # the slow part does not confirm the place: the fast answer stands
+        elif not choice.margin >= MIN_STRUCTURE_MARGIN:
+            # the fast part's places tie: the place is not named, so the slow part does not size the answer; its
+            # play (what a play outside the loop would be) joins the interval, which holds the fast part's rivals
+            slow_play = slow_choice.play
+            interval = _hull(choice.play_interval, (*slow_choice.play_interval, slow_play))
+            choice = dataclasses.replace(choice, play_interval=interval)
+        else:
             fast_play, scored = choice.play, (0, head)
             choice = dataclasses.replace(
                 choice,
@@ -226,7 +247,16 @@ def refine_online(
             )
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
-    return choice, dataclasses.replace(refined, fast_play=fast_play, scored=scored)
+    return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored)
+
+
+def _hull(interval: tuple[float, float], values: tuple[float, ...]) -> tuple[float, float]:
+    """The hull of ``interval`` and the finite ``values``; an interval that is not finite stays so."""
+    low, high = interval
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return interval
+    ends = [v for v in values if math.isfinite(v)]
+    return (min([low, *ends]), max([high, *ends]))
 
 
 def _fast_start(kept: np.ndarray, slow: int) -> int:
