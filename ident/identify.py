@@ -26,6 +26,7 @@ import numpy as np
 from servoid import readings_side, validation
 from servoid.errors import ConfigError, DataError, ModelError
 from servoid.ident.diagnosis.compare import compare
+from servoid.ident.diagnosis.flank_rebound import rebound
 from servoid.ident.diagnosis.residuals import is_white
 from servoid.ident.metrics import nrmse
 from servoid.ident.models.kernels import rest_kernel
@@ -639,6 +640,11 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         doubts = (*doubts, *loop.reasons)
+    if loop is not None and loop.structure == PLAY_IN_LOOP and np.shape(loop.simulated) == y_c.shape:
+        # the horn's bounce off the flank biases the massless play (a loop result of this record only)
+        bounce = rebound(y_c, np.asarray(loop.simulated), float(loop.play), sample_period_s, valid=keep)
+        if bounce.named:
+            doubts = (*doubts, bounce.reason())
     if doubts:
         judged = Verdict(False, (*judged.reasons, *doubts))
     # the same test as a warning, naming the black box when the servo-loop model answers

@@ -16,7 +16,9 @@
 5. when the sample period is known and the final model's validation residual
    is coloured, fits the servo-loop model with and without its friction terms and names ``friction_stall`` when they pay
    (:mod:`servoid.ident.diagnosis.loop_effects`): a drive that stalls after
-   each reversal is an effect inside the loop, which the black box books as play.
+   each reversal is an effect inside the loop, which the black box books as play; on the same
+   model's validation run it names ``flank_rebound`` when the load bounces off the flank after
+   reversals (:mod:`servoid.ident.diagnosis.flank_rebound`: the massless play is then biased).
 
 Selection
 ---------
@@ -56,7 +58,7 @@ from servoid.ident.diagnosis.residuals import (
 )
 from servoid.ident.identify import Identification, check_record, identify
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.effect_names import FRICTION_STALL
+from servoid.ident.models.effect_names import FLANK_REBOUND, FRICTION_STALL
 from servoid.ident.models.effects import CANDIDATE_NAMES, EFFECTS, NONE, get_effect
 from servoid.ident.models.extended import (
     AppliedEffect,
@@ -233,12 +235,16 @@ class Diagnosis:
 
         The black box's accepted effects in the order found, and ``friction_stall`` when the
         servo-loop model names it: first when the loop model with friction validates better
-        than the black box with its effects (the stall is then what they were standing in for).
+        than the black box with its effects (the stall is then what they were standing in for);
+        ``flank_rebound`` last when the servo-loop model's residual names it (no model here
+        follows the bounce, so it closes no gap).
         """
         found = self.model.effect_names
-        if self.loop is None or not self.loop.named:
+        if self.loop is None:
             return found
-        return (FRICTION_STALL, *found) if self.loop.gap_with < self.gap_after else (*found, FRICTION_STALL)
+        if self.loop.named:
+            found = (FRICTION_STALL, *found) if self.loop.gap_with < self.gap_after else (*found, FRICTION_STALL)
+        return (*found, FLANK_REBOUND) if self.loop.rebounds else found
 
     @property
     def effect(self) -> str:
@@ -248,10 +254,14 @@ class Diagnosis:
     @property
     def effect_parameters(self) -> dict[str, float]:
         """Parameters of :attr:`effect` in the final model (empty for ``"none"``; the servo loop's friction
-        and stall band for ``friction_stall``)."""
+        and stall band for ``friction_stall``; the residual's swing, a share of the play, its t statistics
+        and the departures for ``flank_rebound``)."""
         if self.effect == FRICTION_STALL and self.loop is not None:
             params = self.loop.model.params()
             return {**{name: params[name] for name in FRICTION_TERMS}, "stall_band": self.loop.stall_band}
+        if self.effect == FLANK_REBOUND and self.loop is not None and self.loop.rebound is not None:
+            b = self.loop.rebound
+            return {"swing": b.swing, "lead_t": b.lead_t, "lag_t": b.lag_t, "departures": float(b.departures)}
         applied = self.model.effect(self.effect)
         return {} if applied is None else applied.parameters
 

@@ -1,4 +1,4 @@
-"""The servo loop's effects in the diagnosis: whether ``friction_stall`` is missing, by the rule of :mod:`.friction_stall`.
+"""The servo loop's effects in the diagnosis: ``friction_stall`` (:mod:`.friction_stall`) and ``flank_rebound`` (:mod:`.flank_rebound`).
 
 The effect search of :func:`servoid.ident.diagnosis.diagnose` extends the
 black box; a drive that stalls after each reversal until its velocity loop
@@ -10,7 +10,12 @@ friction terms (:func:`~servoid.ident.offline.loop_fit.refit` with
 ``fc = fs = 0``), scores both on the validation record and names
 ``friction_stall`` when :func:`.friction_stall.matters` says the friction
 terms pay: the gap shrinks by more than 2 % and the drive needs at least 5 %
-of a typical speed error to break away.
+of a typical speed error to break away. On the same validation run of the
+chosen (massless) model it names ``flank_rebound`` when the residual around
+the load's departures from a flank shows the load bouncing off it
+(:func:`.flank_rebound.rebound`); no model here follows the bounce well enough
+to give the play with it (README, "What we learned"), so only the massless
+model's gap is reported for it.
 """
 
 from __future__ import annotations
@@ -22,9 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from servoid.ident.diagnosis.flank_rebound import Rebound, rebound
 from servoid.ident.diagnosis.friction_stall import describe, matters, stall_band
 from servoid.ident.metrics import nrmse
-from servoid.ident.models.effect_names import FRICTION_STALL, NONE
+from servoid.ident.models.effect_names import FLANK_REBOUND, FRICTION_STALL, NONE
 from servoid.ident.models.servo_loop import ServoLoopModel
 
 __all__ = ["LoopEffect", "loop_effects", "FRICTION_TERMS"]
@@ -55,6 +61,8 @@ class LoopEffect:
         The servo-loop model's play (with friction), unit of y.
     model : ServoLoopModel
         The servo-loop model with friction.
+    rebound : Rebound or None
+        Its validation residual around the load's departures from a flank (:func:`.flank_rebound.rebound`).
     """
 
     effect: str
@@ -65,11 +73,33 @@ class LoopEffect:
     stall_band: float
     play: float
     model: ServoLoopModel
+    rebound: Rebound | None = None
 
     @property
     def named(self) -> bool:
         """Whether ``friction_stall`` is named."""
         return self.effect == FRICTION_STALL
+
+    @property
+    def rebounds(self) -> bool:
+        """Whether ``flank_rebound`` is named."""
+        return self.rebound is not None and self.rebound.named
+
+    def rebound_line(self, unit: str = "") -> str:
+        """One line for the report on ``flank_rebound``: named or not, the numbers and the massless model's gap.
+
+        Parameters
+        ----------
+        unit : str
+            The unit of y, or "".
+        """
+        if self.rebound is None:
+            return f"{FLANK_REBOUND}: not looked for"
+        gap = f"servo-loop validation gap {self.gap_with:.4g} with the massless load"
+        if self.rebounds:
+            return (f"{self.rebound.line()}; {gap} (no model here follows the bounce: the play "
+                    f"{self.play:.4g}{unit and ' ' + unit} is biased)")  # fmt: skip
+        return f"{self.rebound.line()}; {gap}"
 
     def line(self, unit: str = "") -> str:
         """One line for the report: the effect and the gap it closes, or why it is not named.
@@ -85,16 +115,23 @@ class LoopEffect:
         return f"{FRICTION_STALL}: not missing ({gaps}, stall ratio {self.stall_ratio:.2g})"
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"effect", "structure", "gap_without", "gap_with", "stall_ratio", "stall_band", "play", "params"}``."""
+        """``{"effect", "structure", "gap_without", "gap_with", "stall_ratio", "stall_band", "play", "params",
+        "rebound"}`` (``rebound``: :meth:`.flank_rebound.Rebound.to_dict`, or None)."""
         return {"effect": self.effect, "structure": self.structure, "gap_without": self.gap_without,
                 "gap_with": self.gap_with, "stall_ratio": self.stall_ratio, "stall_band": self.stall_band,
-                "play": self.play, "params": self.model.params()}  # fmt: skip
+                "play": self.play, "params": self.model.params(),
+                "rebound": None if self.rebound is None else self.rebound.to_dict()}  # fmt: skip
+
+
+def _free_run(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """The loop model's free run on a record, in its coordinates (it sees differences only: any one constant off both)."""
+    centre = float(np.mean(u))
+    return model.simulate(u - centre, y0=float(y[0]) - centre) + centre
 
 
 def _gap(model: ServoLoopModel, u: np.ndarray, y: np.ndarray) -> float:
-    """Free-run NRMSE of the loop model on a record (it sees differences only: any one constant off both)."""
-    centre = float(np.mean(u))
-    return nrmse(y, model.simulate(u - centre, y0=float(y[0]) - centre) + centre)
+    """Free-run NRMSE of the loop model on a record."""
+    return nrmse(y, _free_run(model, u, y))
 
 
 def loop_effects(
@@ -125,7 +162,9 @@ def loop_effects(
     with_friction = choice.model
     start = dataclasses.replace(with_friction, fc=0.0, fs=0.0)
     without = refit(u_t, y_t, sample_period_s, start, hold=FRICTION_TERMS)
-    gap_with, gap_without = _gap(with_friction, *validate), _gap(without, *validate)
+    u_v, y_v = validate
+    run = _free_run(with_friction, u_v, y_v)
+    gap_with, gap_without = nrmse(y_v, run), _gap(without, *validate)
     v_typ = float(np.std(np.diff(y_t))) / sample_period_s
     m = with_friction
     # the model's break-away level: a fit with fs < fc has no Stribeck hump, and fc is where it breaks away
@@ -135,4 +174,5 @@ def loop_effects(
     return LoopEffect(
         effect=FRICTION_STALL if named else NONE, structure=choice.structure, gap_without=gap_without,
         gap_with=gap_with, stall_ratio=ratio, stall_band=stall_band(breakaway, m.kv, m.kp), play=m.play, model=m,
+        rebound=rebound(y_v, run, m.play, sample_period_s),
     )  # fmt: skip

@@ -18,6 +18,7 @@ __all__ = [
     "CANDIDATE_NAMES",
     "EFFECT_NAMES",
     "FRICTION_STALL",
+    "FLANK_REBOUND",
     "LOOP_EFFECTS",
 ]
 
@@ -49,10 +50,18 @@ CANDIDATE_NAMES: tuple[str, ...] = tuple(SUMMARIES)
 #: (:func:`servoid.ident.diagnosis.friction_stall.matters`).
 FRICTION_STALL = "friction_stall"
 
+#: The load leaves the flank after the impact that ends each crossing of the play (a light horn on a lightly
+#: damped gear contact bounces off it): the massless play operator cannot follow it and the play comes out
+#: biased. Named from the massless servo-loop model's residual around the load's departures from a flank
+#: (:func:`servoid.ident.diagnosis.flank_rebound.rebound`), not a candidate of the effect search above.
+FLANK_REBOUND = "flank_rebound"
+
 #: Effects of the servo-loop model, named by the diagnosis when they matter.
 LOOP_EFFECTS: dict[str, str] = {
     FRICTION_STALL: "the drive stalls after each reversal until its integrator overcomes break-away friction "
     "(inside the servo loop; a black box books it as play)",
+    FLANK_REBOUND: "the load rebounds off the flank the motor hits after each reversal (a light horn on a lightly "
+    "damped gear; the massless play is biased small)",
 }
 
 #: Every name the diagnosis can give: the candidates, the servo loop's effects and ``"none"``.

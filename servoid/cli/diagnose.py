@@ -11,7 +11,14 @@ from servoid import limits
 from servoid.cli import _data, _model, _term
 from servoid.errors import ConfigError, DataError
 from servoid.ident import defaults
-from servoid.ident.models.effect_names import CANDIDATE_NAMES, FRICTION_STALL, LOOP_EFFECTS, NONE, SUMMARIES
+from servoid.ident.models.effect_names import (
+    CANDIDATE_NAMES,
+    FLANK_REBOUND,
+    FRICTION_STALL,
+    LOOP_EFFECTS,
+    NONE,
+    SUMMARIES,
+)
 from servoid.output_paths import output_dir
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -47,6 +54,10 @@ its friction and scored the same way:
   {FRICTION_STALL:17s} {LOOP_EFFECTS[FRICTION_STALL]}
 is named when the friction cuts the loop model's validation gap by more than 2 %
 and the drive needs at least 5 % of a typical speed error to break away.
+  {FLANK_REBOUND:17s} {LOOP_EFFECTS[FLANK_REBOUND]}
+is named when the loop model's validation residual, signed by the direction of
+motion and averaged over the load's departures from a flank, swings by at least
+a tenth of the play within 50 ms, both ways at 4 standard errors.
 
 {_data.formats_help("Recordings: ", 0, ". Both are read with the same options and must have the same sample period and units.")}
 
@@ -181,12 +192,16 @@ def run(args: argparse.Namespace) -> int:
             for e in result.model.effects}  # fmt: skip
     if result.loop is not None:
         said[result.loop.effect] = f"{result.loop.effect} (stall band {result.loop.stall_band:.4g} {output_unit})"
+        if result.loop.rebound is not None:
+            said[FLANK_REBOUND] = f"{FLANK_REBOUND} (swing {result.loop.rebound.swing:.2f} of the play)"
     out.print(f"missing effect: {', '.join(said[name] for name in result.effects) or NONE}")
     out.print(f"validation gap (free-run NRMSE): before {result.gap_before:.4g}, after {result.gap_after:.4g} "
               f"({result.gap_after / result.gap_before:.2f} x)")  # fmt: skip
     out.print(result.loop.line(output_unit) if result.loop is not None else
               f"{FRICTION_STALL}: not looked for (the servo-loop model needs the recordings' sample period, "
               "at least 200 samples and a coloured residual to explain)")  # fmt: skip
+    if result.loop is not None:
+        out.print(result.loop.rebound_line(output_unit))
     for name, path in paths.items():
         out.print(f"  {name:17s} {path}")
     return 0
