@@ -138,3 +138,29 @@ def test_identify_help_names_the_default_length_and_why(capsys) -> None:
         servoid_main(["identify", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert f"{_live.DEFAULT_LIVE_S:g} s, {_live.DEFAULT_LIVE_WHY}" in text and "--seconds S" in text
+
+
+def test_the_slow_phase_holds_enough_reversals_and_a_default_run_keeps_its_fast_part() -> None:
+    from servoid.cli import _live
+    from servoid.drivers.base import Limits
+    from servoid.excitation import parse_spec, sample
+    from servoid.excitation.gentle import whole_segments
+    from servoid.ident.offline.intervals import reversal_indices
+
+    # a slow loop's design (the ODrive twin's, at 200 Hz): long segments, few reversals in a third of 40 s
+    slow_text = "gentle:amplitude=0.05,accel=2.7758e-05"
+    spec, slow_spec = "gentle:amplitude=0.05,accel=0.000151", parse_spec(slow_text)
+    share = int(_live.DEFAULT_LIVE_S * 200.0 / 3)
+
+    def turns(u: np.ndarray) -> int:
+        return int(reversal_indices(u, 0.1 * 0.05).size)
+
+    cut = whole_segments(slow_spec, 1, share)
+    assert turns(sample(slow_spec, cut, seed=1)) < _live.SLOW_REVERSALS  # the share alone: too few
+    u, first = _live.excitation(_args(seed=1), 0.05, Limits(), designed=spec, slow=(slow_text, 1 / 3))
+    assert first > share and turns(u[:first]) >= _live.SLOW_REVERSALS
+    assert first == whole_segments(slow_spec, 1, first)  # at a segment's end: no step into the fast phase
+    assert u.size - first == round(_live.DEFAULT_LIVE_S * 200.0) - share  # the fast part as long as before
+    told, first_told = _live.excitation(_args(seed=1, samples=8000), 0.05, Limits(), designed=spec,
+                                        slow=(slow_text, 1 / 3))  # fmt: skip
+    assert told.size == 8000 and first_told == first  # a length the user gave stays; the fast part gives way

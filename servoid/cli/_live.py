@@ -31,6 +31,7 @@ if TYPE_CHECKING:  # pragma: no cover
     import numpy as np
 
     from servoid.drivers.base import Limits
+    from servoid.excitation import GentleSpec
     from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
     from servoid.ident.offline.loop_fit import LoopChoice
@@ -50,11 +51,17 @@ __all__ = ["add_options", "live_record", "recording_valid", "session_rows", "exc
 DEFAULT_SAMPLES = 5000
 
 #: Servo seconds of a live run designed from the probe when neither --samples nor --seconds is
-#: given. Issue 15's budget is 60 s of wall time for the probe and the identification: the probe
+#: given (more when its slow phase needs them for :data:`SLOW_REVERSALS` reversals: up to 44 s on
+#: the twins). Issue 15's budget is 60 s of wall time for the probe and the identification: the probe
 #: takes 6.2 s, the run this long, the fits after it a few seconds (the answer's search of the fast
 #: part's head runs during the run: ident/online/early_search.py). 60 s of servo time before
 #: (identify took 69-117 s on a real clock); docs/online.md, "Within 60 s of wall time".
 DEFAULT_LIVE_S = 40.0
+#: Reversals of the set point a design's slow phase holds at least (:func:`slow_phase`): each is a
+#: motor crossing of the play, what the slow phase's search reads a play outside the loop from. 18:
+#: the fewest a third of a 60 s run held on the twins (ODrive, XM430 designs, seeds 0-2), whose
+#: answers it gave; 6-12 (a third of 40 s) missed the ODrive's play by -38 / -42 % on 2 of 3 seeds.
+SLOW_REVERSALS = 18
 #: Why the live run has its default length, said in --help and in the line a run starts with.
 DEFAULT_LIVE_WHY = "probe, run and fits within 60 s of wall time"
 
@@ -150,7 +157,9 @@ def excitation(
     amplitude``. ``--samples`` long (a file: all of it by default; a design:
     :data:`DEFAULT_LIVE_S` of servo time). ``slow`` (a design's
     :meth:`LiveDesign.slow_spec` and its share of the run) comes first, cut at
-    the end of its last whole segment (back at the centre: no step into the fast phase).
+    the end of a whole segment (back at the centre: no step into the fast phase), long
+    enough for :data:`SLOW_REVERSALS` reversals (:func:`slow_phase`); a default run then
+    grows by what the slow phase took beyond its share, so that the fast part keeps its own.
     """
     from servoid.excitation import GentleSpec, UniformSpec, parse_spec, sample
     from servoid.readers.excitation_file import is_file_spec, read_excitation
@@ -172,13 +181,52 @@ def excitation(
         return limits.centre + sample(spec, n, seed=args.seed), 0
     import numpy as np
 
-    from servoid.excitation.gentle import whole_segments
-
     slow_spec = parse_spec(slow[0])
     assert isinstance(slow_spec, GentleSpec)
-    first = whole_segments(slow_spec, args.seed, int(slow[1] * n))
+    first = slow_phase(slow_spec, args.seed, int(slow[1] * n), n // 2)
+    if args.samples is None:  # the default run: a longer slow phase leaves the fast part its share of DEFAULT_LIVE_S
+        n = max(n, first + n - int(slow[1] * n))
     head = sample(slow_spec, first, seed=args.seed) if first else np.empty(0)
     return limits.centre + np.concatenate([head, sample(spec, n - first, seed=args.seed)]), first
+
+
+def slow_phase(spec: GentleSpec, seed: int, share: int, most: int) -> int:
+    """Samples of a design's slow phase: whole segments, at least ``share`` and :data:`SLOW_REVERSALS` reversals.
+
+    The slow phase answers for a play outside the loop (``refine_online``'s step 4), one motor
+    crossing of the play per reversal of the set point (by more than a tenth of the amplitude), and
+    its segments are long: cut at whole segments, a third of a 40 s run of the ODrive or XM430 design
+    held 6-12 reversals in 6-8 s, where the answer missed the ODrive twin's play by -38 / -42 % (seeds
+    0, 1; a third of 60 s: 18-24 reversals, +3 / +1 %). It ends at the first segment end after the
+    :data:`SLOW_REVERSALS`-th reversal, when that is later than ``share`` and within ``most``.
+
+    Parameters
+    ----------
+    spec : GentleSpec
+        The slow phase's signal.
+    seed : int
+        Its seed.
+    share : int
+        Samples of the design's share of the run (:data:`~servoid.ident.online.probe_design.SLOW_PART`).
+    most : int
+        The most samples it may take (half the run).
+
+    Returns
+    -------
+    int
+        The samples, at segment ends (0 when no segment fits in ``share``).
+    """
+    from servoid.excitation import sample
+    from servoid.excitation.gentle import segment_end, whole_segments
+    from servoid.ident.offline.intervals import reversal_indices
+
+    first = whole_segments(spec, seed, share)
+    turns = reversal_indices(sample(spec, max(most, 1), seed=seed), 0.1 * spec.amplitude)
+    if turns.size >= SLOW_REVERSALS:
+        enough = segment_end(spec, seed, int(turns[SLOW_REVERSALS - 1]) + 1)
+        if enough <= most:
+            first = max(first, enough)
+    return first
 
 
 def recording_valid(rec: Recording) -> np.ndarray | None:
