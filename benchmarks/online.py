@@ -10,7 +10,7 @@ Each run is ``servoid identify --driver URL --json --samples N`` with nothing
 else (the probe, the design from it, the decimated online estimator, the
 offline fit on the same slow record, the verdict), at identify's default rate
 (200 Hz) against the transports of ``benchmarks/twins.py``. ``--samples``
-defaults to 12 000: 60 s of servo time, the issue's budget. Printed as they
+defaults to identify's own (``DEFAULT_LIVE_S`` of servo time). Printed as they
 are, one row per run:
 
 * ``probe s``: wall time of the probe (from the run's own table), ``k``: the
@@ -35,7 +35,10 @@ are, one row per run:
   validated better than that search as one more candidate, ``offline`` identification's own
   fit (the black box); its error against the truth and whether it was called identifiable;
 * ``verdict``: the online verdict (``servoid.ident.online.verdict``) and its first reason;
-* ``wall s``: the whole command, probe included.
+* ``wall s``: the whole command, probe included; ``stages s``: where it went (``wall_s`` in identify's JSON):
+  the probe, the run (the session), the last window's refit after it, the wait for the answer's early
+  search (``ident/online/early_search.py``), the servo-loop answer (``refine_online``), identification
+  (``identify``), each in wall seconds.
 
 The monitor's tracking of a growing play on the wearing twin is
 ``benchmarks/monitor_loop.py``. The machine may be shared: wall times depend on its load.
@@ -69,9 +72,9 @@ from servoid.recording import read_recording
 WITHIN = 0.05
 
 
-def run(url: str, samples: int, out: Path, seed: int = 0) -> tuple[dict | None, str, float]:
-    argv = ["identify", "--json", "--driver", url, "--samples", str(samples), "--out", str(out), "--no-plots",
-            "--seed", str(seed)]  # fmt: skip
+def run(url: str, samples: int | None, out: Path, seed: int = 0) -> tuple[dict | None, str, float]:
+    argv = ["identify", "--json", "--driver", url, "--out", str(out), "--no-plots", "--seed", str(seed),
+            *([] if samples is None else ["--samples", str(samples)])]  # fmt: skip
     stdout, stderr = io.StringIO(), io.StringIO()
     started = time.perf_counter()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
@@ -111,14 +114,14 @@ def window_seconds_to_within(history: list[dict], target: float | None = None) -
     return float(t[0] if outside.size == 0 else t[int(outside[-1]) + 1])
 
 
-def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> list[str]:
+def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0) -> list[str]:
     params = preset(name)
     play = params.play_rad
     scale = params.gear_ratio if transport.startswith("odrive") and params.loop_encoder == "motor" else 1.0
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out, seed)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 12, f"{wall:.0f}", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 12, f"{wall:.0f}", "-", outcome(error)]
     verdict = result["online"]
     online_gap = verdict["online_gap"] / scale
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
@@ -146,8 +149,15 @@ def row(name: str, transport: str, samples: int, out: Path, seed: int = 0) -> li
         "never" if np.isnan(to_answer) else f"{to_answer:.1f}", f"{fit_ratio:.2f}",
         f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {_identified(result)})",
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}",
-        f"{wall:.0f}", why,
+        f"{wall:.0f}", _stages(result), why,
     ]  # fmt: skip
+
+
+def _stages(result: dict) -> str:
+    """The run's wall seconds per stage: probe/run/last window/answer/identify."""
+    s = result.get("wall_s", {})
+    stages = ("probe", "run", "last_window", "early_search", "loop_answer", "identify")
+    return "/".join(f"{s.get(k, float('nan')):.1f}" for k in stages)
 
 
 def _identified(result: dict) -> str:
@@ -168,7 +178,12 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=list(preset_names()))
     parser.add_argument("--transports", nargs="+", default=None, choices=list(LIVE), help="default: sim (--full: all)")
     parser.add_argument("--full", action="store_true", help="every preset x every transport")
-    parser.add_argument("--samples", type=int, default=12_000, help="samples per run (default 12000: 60 s at 200 Hz)")
+    parser.add_argument(
+        "--samples",
+        type=int,
+        default=None,
+        help="samples per run (default: identify's own, DEFAULT_LIVE_S of servo time)",
+    )
     parser.add_argument("--seeds", type=int, nargs="+", default=[0], help="identify's --seed, one run each (default 0)")
     parser.add_argument(
         "--keep", type=Path, default=None, help="keep each run's outputs (recording.csv, model.json) here"
@@ -187,9 +202,11 @@ def main() -> None:
             for seed in args.seeds
         ]
     table(
-        f"servoid identify --driver URL --samples {args.samples} (probe, design, decimated MRGIA, verdict)",
+        f"servoid identify --driver URL{'' if args.samples is None else f' --samples {args.samples}'} (probe, design, "
+        "decimated MRGIA, verdict)",
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
-         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped", "wall s", "verdict"],
+         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped", "wall s",
+         "stages s (probe/run/last/early/answer/identify)", "verdict"],
         rows,
     )  # fmt: skip
 

@@ -137,6 +137,10 @@ def test_a_live_twin_with_lost_samples_gets_one_servo_loop_answer_the_online_one
     assert loop is not None and set(loop["validation_nrmse"]) == {"output_backlash", "play_in_loop"}
     answer, refined = obj["answer"], obj["online_loop"]["refined"]["choice"]
     assert answer["play"] == obj["play"]
+    # the answer's search ran on the run's first three quarters while the rest was sampled, and the answer took it
+    early = obj["early_search"]
+    assert early["started"] and early["at_samples"] == 1800 and early["samples"] <= 1800
+    assert obj["online_loop"]["refined"]["search"]["play"] == early["play"]
     if obj["form"] == "servo_loop":  # the answer is the search's, or the online estimate's where it won the search
         won = obj["online_loop"]["refined"]["online_won"]
         assert answer["source"] == ("loop_online" if won else "loop_search") and obj["online"]["estimator"] == "window"

@@ -342,3 +342,16 @@ def test_every_later_window_names_the_place_by_the_better_fit_and_searches_afres
     assert len(searched) == 2  # the first window, and the window where the place changed; not after
     assert result.rival is not None and result.rival.structure == OUTPUT_BACKLASH  # the other place, still refitted
     assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05
+
+
+def test_the_end_of_the_stream_is_refitted_only_when_the_last_refit_is_older_than_asked() -> None:
+    u, y = _record(22.0, seed=12)  # refits at 10, 15, 20 s; the stream ends at 22 s
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
+    ends = []
+    for fresh_s in (0.0, 5.0, 1.0):
+        est = WindowRefit(config, start=TRUTH, background=False)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        ends.append([r.t_s for r in est.result(fresh_s=fresh_s).history])
+    assert ends[0] == pytest.approx([10.0, 15.0, 20.0, 22.0])  # the end refitted (the default)
+    assert ends[1] == pytest.approx([10.0, 15.0, 20.0])  # 2 s old: as fresh as the refits are apart
+    assert ends[2] == ends[0]  # older than asked: refitted

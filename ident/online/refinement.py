@@ -71,6 +71,7 @@ from servoid.ident.offline.loop_fit import (
     LoopCandidate,
     LoopChoice,
     _dead_time_samples,
+    _load_noticed,
     _noticed,
     _with_rivals,
     block_mask,
@@ -78,7 +79,7 @@ from servoid.ident.offline.loop_fit import (
     place_margin,
     refit_loop,
 )
-from servoid.ident.online.window import WindowResult
+from servoid.ident.online.window import SlowSearch, WindowResult
 
 __all__ = ["refine_online", "Refined"]
 
@@ -156,7 +157,7 @@ class Refined:
 
 
 def refine_online(
-    u: Any, y: Any, online: WindowResult, *, keep: Any = None, slow: int = 0
+    u: Any, y: Any, online: WindowResult, *, keep: Any = None, slow: int = 0, early: SlowSearch | None = None
 ) -> tuple[LoopChoice, Refined]:
     """The offline search on the whole record with the online estimate as one more candidate (the module's steps).
 
@@ -180,6 +181,12 @@ def refine_online(
     slow : int
         How many of the first samples are a slow phase (0: none; ignored when fewer than
         :data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES` usable samples are on either side).
+    early : SlowSearch, optional
+        The search of the fast part's head run while the session went on
+        (:class:`~servoid.ident.online.early_search.EarlySearch`; ``start`` an index of this
+        record): when it starts at the fast part's first usable sample and ends before the
+        record does, steps 1-3 run on the samples it searched with its answer, and the answer
+        is then refitted warm on the whole fast part (:func:`_extended`); else ignored.
 
     Returns
     -------
@@ -208,10 +215,12 @@ def refine_online(
         raise ConfigError(f"{int(kept.sum())} usable samples; the servo-loop refinement needs at least {MIN_SAMPLES}")
     y_arr = np.where(kept, y_arr, y_arr[0])
     head = _fast_start(kept, validation.integer("slow", slow, minimum=0))
+    searched = None
+    if early is not None and early.start == head and MIN_SAMPLES <= early.samples < u_arr.size - head:
+        searched = early
+    choice, refined = _refine_fast(u_arr[head:], y_arr[head:], kept[head:], start, t0, searched)
     if head == 0:
-        choice, refined = _refine(u_arr, y_arr, kept, start, t0)
         return choice, dataclasses.replace(refined, scored=(0, u_arr.size))
-    choice, refined = _refine(u_arr[head:], y_arr[head:], kept[head:], start, t0)
     scored = (head, u_arr.size)
     # back on the whole record: a play outside the loop from the search on the slow part
     centre = float(np.mean(u_arr))
@@ -267,12 +276,74 @@ def _fast_start(kept: np.ndarray, slow: int) -> int:
     return slow + int(after[0])
 
 
-def _refine(
-    u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, start: ServoLoopModel, t0: float
+def _refine_fast(
+    u_arr: np.ndarray,
+    y_arr: np.ndarray,
+    kept: np.ndarray,
+    start: ServoLoopModel,
+    t0: float,
+    early: SlowSearch | None,
 ) -> tuple[LoopChoice, Refined]:
-    """The module's steps 1-3 on one record (``y_arr[0]`` measured, unusable samples filled)."""
+    """Steps 1-3 on the fast part: on all of it, or on the head ``early`` searched and then extended to all."""
+    if early is None:
+        return _refine(u_arr, y_arr, kept, start, t0)
+    m = early.samples
+    choice, refined = _refine(u_arr[:m], y_arr[:m], kept[:m], start, t0, early.choice)
+    return _extended(choice, u_arr, y_arr, kept, t0), refined
+
+
+def _extended(choice: LoopChoice, u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, t0: float) -> LoopChoice:
+    """The answer of a search on the record's head refitted warm on every usable sample (``fit_loop``'s final refit).
+
+    The place, the margin, the candidates and the dead time stay the head's (what its validation
+    said); the model, the play, the fit and what the fit noticed are the whole record's. The
+    play's interval is the refit's own widened to the head's rivals (``fit_loop``'s rule; not
+    finite when the refit's Jacobian does not determine it), then to the head's interval (its
+    load grid included): never narrower for the samples added.
+    """
+    fit = refit_loop(u_arr, y_arr, choice.model, score=kept, max_nfev=FINAL_NFEV)
+    model = fit.model
+    centre = float(np.mean(u_arr))
+    uc, yc = u_arr - centre, y_arr - centre
+    simulated = model.simulate(uc, y0=float(yc[0]))
+    return dataclasses.replace(
+        choice,
+        play=model.play,
+        play_interval=_hull(
+            choice.play_interval,
+            _with_rivals(fit.play_interval, list(choice.candidates), choice.validation_nrmse[choice.structure]),
+        ),
+        fit_nrmse=nrmse(yc[kept], simulated[kept]),
+        params=model.params(),
+        simulated=simulated + centre,
+        reasons=_noticed(model, quantum(yc[kept])) + _load_noticed(model),
+        stall_band=stall_band(max(model.fs, model.fc), model.kv, model.kp),
+        model=model,
+        seconds=time.perf_counter() - t0,
+        evaluations=choice.evaluations + fit.evaluations,
+    )
+
+
+def _hull(head: tuple[float, float], whole: tuple[float, float]) -> tuple[float, float]:
+    """The smallest interval holding both; ``whole`` as it is when either is not finite."""
+    if not all(math.isfinite(v) for v in (*head, *whole)):
+        return whole
+    return (min(head[0], whole[0]), max(head[1], whole[1]))
+
+
+def _refine(
+    u_arr: np.ndarray,
+    y_arr: np.ndarray,
+    kept: np.ndarray,
+    start: ServoLoopModel,
+    t0: float,
+    search: LoopChoice | None = None,
+) -> tuple[LoopChoice, Refined]:
+    """The module's steps 1-3 on one record (``y_arr[0]`` measured, unusable samples filled); ``search``: its
+    ``fit_loop(load=None)`` when already run."""
     # the search identification's second structure runs (second_structure: load=None)
-    search = fit_loop(u_arr, y_arr, start.sample_period_s, keep=kept, load=None)
+    if search is None:
+        search = fit_loop(u_arr, y_arr, start.sample_period_s, keep=kept, load=None)
     # 1. the online model as a candidate: the estimation blocks fitted, the validation blocks scored (fit_loop's split)
     blocks = block_mask(u_arr.size)
     est, val = blocks & kept, ~blocks & kept

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -84,7 +85,8 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="identify from this recording (CSV, .mat, ROS bag, BAM .json) instead of the simulated servo")  # fmt: skip
     src.add_argument("--samples", type=int, metavar="N",
                      help=f"samples of the simulated or live run (default {_live.DEFAULT_SAMPLES}; a live run designed from "
-                          f"its probe: {_live.DEFAULT_LIVE_S:g} s; a replayed file: its length)")  # fmt: skip
+                          f"its probe: {_live.DEFAULT_LIVE_S:g} s, {_live.DEFAULT_LIVE_WHY} (--seconds); a replayed "
+                          "file: its length)")  # fmt: skip
     src.add_argument(
         "--seed", type=int, default=0, help="seed of the input (and noise) of the simulated or live run (default 0)"
     )
@@ -236,6 +238,7 @@ def run(args: argparse.Namespace) -> int:
     from servoid.identify_outputs import OUTPUT_FILES, result_json, summary_rows, twin_truth, write_outputs
 
     output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
+    args = _live.with_length(args)
     if _live_bus.names_several(args.driver):  # several servos of one bus: a model per joint
         _check_sizes(args)
         _refuse_reading_options(args)
@@ -254,6 +257,10 @@ def run(args: argparse.Namespace) -> int:
     for w in result.warnings:
         _term.warn(w)
     record = _live.with_verdict(record, result, quiet=args.json)
+    if record.live:
+        record = dataclasses.replace(
+            record, live={**record.live, "wall_s": {**record.live.get("wall_s", {}), "identify": elapsed}}
+        )
     paths = write_outputs(args.out, record, result, plots=not args.no_plots)
     status = 1 if args.strict and not result.identifiable else 0
     if args.json:

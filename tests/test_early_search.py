@@ -1,0 +1,166 @@
+"""The live answer's search started before the run ends: what it covers, when it starts, how the answer takes it."""
+
+from __future__ import annotations
+
+import dataclasses
+import threading
+
+import numpy as np
+import pytest
+from test_window import RATE, TRUTH, _record
+
+from servoid.errors import ConfigError
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.online.early_search import HEAD_SHARE, EarlySearch, head_samples
+from servoid.ident.online.window import SlowSearch, WindowConfig, WindowResult
+
+
+def _feed(est: EarlySearch, u: np.ndarray, y: np.ndarray, keep: np.ndarray) -> None:
+    for ui, yi, k in zip(u, y, keep, strict=True):
+        if k:
+            est.update(ui, yi)
+        else:
+            est.skip(ui)
+
+
+def test_the_head_is_a_share_of_the_run_after_the_slow_phase() -> None:
+    assert head_samples(9000, 3000) == int(HEAD_SHARE * 6000)
+    assert head_samples(9000, 0, share=0.5) == 4500
+    assert head_samples(10, 10) == 1  # nothing after the slow phase: never reached by a run of 10
+    with pytest.raises(ConfigError, match="share"):
+        head_samples(9000, 3000, share=0.0)
+
+
+def test_the_search_starts_at_its_sample_on_the_fast_part_so_far_and_is_the_offline_search_of_it(monkeypatch) -> None:
+    from servoid.ident.offline import loop_fit
+
+    u, y = _record(16.0, seed=3)
+    keep = np.random.default_rng(4).random(u.size) > 0.05
+    slow, at = 400, 800
+    keep[slow : slow + 3] = False  # the fast part starts with lost readings: the search starts at a measured one
+    y[~keep] = np.nan
+    searched: list[tuple[int, float]] = []
+    gate = threading.Event()
+    fit = loop_fit.fit_loop
+
+    def gated(u_: np.ndarray, y_: np.ndarray, *args, **kwargs):
+        searched.append((u_.size, float(u_[0])))
+        gate.wait(10.0)  # held until the test lets it go: the run goes on meanwhile
+        return fit(u_, y_, *args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", gated)
+    est = EarlySearch(1 / RATE, at, skip=slow)
+    _feed(est, u[: slow + at - 1], y[: slow + at - 1], keep[: slow + at - 1])
+    assert not est.started  # one sample short
+    _feed(est, u[slow + at - 1 :], y[slow + at - 1 :], keep[slow + at - 1 :])  # the rest of the run
+    assert est.started and est.result(wait=False) is None  # still searching: an interrupted run would not wait
+    gate.set()
+    found = est.result()
+    assert found is not None and est.error is None
+    assert (found.start, found.samples) == (3, at - 3) and searched == [(at - 3, u[slow + 3])]
+    again = fit(u[slow + 3 : slow + at], y[slow + 3 : slow + at], 1 / RATE, keep=keep[slow + 3 : slow + at], load=None)
+    assert found.choice.play == again.play and found.choice.structure == again.structure
+
+
+def test_a_run_that_ends_before_its_start_or_with_too_few_readings_has_no_search() -> None:
+    u, y = _record(4.0, seed=5)
+    short = EarlySearch(1 / RATE, u.size + 1)
+    _feed(short, u, y, np.ones(u.size, dtype=bool))
+    assert not short.started and short.result() is None
+    lost = EarlySearch(1 / RATE, 300)
+    _feed(lost, u, y, np.arange(u.size) % 4 == 0)  # 75 usable of 300
+    assert not lost.started and lost.result() is None and "usable samples" in (lost.error or "")
+
+
+def test_the_answer_takes_the_head_search_and_refits_it_on_the_whole_fast_part(monkeypatch) -> None:
+    from servoid.ident.offline.loop_fit import fit_loop
+    from servoid.ident.online import refinement
+
+    u, y = _record(24.0, seed=6)
+    slow, m = 600, 1200  # a slow phase, then the head the early search covered, then the run's tail
+    online = WindowResult(dataclasses.replace(TRUTH, kp=10.0), (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    head = fit_loop(u[slow : slow + m], y[slow : slow + m], 1 / RATE, load=None)
+    calls: list[int] = []
+    fit = refinement.fit_loop
+
+    def counted(*args, **kwargs):
+        calls.append(args[0].size)
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(refinement, "fit_loop", counted)
+    choice, refined = refinement.refine_online(u, y, online, slow=slow, early=SlowSearch(head, slow, m))
+    assert calls == []  # neither part searched again: the head's search, and inside the loop no slow-part search
+    assert refined.search is head and choice.structure == head.structure == PLAY_IN_LOOP
+    assert choice.margin == pytest.approx(refinement.place_margin(choice.validation_nrmse, PLAY_IN_LOOP))
+    # the answer is the head's refitted on every sample of the fast part: its fit and simulation are the whole part's
+    assert refined.scored == (slow, u.size) and choice.simulated.size == u.size
+    assert refined.score(choice.model, u, y) == pytest.approx(choice.fit_nrmse, rel=1e-9)
+    assert abs(choice.play / TRUTH.play - 1) < 0.03
+    low, high = choice.play_interval
+    assert low <= min(choice.play, head.play_interval[0]) and high >= head.play_interval[1]  # never narrower
+    # a search that does not start at the fast part's first sample is not of this record's head: searched afresh
+    choice2, _ = refinement.refine_online(u, y, online, slow=slow, early=SlowSearch(head, slow + 1, m))
+    assert calls == [u.size - slow] and choice2.structure == PLAY_IN_LOOP
+
+
+def _args(**given):
+    import argparse
+
+    base = {"samples": None, "seconds": None, "rate": 200.0, "excitation": None, "amplitude": None, "seed": 0,
+            "driver": "sim://xm430"}  # fmt: skip
+    return argparse.Namespace(**{**base, **given})
+
+
+def test_a_designed_live_run_lasts_the_default_servo_seconds_unless_told_and_says_why() -> None:
+    from servoid.cli import _live
+    from servoid.drivers.base import Limits
+
+    spec, slow = "gentle:amplitude=0.1,accel=0.0001", ("gentle:amplitude=0.1,accel=0.00002", 1 / 3)
+    u, first = _live.excitation(_args(), 0.1, Limits(), designed=spec, slow=slow)
+    assert u.size == round(_live.DEFAULT_LIVE_S * 200.0) and 0 < first <= u.size // 3
+    assert "the default" in _live.length_note(_args(), u.size, spec)
+    told = _live.with_length(_args(seconds=12.5))
+    assert told.samples == 2500 and told.seconds is None
+    u, _ = _live.excitation(told, 0.1, Limits(), designed=spec, slow=slow)
+    assert u.size == 2500 and "default" not in _live.length_note(told, u.size, spec)
+    assert _live.with_length(_args(samples=300)).samples == 300
+    for given, fragment in (({"seconds": 5.0, "samples": 10}, "not both"), ({"seconds": 5.0, "driver": None}, "live"),
+                            ({"seconds": -1.0}, "> 0")):  # fmt: skip
+        with pytest.raises(ConfigError, match=fragment):
+            _live.with_length(_args(**given))
+
+
+def test_identify_help_names_the_default_length_and_why(capsys) -> None:
+    from servoid.cli import _live
+    from servoid.cli import main as servoid_main
+
+    with pytest.raises(SystemExit):
+        servoid_main(["identify", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert f"{_live.DEFAULT_LIVE_S:g} s, {_live.DEFAULT_LIVE_WHY}" in text and "--seconds S" in text
+
+
+def test_the_slow_phase_holds_enough_reversals_and_a_default_run_keeps_its_fast_part() -> None:
+    from servoid.cli import _live
+    from servoid.drivers.base import Limits
+    from servoid.excitation import parse_spec, sample
+    from servoid.excitation.gentle import whole_segments
+    from servoid.ident.offline.intervals import reversal_indices
+
+    # a slow loop's design (the ODrive twin's, at 200 Hz): long segments, few reversals in a third of 40 s
+    slow_text = "gentle:amplitude=0.05,accel=2.7758e-05"
+    spec, slow_spec = "gentle:amplitude=0.05,accel=0.000151", parse_spec(slow_text)
+    share = int(_live.DEFAULT_LIVE_S * 200.0 / 3)
+
+    def turns(u: np.ndarray) -> int:
+        return int(reversal_indices(u, 0.1 * 0.05).size)
+
+    cut = whole_segments(slow_spec, 1, share)
+    assert turns(sample(slow_spec, cut, seed=1)) < _live.SLOW_REVERSALS  # the share alone: too few
+    u, first = _live.excitation(_args(seed=1), 0.05, Limits(), designed=spec, slow=(slow_text, 1 / 3))
+    assert first > share and turns(u[:first]) >= _live.SLOW_REVERSALS
+    assert first == whole_segments(slow_spec, 1, first)  # at a segment's end: no step into the fast phase
+    assert u.size - first == round(_live.DEFAULT_LIVE_S * 200.0) - share  # the fast part as long as before
+    told, first_told = _live.excitation(_args(seed=1, samples=8000), 0.05, Limits(), designed=spec,
+                                        slow=(slow_text, 1 / 3))  # fmt: skip
+    assert told.size == 8000 and first_told == first  # a length the user gave stays; the fast part gives way
