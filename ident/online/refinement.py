@@ -310,8 +310,8 @@ def _extended(choice: LoopChoice, u_arr: np.ndarray, y_arr: np.ndarray, kept: np
         choice,
         play=model.play,
         play_interval=_hull(
-            choice.play_interval,
             _with_rivals(fit.play_interval, list(choice.candidates), choice.validation_nrmse[choice.structure]),
+            choice.play_interval,
         ),
         fit_nrmse=nrmse(yc[kept], simulated[kept]),
         params=model.params(),
@@ -322,13 +322,6 @@ def _extended(choice: LoopChoice, u_arr: np.ndarray, y_arr: np.ndarray, kept: np
         seconds=time.perf_counter() - t0,
         evaluations=choice.evaluations + fit.evaluations,
     )
-
-
-def _hull(head: tuple[float, float], whole: tuple[float, float]) -> tuple[float, float]:
-    """The smallest interval holding both; ``whole`` as it is when either is not finite."""
-    if not all(math.isfinite(v) for v in (*head, *whole)):
-        return whole
-    return (min(head[0], whole[0]), max(head[1], whole[1]))
 
 
 def _refine(
