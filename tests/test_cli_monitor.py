@@ -11,6 +11,7 @@ from servoid.cli import main
 from servoid.cli.monitor import parse_bounds
 from servoid.errors import ConfigError
 from servoid.ident.models.wear import GEAR_PLANT
+from servoid.ident.monitoring.loop_wear import PLAY_WINDOW_S
 from servoid.modelfile import ModelFile, load_model, save_model
 from servoid.monitor_run import EXIT_ALARM, read_estimates
 
@@ -144,10 +145,14 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
     summary = json.loads(captured.out)
     assert summary["estimator"] == "window" and summary["structure"] == saved["structure"]
     # one alarm, above, after the step and before the run ends; how soon is benchmarks/monitor_loop.py's to measure
-    # (it follows the baseline's scatter: 9.75 s here with numpy 2.4 / scipy 1.17, whose model file differs in the
-    # last digits from earlier versions' and whose window plays scatter 17 %)
+    # (it follows the baseline's scatter: 18.5 s here with numpy 2.4 / scipy 1.17 and the search's profile restart,
+    # 9.75 s before it; the model file moves with both)
+    # ``since`` is the CUSUM's change-point estimate (the check after its sum last stood at 0): a window play drawn
+    # high just before the step can start the run, so it may lead the step by up to one window (PLAY_WINDOW_S)
     raised = [a for a in summary["alarms"] if a["raised"]]
-    assert len(raised) == 1 and 5600 < raised[0]["since"] <= raised[0]["sample"] < 8400 and raised[0]["side"] == "above"
+    lead = PLAY_WINDOW_S * 140
+    assert len(raised) == 1 and 5600 < raised[0]["sample"] < 8400 and raised[0]["side"] == "above"
+    assert 5600 - lead < raised[0]["since"] <= raised[0]["sample"]
     rows, meta = read_estimates(out / "estimates.csv")
     assert "window" in meta["servoid monitor"] and rows["true_play"][-1] == pytest.approx(1.6 * rows["true_play"][0])
     assert rows["dead_zone"][-1] > 1.2 * rows["dead_zone"][0]  # the window plays followed the step up
