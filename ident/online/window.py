@@ -55,7 +55,15 @@ a receding-horizon fit:
   the previous refit still runs is left out (:attr:`WindowResult.dropped`),
   unless ``wait=True`` (a servo on a virtual clock, which runs faster than
   real time: there waiting costs no sample); ``background=False`` runs each
-  refit inside :meth:`update` (replays, tests: deterministic).
+  refit inside :meth:`update` (replays, tests: deterministic);
+* when the stream's length is known (``end``: a live identify) a refit is not
+  started on a real clock when the last refits' wall time says it cannot end
+  before the stream does (:attr:`WindowResult.late`: on the CiA 402 twin refits
+  took 5-16 s, and the one running at the run's end was waited for, up to 14 s
+  of wall time, issue 15); :meth:`WindowRefit.result` with ``wait=False``
+  does not wait for a running refit either: it is told to stop at its next fit
+  (:attr:`WindowResult.abandoned`) and the newest finished window is the
+  estimate, :attr:`WindowResult.age_s` old.
 
 Each refit is one row of :attr:`WindowResult.history`: the servo time of the
 window's end, the play, the free-run NRMSE on the window and the window's
@@ -98,6 +106,7 @@ __all__ = [
     "HISTORY_ROWS",
     "LaterFit",
     "SlowSearch",
+    "Cancelled",
 ]
 
 #: Servo seconds refitted each time: long enough for tens of reversals at a designed
@@ -123,6 +132,18 @@ LAST, SLOW = "last", "slow"
 #: Refits :attr:`WindowResult.history` keeps (the last ones): a monitor refits for days, identify's
 #: refits every 5 s fill it in 5.7 h.
 HISTORY_ROWS = 4096
+#: Refits whose wall time predicts the next one's (the longest of them: :class:`WindowRefit`'s ``end``).
+PREDICT_ROWS = 3
+
+
+class Cancelled(Exception):
+    """A window refit told to stop (:meth:`WindowRefit.result` with ``wait=False``) stopped between its fits."""
+
+
+def _check(stop: threading.Event | None) -> None:
+    """Raise :class:`Cancelled` when the refit has been told to stop (called between a refit's fits)."""
+    if stop is not None and stop.is_set():
+        raise Cancelled("the window refit was stopped at the stream's end")
 
 
 @dataclass(frozen=True)
@@ -258,6 +279,12 @@ class WindowResult:
         later window beside the named place's (None when the run started from a given model).
     slow_search : SlowSearch or None
         The search of the design's slow phase, when a window ran it (whichever place it named).
+    end_s : float
+        Servo time of the stream's end on the windows' clock (from the slow phase's end), s; NaN: not given.
+    late : int
+        Refits not started because the last refits' wall time said they could not end before the stream.
+    abandoned : int
+        Refits running at the stream's end that were not waited for (told to stop, their result dropped).
     """
 
     model: ServoLoopModel | None
@@ -268,6 +295,14 @@ class WindowResult:
     errors: tuple[str, ...] = field(default=())
     rival: ServoLoopModel | None = None
     slow_search: SlowSearch | None = None
+    end_s: float = math.nan
+    late: int = 0
+    abandoned: int = 0
+
+    @property
+    def age_s(self) -> float:
+        """Servo seconds between the last refit's window end and the stream's end (NaN: no refit or no end)."""
+        return self.end_s - self.history[-1].t_s if self.history else math.nan
 
     @property
     def plays(self) -> np.ndarray:
@@ -279,6 +314,7 @@ class WindowResult:
         return {"model": None if self.model is None else self.model.to_dict(),
                 "history": [r.to_dict() for r in self.history], "config": self.config.to_dict(),
                 "dropped": self.dropped, "stall_s": self.stall_s, "errors": list(self.errors),
+                "end_s": self.end_s, "age_s": self.age_s, "late": self.late, "abandoned": self.abandoned,
                 "slow_search": None if self.slow_search is None else {
                     "structure": self.slow_search.choice.structure, "play": self.slow_search.choice.play,
                     "samples": self.slow_search.samples}}  # fmt: skip
@@ -293,11 +329,13 @@ def _refit(
     t_s: float,
     later: LaterFit | None = None,
     load: bool | None = False,
+    stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
     """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
 
     ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``); ``load``:
-    :func:`fit_loop`'s load stage in the fit from scratch.
+    :func:`fit_loop`'s load stage in the fit from scratch; ``stop``: set, the refit raises :class:`Cancelled`
+    between its fits.
     Returns the model, its row, and from the first fit the best model of the other place of
     the play (the rival the later windows refit beside it; None after).
     """
@@ -318,6 +356,7 @@ def _refit(
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
         model, rival = start, None
+    _check(stop)
     turns = reversals(y[score], 2.0 * model.play)
     if later is not None:
         model, q = later(u, y, score, model)
@@ -340,6 +379,7 @@ def _refit_later(
     t_s: float,
     slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
     load: bool | None = False,
+    stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
     """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
 
@@ -361,17 +401,23 @@ def _refit_later(
     score = keep.copy()
     score[: min(config.samples(config.burn_in_s), u.size - 2)] = False
     turns = reversals(y[score], 2.0 * fast.play)
-    fits = [refit_loop(u, y, m, score=score, max_nfev=config.max_nfev) for m in (fast, rival) if m is not None]
+    fits = []
+    for m in (fast, rival):
+        if m is not None:
+            _check(stop)
+            fits.append(refit_loop(u, y, m, score=score, max_nfev=config.max_nfev))
     best = min(fits, key=lambda f: f.fit_nrmse)
     won, q = best.model, best.fit_nrmse
     other = next((f.model for f in fits if f is not best), None)
     if best is not fits[0]:  # the place changed: both places searched afresh on this window
+        _check(stop)
         idx = np.flatnonzero(keep)
         choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
         won, q = choice.model, choice.fit_nrmse
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     model, floor, part, search = won, floor_nrmse(y[score]), LAST, None
     if slow is not None and won.structure != PLAY_IN_LOOP:
+        _check(stop)
         su, sy, sk, offset, held = slow
         if held is None:
             choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
@@ -424,6 +470,12 @@ class WindowRefit:
     load : bool or None
         :func:`~servoid.ident.offline.loop_fit.fit_loop`'s load stage in the first fit (a live
         run: None, as the live answer's search; default False).
+    end : int
+        Samples the stream will hold in all, the slow phase's included (a live run's length; 0:
+        not known). With a worker and a real clock (not ``wait``), a refit is not started when the
+        longest of the last :data:`PREDICT_ROWS` refits (the warm ones once there are any: the
+        first is a search from scratch) took more wall time than the servo time left
+        (:attr:`WindowResult.late`).
     """
 
     def __init__(
@@ -436,6 +488,7 @@ class WindowRefit:
         later: LaterFit | None = None,
         slow: int = 0,
         load: bool | None = False,
+        end: int = 0,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -478,6 +531,10 @@ class WindowRefit:
         self._slow_model: ServoLoopModel | None = None  # the slow phase's estimate, once searched
         self._fast: ServoLoopModel | None = None  # the last window's model of the place it named
         self._load = load
+        self._end = validation.integer("end", end, minimum=0)
+        self._late = 0  # refits not started: they could not end before the stream
+        self._abandoned = 0  # refits running at the stream's end, not waited for
+        self._stop = threading.Event()  # set: a running refit stops at its next fit
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -518,6 +575,9 @@ class WindowRefit:
         if self._future is not None:
             self._dropped += 1
             return
+        if self._too_late(n):
+            self._late += 1
+            return
         size = len(self._u)
         first = not self._history and not self._gone
         lo = max(0, size - self._span())
@@ -533,13 +593,23 @@ class WindowRefit:
         job: tuple[Any, ...]
         if first or self._later is not None:
             job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
-                   self._load)  # fmt: skip
+                   self._load, self._stop)  # fmt: skip
         else:
-            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load)
+            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load,
+                                       self._stop)  # fmt: skip
         if self._pool is None:
             self._store(work, job, t_s)
         else:
             self._future = self._pool.submit(work, *job)
+
+    def _too_late(self, n: int) -> bool:
+        """Whether a refit due at the ``n``-th sample would still run when the stream ends (a worker on a real clock
+        with a known end: the longest of the last :data:`PREDICT_ROWS` refits' wall time against the servo time left)."""
+        if self._pool is None or self._wait or not self._end or not self._history:
+            return False
+        left_s = (self._end - self._slow - n) * self.config.sample_period_s
+        warm = self._history[1:] if len(self._history) > 1 and not self._gone else self._history  # not the search
+        return max(r.seconds for r in warm[-PREDICT_ROWS:]) > left_s
 
     def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
         """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
@@ -587,6 +657,8 @@ class WindowRefit:
         self._future = None
         try:
             fitted = fut.result()
+        except Cancelled:
+            return
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
             self._errors.append(str(exc))
             return
@@ -613,6 +685,11 @@ class WindowRefit:
         """Windows left out so far because the previous refit was still running."""
         return self._dropped
 
+    @property
+    def late(self) -> int:
+        """Refits not started so far because they could not end before the stream (the class's ``end``)."""
+        return self._late
+
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the servo-loop simulation now, not inside the sampling loop."""
         ServoLoopModel("output_backlash", self.config.sample_period_s, kp=10.0, kv=50.0).simulate(np.zeros(4))
@@ -629,11 +706,12 @@ class WindowRefit:
         For a session that ended in an error: :meth:`result` does the same on the normal way out.
         """
         if self._pool is not None:
+            self._stop.set()  # a running refit stops at its next fit
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
             sys.setswitchinterval(self._switch)
 
-    def result(self, *, final: bool = True, fresh_s: float = 0.0) -> WindowResult:
+    def result(self, *, final: bool = True, fresh_s: float = 0.0, wait: bool = True) -> WindowResult:
         """Wait for a running refit; with ``final``, refit the last window too (the end of the stream); stop the worker.
 
         Parameters
@@ -644,8 +722,17 @@ class WindowRefit:
             ... unless the last refit's window ended at most this many servo seconds before the
             stream's end (a live identify: :data:`EVERY_S`, the estimate as fresh as between two
             refits; the final refit cost 0.1-17 s of wall time after a real-clock run, issue 15).
+        wait : bool
+            Wait for a refit still running; False: tell it to stop at its next fit and drop it
+            (:attr:`WindowResult.abandoned`): the newest finished window is the estimate (a live
+            identify on a real clock; pair with ``final=False``).
         """
-        self._collect(wait=True)
+        self._collect(wait=wait)
+        if self._future is not None:  # still running, not waited for: it stops at its next fit
+            self._stop.set()
+            self._stop = threading.Event()  # a final refit below runs on
+            self._future = None
+            self._abandoned += 1
         n = self._n
         last = self._history[-1].t_s if self._history else -math.inf
         end = n * self.config.sample_period_s
@@ -655,8 +742,10 @@ class WindowRefit:
             self._due(n)
             self._pool = pool
         if self._pool is not None:
-            self._pool.shutdown(wait=True)
+            self._pool.shutdown(wait=wait, cancel_futures=not wait)
             self._pool = None
             sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history[-HISTORY_ROWS:]), self.config, self._dropped,
-                            self._stall, tuple(self._errors), self._rival, self._search)  # fmt: skip
+                            self._stall, tuple(self._errors), self._rival, self._search,
+                            end_s=n * self.config.sample_period_s, late=self._late,
+                            abandoned=self._abandoned)  # fmt: skip
