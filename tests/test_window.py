@@ -411,6 +411,14 @@ def test_a_refit_that_the_last_refits_say_cannot_end_before_the_stream_is_not_st
     assert [r.t_s for r in result.history] == pytest.approx([10.0, 15.0, 20.0])
     assert (result.late, result.dropped, result.abandoned) == (2, 0, 0)
     assert result.end_s == pytest.approx(30.0) and result.age_s == pytest.approx(10.0)
+    # a refit may run 3 s past the end: the one at 25 s is started (7 s against 5 + 3), the one at 30 s is not
+    calls.clear()
+    est = WindowRefit(config, start=TRUTH, end=u.size, grace_s=3.0)
+    for lo in range(0, u.size, 500):
+        _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+        _settle(est, lo + 500)
+    graced = est.result(final=False, wait=False)
+    assert [r.t_s for r in graced.history] == pytest.approx([10.0, 15.0, 20.0, 25.0]) and graced.late == 1
     # the same stream without its end, or on a virtual clock (waiting costs no sample): every window refitted
     for kwargs in ({}, {"wait": True}):
         calls.clear()
@@ -436,7 +444,7 @@ def test_a_refit_running_at_the_stream_end_is_stopped_not_waited_for_and_the_ver
             break
         time.sleep(0.005)
     _feed(est, u[1500:], y[1500:], np.zeros(500, dtype=bool))  # the one at 20 s is dropped
-    result = est.result(final=False, wait=False)
+    result = est.result(final=False, wait=False, wait_s=0.05)  # waited for a little, then stopped
     assert calls[1].is_set()  # told to stop at its next fit
     assert (result.abandoned, result.dropped, len(result.history)) == (1, 1, 1)
     assert result.model == TRUTH and result.age_s == pytest.approx(10.0)

@@ -258,7 +258,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.early_search import EarlySearch, head_samples
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
-    from servoid.ident.online.window import WindowConfig, WindowRefit
+    from servoid.ident.online.window import END_GRACE_S, WindowConfig, WindowRefit
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
     from servoid.session.listeners import EstimatorFeed
@@ -298,7 +298,8 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
         # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
-        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
+                             grace_s=END_GRACE_S)  # fmt: skip
         window.warm_up()
         # the answer's search of the fast part's head, started while the run goes on
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
@@ -331,9 +332,10 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     # the window refit's last window (the worker stops here, whatever follows). On a virtual clock a running refit
     # is waited for and the end refitted unless the last window is as fresh as the refits are apart; on a real
     # clock the newest finished window is the estimate, its age in the JSON and the verdict (a refit still running
-    # is told to stop: on the CiA 402 twin waiting for it took up to 14 s of wall time, issue 15)
+    # END_GRACE_S after the run is told to stop: on the CiA 402 twin waiting for it took up to 14 s, issue 15)
     ended = result.stopped != "interrupted"
-    window_result = window.result(final=ended and virtual, fresh_s=window.config.every_s, wait=ended and virtual)
+    window_result = window.result(final=ended and virtual, fresh_s=window.config.every_s, wait=ended and virtual,
+                                  wait_s=END_GRACE_S if ended else 0.0)  # fmt: skip
     clock.mark("last_window")
     early_search = early.result(wait=result.stopped != "interrupted")
     clock.mark("early_search")
