@@ -372,8 +372,9 @@ def _settle(est: WindowRefit, n: int) -> None:
     raise AssertionError(f"the worker never finished the {due} refit(s) due")
 
 
-def _fake_refits(monkeypatch, seconds: float, block_after: int) -> list[threading.Event]:
+def _fake_refits(monkeypatch, seconds: float, block_after: int, search_at: float = -1.0) -> list[threading.Event]:
     """Refits that say they took ``seconds`` of wall time; from call ``block_after`` on they run until stopped.
+    The one at ``search_at`` s says it ran a search from scratch and took 20 s.
 
     Returns the stop event each call was handed, in order.
     """
@@ -384,7 +385,9 @@ def _fake_refits(monkeypatch, seconds: float, block_after: int) -> list[threadin
         if len(calls) > block_after:
             stop.wait(30.0)
             window._check(stop)  # a real refit checks between its fits
-        return TRUTH, WindowRow(t_s, TRUTH.play, 0.01, 0.01, seconds, TRUTH.structure)
+        searched = t_s == search_at
+        return TRUTH, WindowRow(t_s, TRUTH.play, 0.01, 0.01, 20.0 if searched else seconds, TRUTH.structure,
+                                searched=searched)  # fmt: skip
 
     def first(*job: Any) -> tuple[Any, ...]:  # _refit(u, y, keep, start, config, t_s, later, load, stop)
         return (*fit(job[5], job[-1]), None)
@@ -400,14 +403,15 @@ def _fake_refits(monkeypatch, seconds: float, block_after: int) -> list[threadin
 
 def test_a_refit_that_the_last_refits_say_cannot_end_before_the_stream_is_not_started(monkeypatch) -> None:
     u, y = _record(30.0, seed=13)
-    calls = _fake_refits(monkeypatch, 7.0, block_after=99)
+    calls = _fake_refits(monkeypatch, 7.0, block_after=99, search_at=15.0)
     config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
     est = WindowRefit(config, start=TRUTH, end=u.size)  # a worker on a real clock, the run's length known
     for lo in range(0, u.size, 500):  # due at 10, 15, 20, 25 and 30 s; each refit collected before the next
         _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
         _settle(est, lo + 500)
     result = est.result(final=False, wait=False)
-    # 7 s refits: at 20 s 10 s are left (started), at 25 s 5 (not), at 30 s none (not)
+    # 7 s warm refits (the search at 15 s, 20 s, predicts none): at 20 s 10 s are left (started), at 25 s 5
+    # (not), at 30 s none (not)
     assert [r.t_s for r in result.history] == pytest.approx([10.0, 15.0, 20.0])
     assert (result.late, result.dropped, result.abandoned) == (2, 0, 0)
     assert result.end_s == pytest.approx(30.0) and result.age_s == pytest.approx(10.0)
@@ -417,8 +421,8 @@ def test_a_refit_that_the_last_refits_say_cannot_end_before_the_stream_is_not_st
     for lo in range(0, u.size, 500):
         _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
         _settle(est, lo + 500)
-    graced = est.result(final=False, wait=False)
-    assert [r.t_s for r in graced.history] == pytest.approx([10.0, 15.0, 20.0, 25.0]) and graced.late == 1
+    graced = est.result(fresh_s=0.0, wait=False, wait_s=5.0)  # the end refitted on the worker, waited for
+    assert [r.t_s for r in graced.history] == pytest.approx([10.0, 15.0, 20.0, 25.0, 30.0]) and graced.late == 1
     # the same stream without its end, or on a virtual clock (waiting costs no sample): every window refitted
     for kwargs in ({}, {"wait": True}):
         calls.clear()

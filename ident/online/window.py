@@ -225,6 +225,9 @@ class WindowRow:
         Reversals of the window's scored readings by more than twice the play the window's fit
         started from (:func:`~servoid.ident.offline.intervals.reversals`, identify's rule): each
         is the motor crossing the play, what the window says about it. -1: not counted.
+    searched : bool
+        The refit ran a search from scratch (:func:`~servoid.ident.offline.loop_fit.fit_loop`: the
+        first window, a changed place, the slow phase's first look), many times a warm refit's cost.
     """
 
     t_s: float
@@ -235,12 +238,13 @@ class WindowRow:
     structure: str
     part: str = LAST
     reversals: int = -1
+    searched: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
                 "seconds": self.seconds, "structure": self.structure, "part": self.part,
-                "reversals": self.reversals}  # fmt: skip
+                "reversals": self.reversals, "searched": self.searched}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -370,9 +374,8 @@ def _refit(
     else:
         fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
         model, q = fit.model, fit.fit_nrmse
-    row = WindowRow(
-        t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure, reversals=turns
-    )
+    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure,
+                    reversals=turns, searched=start is None)  # fmt: skip
     return model, row, rival
 
 
@@ -416,7 +419,8 @@ def _refit_later(
     best = min(fits, key=lambda f: f.fit_nrmse)
     won, q = best.model, best.fit_nrmse
     other = next((f.model for f in fits if f is not best), None)
-    if best is not fits[0]:  # the place changed: both places searched afresh on this window
+    searched = best is not fits[0]
+    if searched:  # the place changed: both places searched afresh on this window
         _check(stop)
         idx = np.flatnonzero(keep)
         choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
@@ -428,7 +432,7 @@ def _refit_later(
         su, sy, sk, offset, held = slow
         if held is None:
             choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
-            search = SlowSearch(choice, offset, int(su.size))
+            search, searched = SlowSearch(choice, offset, int(su.size)), True
             if choice.structure != PLAY_IN_LOOP:
                 model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
                 turns = reversals(sy[sk], 2.0 * fast.play)
@@ -438,7 +442,7 @@ def _refit_later(
             fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
             model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
             turns = reversals(sy[sscore], 2.0 * held.play)
-    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, reversals=turns)
+    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, turns, searched)
     return model, row, other, search, won
 
 
@@ -480,8 +484,8 @@ class WindowRefit:
     end : int
         Samples the stream will hold in all, the slow phase's included (a live run's length; 0:
         not known). With a worker and a real clock (not ``wait``), a refit is not started when the
-        longest of the last :data:`PREDICT_ROWS` refits (the warm ones once there are any: the
-        first is a search from scratch) took more wall time than the servo time left
+        longest of the last :data:`PREDICT_ROWS` refits (the warm ones once there are any, not the
+        searches from scratch, :attr:`WindowRow.searched`) took more wall time than the servo time left
         (:attr:`WindowResult.late`).
     grace_s : float
         Wall seconds a refit may run past the stream's end in that rule (a live identify:
@@ -620,7 +624,7 @@ class WindowRefit:
         if self._pool is None or self._wait or not self._end or not self._history:
             return False
         left_s = (self._end - self._slow - n) * self.config.sample_period_s
-        warm = self._history[1:] if len(self._history) > 1 and not self._gone else self._history  # not the search
+        warm = [r for r in self._history if not r.searched] or self._history  # a search predicts no warm refit
         return max(r.seconds for r in warm[-PREDICT_ROWS:]) > left_s + self._grace
 
     def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
@@ -723,6 +727,17 @@ class WindowRefit:
             self._pool = None
             sys.setswitchinterval(self._switch)
 
+    def _bounded(self, wait: bool, wait_s: float) -> None:
+        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop."""
+        if not wait and self._future is not None and wait_s > 0.0:
+            futures_wait([self._future], timeout=wait_s)
+        self._collect(wait=wait)
+        if self._future is not None:  # still running, not waited for: it stops at its next fit
+            self._stop.set()
+            self._stop = threading.Event()  # a final refit runs on
+            self._future = None
+            self._abandoned += 1
+
     def result(
         self, *, final: bool = True, fresh_s: float = 0.0, wait: bool = True, wait_s: float = 0.0
     ) -> WindowResult:
@@ -737,28 +752,27 @@ class WindowRefit:
             stream's end (a live identify: :data:`EVERY_S`, the estimate as fresh as between two
             refits; the final refit cost 0.1-17 s of wall time after a real-clock run, issue 15).
         wait : bool
-            Wait for a refit still running; False: tell it to stop at its next fit and drop it
-            (:attr:`WindowResult.abandoned`): the newest finished window is the estimate (a live
-            identify on a real clock; pair with ``final=False``).
+            Wait for a refit still running; False (a live identify on a real clock): wait at most
+            ``wait_s``, then tell it to stop at its next fit and drop it
+            (:attr:`WindowResult.abandoned`): the newest finished window is the estimate. The final
+            refit then runs on the worker only when no refit was dropped so, and is treated the same.
         wait_s : float
-            With ``wait=False``: wall seconds to wait for a running refit before it is stopped.
+            With ``wait=False``: wall seconds to wait for each refit before it is stopped.
         """
-        if not wait and self._future is not None and wait_s > 0.0:
-            futures_wait([self._future], timeout=wait_s)
-        self._collect(wait=wait)
-        if self._future is not None:  # still running, not waited for: it stops at its next fit
-            self._stop.set()
-            self._stop = threading.Event()  # a final refit below runs on
-            self._future = None
-            self._abandoned += 1
+        abandoned = self._abandoned
+        self._bounded(wait, wait_s)
         n = self._n
         last = self._history[-1].t_s if self._history else -math.inf
         end = n * self.config.sample_period_s
         stale = not math.isclose(last, end) and end - last > fresh_s
-        if final and n >= self._first and stale:
+        if final and n >= self._first and stale and (wait or self._pool is None):
             pool, self._pool = self._pool, None
             self._due(n)
             self._pool = pool
+        elif final and n >= self._first and stale and self._abandoned == abandoned:
+            self._end = 0  # the end's own refit: not late by definition
+            self._due(n)
+            self._bounded(wait, wait_s)
         if self._pool is not None:
             self._pool.shutdown(wait=wait, cancel_futures=not wait)
             self._pool = None

@@ -329,12 +329,12 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
-    # the window refit's last window (the worker stops here, whatever follows). On a virtual clock a running refit
-    # is waited for and the end refitted unless the last window is as fresh as the refits are apart; on a real
-    # clock the newest finished window is the estimate, its age in the JSON and the verdict (a refit still running
-    # END_GRACE_S after the run is told to stop: on the CiA 402 twin waiting for it took up to 14 s, issue 15)
+    # the window refit's last window (the worker stops here, whatever follows): the end refitted unless the last
+    # window is as fresh as the refits are apart. On a virtual clock a running refit is waited for; on a real clock
+    # a refit (the end's too) still running END_GRACE_S after the run is told to stop and the newest finished
+    # window is the estimate, its age in the JSON and the verdict (on the CiA 402 twin waiting took up to 14 s)
     ended = result.stopped != "interrupted"
-    window_result = window.result(final=ended and virtual, fresh_s=window.config.every_s, wait=ended and virtual,
+    window_result = window.result(final=ended, fresh_s=window.config.every_s, wait=ended and virtual,
                                   wait_s=END_GRACE_S if ended else 0.0)  # fmt: skip
     clock.mark("last_window")
     early_search = early.result(wait=result.stopped != "interrupted")
