@@ -27,9 +27,13 @@ are, one row per run:
   stream); ``to answer``: until it stays within 5 % of the reported answer's
   play (issue 15's target; ``never`` when the last refit is not), ``fit on/ref``: free-run
   NRMSE of the online model over that of the refined one on the same record;
-* ``refit s/stall ms/dropped``: the window refit's median wall time (on its
+* ``refit s/stall ms/dropped/late/age s``: the window refit's median wall time (on its
   worker thread), the longest time one sample's hand-over took on the
-  sampling thread, and the windows left out because a refit still ran;
+  sampling thread, the windows left out because a refit still ran, those not
+  started because the last refits' wall time said they could not end before
+  the run (real clock), and the servo seconds between the last refit's window
+  and the run's end (the estimate's age: a refit running at the end is not
+  waited for on a real clock);
 * ``answer``: the play identify reported (``answer`` in its JSON): ``search`` the offline
   servo-loop search on the whole live record, ``online`` the online window estimate when it
   validated better than that search as one more candidate, ``offline`` identification's own
@@ -142,13 +146,15 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
     names = {"loop_search": "search", "loop_online": "online", "offline_fit": "offline"}
     said = names.get(answer["source"], answer["source"])
     answer_play = answer["play"] / scale
+    age = window.get("age_s")  # null: no refit, or no end given
     return [
         name, transport, f"{play:.5f}", f"{probe['samples'] / probe['rate_hz']:.1f}",
         str(result["decimation"]["factor"]), f"{result['lost']['share_unusable']:.2f}", what, f"{online_gap:.5f}",
         f"{refined_gap:.5f}", f"{(online_gap - play) / play:+.0%}", f"{to5:.1f}",
         "never" if np.isnan(to_answer) else f"{to_answer:.1f}", f"{fit_ratio:.2f}",
         f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {_identified(result)})",
-        f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}",
+        f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}"
+        f"/{window.get('late', 0)}/{float('nan') if age is None else age:.1f}",
         f"{wall:.0f}", _stages(result), why,
     ]  # fmt: skip
 
@@ -205,7 +211,7 @@ def main() -> None:
         f"servoid identify --driver URL{'' if args.samples is None else f' --samples {args.samples}'} (probe, design, "
         "decimated MRGIA, verdict)",
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
-         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped", "wall s",
+         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s", "wall s",
          "stages s (probe/run/last/early/answer/identify)", "verdict"],
         rows,
     )  # fmt: skip

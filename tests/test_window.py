@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import threading
+import time
+from typing import Any
 
 import numpy as np
 import pytest
@@ -13,8 +16,9 @@ from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.online import window
 from servoid.ident.online.verdict import judge_window
-from servoid.ident.online.window import WindowConfig, WindowRefit
+from servoid.ident.online.window import WindowConfig, WindowRefit, WindowRow
 
 RATE = 100.0
 TRUTH = ServoLoopModel(PLAY_IN_LOOP, 1 / RATE, kp=12.0, kv=60.0, fc=0.3, fs=0.45, vs=0.05, veps=0.005, c1=0.01, c2=0.01)
@@ -355,3 +359,107 @@ def test_the_end_of_the_stream_is_refitted_only_when_the_last_refit_is_older_tha
     assert ends[0] == pytest.approx([10.0, 15.0, 20.0, 22.0])  # the end refitted (the default)
     assert ends[1] == pytest.approx([10.0, 15.0, 20.0])  # 2 s old: as fresh as the refits are apart
     assert ends[2] == ends[0]  # older than asked: refitted
+
+
+def _settle(est: WindowRefit, n: int) -> None:
+    """Poll until every window due by the ``n``-th sample is refitted, dropped or left out as late (fake refits
+    end at once when started, but the worker's turn comes when the scheduler gives it)."""
+    due = max(0, (n - 1000) // 500 + 1)  # first_s 10 s, every_s 5 s at 100 Hz
+    for _ in range(2000):
+        if len(est.rows()) + est.dropped + est.late >= due:
+            return
+        time.sleep(0.005)
+    raise AssertionError(f"the worker never finished the {due} refit(s) due")
+
+
+def _fake_refits(monkeypatch, seconds: float, block_after: int, search_at: float = -1.0) -> list[threading.Event]:
+    """Refits that say they took ``seconds`` of wall time; from call ``block_after`` on they run until stopped.
+    The one at ``search_at`` s says it ran a search from scratch and took 20 s.
+
+    Returns the stop event each call was handed, in order.
+    """
+    calls: list[threading.Event] = []
+
+    def fit(t_s: float, stop: threading.Event) -> tuple[ServoLoopModel, WindowRow]:
+        calls.append(stop)
+        if len(calls) > block_after:
+            stop.wait(30.0)
+            window._check(stop)  # a real refit checks between its fits
+        searched = t_s == search_at
+        return TRUTH, WindowRow(t_s, TRUTH.play, 0.01, 0.01, 20.0 if searched else seconds, TRUTH.structure,
+                                searched=searched)  # fmt: skip
+
+    def first(*job: Any) -> tuple[Any, ...]:  # _refit(u, y, keep, start, config, t_s, later, load, stop)
+        return (*fit(job[5], job[-1]), None)
+
+    def later(*job: Any) -> tuple[Any, ...]:  # _refit_later(u, y, keep, fast, rival, config, t_s, slow, load, stop)
+        model, row = fit(job[6], job[-1])
+        return model, row, None, None, model
+
+    monkeypatch.setattr(window, "_refit", first)
+    monkeypatch.setattr(window, "_refit_later", later)
+    return calls
+
+
+def test_a_refit_that_the_last_refits_say_cannot_end_before_the_stream_is_not_started(monkeypatch) -> None:
+    u, y = _record(30.0, seed=13)
+    calls = _fake_refits(monkeypatch, 7.0, block_after=99, search_at=15.0)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
+    est = WindowRefit(config, start=TRUTH, end=u.size)  # a worker on a real clock, the run's length known
+    for lo in range(0, u.size, 500):  # due at 10, 15, 20, 25 and 30 s; each refit collected before the next
+        _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+        _settle(est, lo + 500)
+    result = est.result(final=False, wait=False)
+    # 7 s warm refits (the search at 15 s, 20 s, predicts none): at 20 s 10 s are left (started), at 25 s 5
+    # (not), at 30 s none (not)
+    assert [r.t_s for r in result.history] == pytest.approx([10.0, 15.0, 20.0])
+    assert (result.late, result.dropped, result.abandoned) == (2, 0, 0)
+    assert result.end_s == pytest.approx(30.0) and result.age_s == pytest.approx(10.0)
+    # a refit may run 3 s past the end: the one at 25 s is started (7 s against 5 + 3), the one at 30 s is not
+    calls.clear()
+    est = WindowRefit(config, start=TRUTH, end=u.size, grace_s=3.0)
+    for lo in range(0, u.size, 500):
+        _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+        _settle(est, lo + 500)
+    graced = est.result(fresh_s=0.0, wait=False, wait_s=5.0)  # the end refitted on the worker, waited for
+    assert [r.t_s for r in graced.history] == pytest.approx([10.0, 15.0, 20.0, 25.0, 30.0]) and graced.late == 1
+    # the same stream without its end, or on a virtual clock (waiting costs no sample): every window refitted
+    for kwargs in ({}, {"wait": True}):
+        calls.clear()
+        est = WindowRefit(config, start=TRUTH, end=0 if not kwargs else u.size, **kwargs)
+        for lo in range(0, u.size, 500):
+            _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+            _settle(est, lo + 500)
+        assert est.result(final=False).late == 0 and len(calls) == 5
+
+
+def test_a_refit_running_at_the_stream_end_is_stopped_not_waited_for_and_the_verdict_says_what_it_judged(
+    monkeypatch,
+) -> None:
+    u, y = _record(20.0, seed=14)
+    calls = _fake_refits(monkeypatch, 1.0, block_after=1)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=10.0)
+    est = WindowRefit(config, start=TRUTH)
+    _feed(est, u[:1000], y[:1000], np.zeros(1000, dtype=bool))  # the first refit, at 10 s, ends at once
+    _settle(est, 1000)
+    _feed(est, u[1000:1500], y[1000:1500], np.zeros(500, dtype=bool))  # the one at 15 s runs until stopped
+    for _ in range(2000):  # its start is the scheduler's
+        if len(calls) == 2:
+            break
+        time.sleep(0.005)
+    _feed(est, u[1500:], y[1500:], np.zeros(500, dtype=bool))  # the one at 20 s is dropped
+    result = est.result(final=False, wait=False, wait_s=0.05)  # waited for a little, then stopped
+    assert calls[1].is_set()  # told to stop at its next fit
+    assert (result.abandoned, result.dropped, len(result.history)) == (1, 1, 1)
+    assert result.model == TRUTH and result.age_s == pytest.approx(10.0)
+    # the newest finished window is 10 s old: alone it is not called settled on samples it has not seen ...
+    alone = judge_window(result, last=1)
+    assert not alone.settled and any("not judged" in r for r in alone.reasons)
+    assert "by 10.0 s of the stream's 20.0 s" in alone.judged
+    # ... against the answer on the whole record it may be, and says what the rules saw
+    against = judge_window(result, 0.01, TRUTH.play, 0.01, last=1)
+    assert against.settled, against.reasons
+    assert "only against the whole record's fit" in against.judged and against.judged in against.line()
+    # a window as fresh as the refits are apart: nothing to say
+    fresh = judge_window(dataclasses.replace(result, end_s=14.0), last=1)
+    assert fresh.settled and fresh.judged == ""

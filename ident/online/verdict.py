@@ -28,6 +28,12 @@ against the floor its resolution and noise leave (at most
 :data:`~servoid.ident.offline.intervals.MAX_FIT_TO_FLOOR` times, the
 offline rule: a model off its floor misses something, and a settled estimate
 of a wrong model is the worst outcome), and, as above, against the refined fit.
+When its last window ended more than a refit period before the stream did (a
+live identify that did not wait for the last refit,
+:attr:`~servoid.ident.online.window.WindowResult.age_s`), the trajectory and
+floor rules saw none of the samples after it: the verdict says so
+(:attr:`OnlineVerdict.judged`), and without a refined fit to judge the model on
+those samples it is not settled.
 """
 
 from __future__ import annotations
@@ -78,6 +84,9 @@ class OnlineVerdict:
         Free-run NRMSE of each on the same samples of the record, the refined fit's (NaN when unknown).
     drift : float
         Relative movement of the online dead zone over the last part of the run.
+    judged : str
+        What the trajectory and fit rules saw when it was not the whole run (a moving-window
+        estimate whose last window ended before the stream); empty otherwise.
     """
 
     settled: bool
@@ -87,19 +96,21 @@ class OnlineVerdict:
     online_nrmse: float
     refined_nrmse: float
     drift: float
+    judged: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON (NaN as null through :func:`servoid.ident.serialise.dumps`)."""
         return {"settled": self.settled, "reasons": list(self.reasons), "online_gap": self.online_gap,
                 "refined_gap": self.refined_gap, "online_nrmse": self.online_nrmse,
-                "refined_nrmse": self.refined_nrmse, "drift": self.drift}  # fmt: skip
+                "refined_nrmse": self.refined_nrmse, "drift": self.drift, "judged": self.judged}  # fmt: skip
 
     def line(self, unit: str = "") -> str:
         """One line for the terminal: both numbers and the verdict."""
         u = f" {unit}" if unit else ""
         text = (f"online estimate: play {self.online_gap:.4g}{u} (fit {self.online_nrmse:.3g}); refined: "
                 f"{self.refined_gap:.4g}{u} (fit {self.refined_nrmse:.3g}); ")  # fmt: skip
-        return text + ("settled" if self.settled else "NOT settled: " + "; ".join(self.reasons))
+        said = "settled" if self.settled else "NOT settled: " + "; ".join(self.reasons)
+        return text + said + (f" ({self.judged})" if self.judged else "")
 
 
 def judge_online(
@@ -242,4 +253,14 @@ def judge_window(
     r_fit = math.nan if refined_nrmse is None else float(refined_nrmse)
     if refined_play is not None:
         _against_refined(reasons, gap, o_fit, r_gap, r_fit, gap_tol, fit_ratio, fit_slack)
-    return OnlineVerdict(not reasons, tuple(reasons), gap, r_gap, o_fit, r_fit, drift)
+    judged, age = "", online.age_s
+    if age > online.config.every_s:  # a stale last window: the rules above saw none of the stream's last samples
+        seen = (
+            f"windows ending by {online.history[-1].t_s:.1f} s of the stream's {online.end_s:.1f} s ({age:.1f} s old)"
+        )
+        if refined_play is None:
+            reasons.append(f"the last window ended {age:.1f} s before the stream: its last samples are not judged")
+            judged = f"trajectory and fit on {seen}"
+        else:
+            judged = f"trajectory and fit on {seen}; the later samples only against the whole record's fit"
+    return OnlineVerdict(not reasons, tuple(reasons), gap, r_gap, o_fit, r_fit, drift, judged)

@@ -55,7 +55,15 @@ a receding-horizon fit:
   the previous refit still runs is left out (:attr:`WindowResult.dropped`),
   unless ``wait=True`` (a servo on a virtual clock, which runs faster than
   real time: there waiting costs no sample); ``background=False`` runs each
-  refit inside :meth:`update` (replays, tests: deterministic).
+  refit inside :meth:`update` (replays, tests: deterministic);
+* when the stream's length is known (``end``: a live identify) a refit is not
+  started on a real clock when the last refits' wall time says it cannot end
+  within ``grace_s`` of the stream's end (:attr:`WindowResult.late`: on the CiA 402 twin refits
+  took 5-16 s, and the one running at the run's end was waited for, up to 14 s
+  of wall time, issue 15); :meth:`WindowRefit.result` with ``wait=False``
+  waits ``wait_s`` at most for a running refit: then it is told to stop at its next fit
+  (:attr:`WindowResult.abandoned`) and the newest finished window is the
+  estimate, :attr:`WindowResult.age_s` old.
 
 Each refit is one row of :attr:`WindowResult.history`: the servo time of the
 window's end, the play, the free-run NRMSE on the window and the window's
@@ -73,6 +81,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -98,6 +107,8 @@ __all__ = [
     "HISTORY_ROWS",
     "LaterFit",
     "SlowSearch",
+    "Cancelled",
+    "END_GRACE_S",
 ]
 
 #: Servo seconds refitted each time: long enough for tens of reversals at a designed
@@ -123,6 +134,23 @@ LAST, SLOW = "last", "slow"
 #: Refits :attr:`WindowResult.history` keeps (the last ones): a monitor refits for days, identify's
 #: refits every 5 s fill it in 5.7 h.
 HISTORY_ROWS = 4096
+#: Refits whose wall time predicts the next one's (the longest of them: :class:`WindowRefit`'s ``end``).
+PREDICT_ROWS = 3
+#: Wall seconds a live identify lets a window refit run past the stream's end (:class:`WindowRefit`'s ``grace_s``,
+#: :meth:`WindowRefit.result`'s ``wait_s``): about what the answer's refinement takes after the run anyway
+#: (0.3-3.6 s, docs/online.md); without it the CiA 402 twin's refit due 4 s before the end (5.0 s) was not started
+#: and the verdict had 2 refits, too few to judge.
+END_GRACE_S = 2.0
+
+
+class Cancelled(Exception):
+    """A window refit told to stop (:meth:`WindowRefit.result` with ``wait=False``) stopped between its fits."""
+
+
+def _check(stop: threading.Event | None) -> None:
+    """Raise :class:`Cancelled` when the refit has been told to stop (called between a refit's fits)."""
+    if stop is not None and stop.is_set():
+        raise Cancelled("the window refit was stopped at the stream's end")
 
 
 @dataclass(frozen=True)
@@ -197,6 +225,9 @@ class WindowRow:
         Reversals of the window's scored readings by more than twice the play the window's fit
         started from (:func:`~servoid.ident.offline.intervals.reversals`, identify's rule): each
         is the motor crossing the play, what the window says about it. -1: not counted.
+    searched : bool
+        The refit ran a search from scratch (:func:`~servoid.ident.offline.loop_fit.fit_loop`: the
+        first window, a changed place, the slow phase's first look), many times a warm refit's cost.
     """
 
     t_s: float
@@ -207,12 +238,13 @@ class WindowRow:
     structure: str
     part: str = LAST
     reversals: int = -1
+    searched: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
                 "seconds": self.seconds, "structure": self.structure, "part": self.part,
-                "reversals": self.reversals}  # fmt: skip
+                "reversals": self.reversals, "searched": self.searched}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -258,6 +290,12 @@ class WindowResult:
         later window beside the named place's (None when the run started from a given model).
     slow_search : SlowSearch or None
         The search of the design's slow phase, when a window ran it (whichever place it named).
+    end_s : float
+        Servo time of the stream's end on the windows' clock (from the slow phase's end), s; NaN: not given.
+    late : int
+        Refits not started because the last refits' wall time said they could not end before the stream.
+    abandoned : int
+        Refits running at the stream's end that were not waited for (told to stop, their result dropped).
     """
 
     model: ServoLoopModel | None
@@ -268,6 +306,14 @@ class WindowResult:
     errors: tuple[str, ...] = field(default=())
     rival: ServoLoopModel | None = None
     slow_search: SlowSearch | None = None
+    end_s: float = math.nan
+    late: int = 0
+    abandoned: int = 0
+
+    @property
+    def age_s(self) -> float:
+        """Servo seconds between the last refit's window end and the stream's end (NaN: no refit or no end)."""
+        return self.end_s - self.history[-1].t_s if self.history else math.nan
 
     @property
     def plays(self) -> np.ndarray:
@@ -279,6 +325,7 @@ class WindowResult:
         return {"model": None if self.model is None else self.model.to_dict(),
                 "history": [r.to_dict() for r in self.history], "config": self.config.to_dict(),
                 "dropped": self.dropped, "stall_s": self.stall_s, "errors": list(self.errors),
+                "end_s": self.end_s, "age_s": self.age_s, "late": self.late, "abandoned": self.abandoned,
                 "slow_search": None if self.slow_search is None else {
                     "structure": self.slow_search.choice.structure, "play": self.slow_search.choice.play,
                     "samples": self.slow_search.samples}}  # fmt: skip
@@ -293,11 +340,13 @@ def _refit(
     t_s: float,
     later: LaterFit | None = None,
     load: bool | None = False,
+    stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
     """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
 
     ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``); ``load``:
-    :func:`fit_loop`'s load stage in the fit from scratch.
+    :func:`fit_loop`'s load stage in the fit from scratch; ``stop``: set, the refit raises :class:`Cancelled`
+    between its fits.
     Returns the model, its row, and from the first fit the best model of the other place of
     the play (the rival the later windows refit beside it; None after).
     """
@@ -318,15 +367,15 @@ def _refit(
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
         model, rival = start, None
+    _check(stop)
     turns = reversals(y[score], 2.0 * model.play)
     if later is not None:
         model, q = later(u, y, score, model)
     else:
         fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
         model, q = fit.model, fit.fit_nrmse
-    row = WindowRow(
-        t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure, reversals=turns
-    )
+    row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure,
+                    reversals=turns, searched=start is None)  # fmt: skip
     return model, row, rival
 
 
@@ -340,6 +389,7 @@ def _refit_later(
     t_s: float,
     slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
     load: bool | None = False,
+    stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
     """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
 
@@ -361,21 +411,28 @@ def _refit_later(
     score = keep.copy()
     score[: min(config.samples(config.burn_in_s), u.size - 2)] = False
     turns = reversals(y[score], 2.0 * fast.play)
-    fits = [refit_loop(u, y, m, score=score, max_nfev=config.max_nfev) for m in (fast, rival) if m is not None]
+    fits = []
+    for m in (fast, rival):
+        if m is not None:
+            _check(stop)
+            fits.append(refit_loop(u, y, m, score=score, max_nfev=config.max_nfev))
     best = min(fits, key=lambda f: f.fit_nrmse)
     won, q = best.model, best.fit_nrmse
     other = next((f.model for f in fits if f is not best), None)
-    if best is not fits[0]:  # the place changed: both places searched afresh on this window
+    searched = best is not fits[0]
+    if searched:  # the place changed: both places searched afresh on this window
+        _check(stop)
         idx = np.flatnonzero(keep)
         choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
         won, q = choice.model, choice.fit_nrmse
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     model, floor, part, search = won, floor_nrmse(y[score]), LAST, None
     if slow is not None and won.structure != PLAY_IN_LOOP:
+        _check(stop)
         su, sy, sk, offset, held = slow
         if held is None:
             choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
-            search = SlowSearch(choice, offset, int(su.size))
+            search, searched = SlowSearch(choice, offset, int(su.size)), True
             if choice.structure != PLAY_IN_LOOP:
                 model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
                 turns = reversals(sy[sk], 2.0 * fast.play)
@@ -385,7 +442,7 @@ def _refit_later(
             fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
             model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
             turns = reversals(sy[sscore], 2.0 * held.play)
-    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, reversals=turns)
+    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, turns, searched)
     return model, row, other, search, won
 
 
@@ -424,6 +481,15 @@ class WindowRefit:
     load : bool or None
         :func:`~servoid.ident.offline.loop_fit.fit_loop`'s load stage in the first fit (a live
         run: None, as the live answer's search; default False).
+    end : int
+        Samples the stream will hold in all, the slow phase's included (a live run's length; 0:
+        not known). With a worker and a real clock (not ``wait``), a refit is not started when the
+        longest of the last :data:`PREDICT_ROWS` refits (the warm ones once there are any, not the
+        searches from scratch, :attr:`WindowRow.searched`) took more wall time than the servo time left
+        (:attr:`WindowResult.late`).
+    grace_s : float
+        Wall seconds a refit may run past the stream's end in that rule (a live identify:
+        :data:`END_GRACE_S`).
     """
 
     def __init__(
@@ -436,6 +502,8 @@ class WindowRefit:
         later: LaterFit | None = None,
         slow: int = 0,
         load: bool | None = False,
+        end: int = 0,
+        grace_s: float = 0.0,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -478,6 +546,11 @@ class WindowRefit:
         self._slow_model: ServoLoopModel | None = None  # the slow phase's estimate, once searched
         self._fast: ServoLoopModel | None = None  # the last window's model of the place it named
         self._load = load
+        self._end = validation.integer("end", end, minimum=0)
+        self._grace = validation.non_negative("grace_s", grace_s)
+        self._late = 0  # refits not started: they could not end before the stream
+        self._abandoned = 0  # refits running at the stream's end, not waited for
+        self._stop = threading.Event()  # set: a running refit stops at its next fit
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -518,6 +591,9 @@ class WindowRefit:
         if self._future is not None:
             self._dropped += 1
             return
+        if self._too_late(n):
+            self._late += 1
+            return
         size = len(self._u)
         first = not self._history and not self._gone
         lo = max(0, size - self._span())
@@ -533,13 +609,23 @@ class WindowRefit:
         job: tuple[Any, ...]
         if first or self._later is not None:
             job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
-                   self._load)  # fmt: skip
+                   self._load, self._stop)  # fmt: skip
         else:
-            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load)
+            work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load,
+                                       self._stop)  # fmt: skip
         if self._pool is None:
             self._store(work, job, t_s)
         else:
             self._future = self._pool.submit(work, *job)
+
+    def _too_late(self, n: int) -> bool:
+        """Whether a refit due at the ``n``-th sample would still run when the stream ends (a worker on a real clock
+        with a known end: the longest of the last :data:`PREDICT_ROWS` refits' wall time against the servo time left)."""
+        if self._pool is None or self._wait or not self._end or not self._history:
+            return False
+        left_s = (self._end - self._slow - n) * self.config.sample_period_s
+        warm = [r for r in self._history if not r.searched] or self._history  # a search predicts no warm refit
+        return max(r.seconds for r in warm[-PREDICT_ROWS:]) > left_s + self._grace
 
     def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
         """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
@@ -587,6 +673,8 @@ class WindowRefit:
         self._future = None
         try:
             fitted = fut.result()
+        except Cancelled:
+            return
         except (ConfigError, ValueError, FloatingPointError, OverflowError, np.linalg.LinAlgError) as exc:
             self._errors.append(str(exc))
             return
@@ -613,6 +701,11 @@ class WindowRefit:
         """Windows left out so far because the previous refit was still running."""
         return self._dropped
 
+    @property
+    def late(self) -> int:
+        """Refits not started so far because they could not end before the stream (the class's ``end``)."""
+        return self._late
+
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the servo-loop simulation now, not inside the sampling loop."""
         ServoLoopModel("output_backlash", self.config.sample_period_s, kp=10.0, kv=50.0).simulate(np.zeros(4))
@@ -629,11 +722,25 @@ class WindowRefit:
         For a session that ended in an error: :meth:`result` does the same on the normal way out.
         """
         if self._pool is not None:
+            self._stop.set()  # a running refit stops at its next fit
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
             sys.setswitchinterval(self._switch)
 
-    def result(self, *, final: bool = True, fresh_s: float = 0.0) -> WindowResult:
+    def _bounded(self, wait: bool, wait_s: float) -> None:
+        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop."""
+        if not wait and self._future is not None and wait_s > 0.0:
+            futures_wait([self._future], timeout=wait_s)
+        self._collect(wait=wait)
+        if self._future is not None:  # still running, not waited for: it stops at its next fit
+            self._stop.set()
+            self._stop = threading.Event()  # a final refit runs on
+            self._future = None
+            self._abandoned += 1
+
+    def result(
+        self, *, final: bool = True, fresh_s: float = 0.0, wait: bool = True, wait_s: float = 0.0
+    ) -> WindowResult:
         """Wait for a running refit; with ``final``, refit the last window too (the end of the stream); stop the worker.
 
         Parameters
@@ -644,19 +751,33 @@ class WindowRefit:
             ... unless the last refit's window ended at most this many servo seconds before the
             stream's end (a live identify: :data:`EVERY_S`, the estimate as fresh as between two
             refits; the final refit cost 0.1-17 s of wall time after a real-clock run, issue 15).
+        wait : bool
+            Wait for a refit still running; False (a live identify on a real clock): wait at most
+            ``wait_s``, then tell it to stop at its next fit and drop it
+            (:attr:`WindowResult.abandoned`): the newest finished window is the estimate. The final
+            refit then runs on the worker only when no refit was dropped so, and is treated the same.
+        wait_s : float
+            With ``wait=False``: wall seconds to wait for each refit before it is stopped.
         """
-        self._collect(wait=True)
+        abandoned = self._abandoned
+        self._bounded(wait, wait_s)
         n = self._n
         last = self._history[-1].t_s if self._history else -math.inf
         end = n * self.config.sample_period_s
         stale = not math.isclose(last, end) and end - last > fresh_s
-        if final and n >= self._first and stale:
+        if final and n >= self._first and stale and (wait or self._pool is None):
             pool, self._pool = self._pool, None
             self._due(n)
             self._pool = pool
+        elif final and n >= self._first and stale and self._abandoned == abandoned:
+            self._end = 0  # the end's own refit: not late by definition
+            self._due(n)
+            self._bounded(wait, wait_s)
         if self._pool is not None:
-            self._pool.shutdown(wait=True)
+            self._pool.shutdown(wait=wait, cancel_futures=not wait)
             self._pool = None
             sys.setswitchinterval(self._switch)
         return WindowResult(self.model if self._history else None, tuple(self._history[-HISTORY_ROWS:]), self.config, self._dropped,
-                            self._stall, tuple(self._errors), self._rival, self._search)  # fmt: skip
+                            self._stall, tuple(self._errors), self._rival, self._search,
+                            end_s=n * self.config.sample_period_s, late=self._late,
+                            abandoned=self._abandoned)  # fmt: skip

@@ -258,7 +258,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.early_search import EarlySearch, head_samples
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
-    from servoid.ident.online.window import WindowConfig, WindowRefit
+    from servoid.ident.online.window import END_GRACE_S, WindowConfig, WindowRefit
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
     from servoid.session.listeners import EstimatorFeed
@@ -297,7 +297,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         )
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
-        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None)
+        # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
+                             grace_s=END_GRACE_S)  # fmt: skip
         window.warm_up()
         # the answer's search of the fast part's head, started while the run goes on
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
@@ -327,9 +329,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
-    # the window refit's last window (the worker stops here, whatever follows)
-    # (no refit of the very end when the last one is as fresh as the refits are apart: its cost comes after the run)
-    window_result = window.result(final=result.stopped != "interrupted", fresh_s=window.config.every_s)
+    # the window refit's last window (the worker stops here, whatever follows): the end refitted unless the last
+    # window is as fresh as the refits are apart. On a virtual clock a running refit is waited for; on a real clock
+    # a refit (the end's too) still running END_GRACE_S after the run is told to stop and the newest finished
+    # window is the estimate, its age in the JSON and the verdict (on the CiA 402 twin waiting took up to 14 s)
+    ended = result.stopped != "interrupted"
+    window_result = window.result(final=ended, fresh_s=window.config.every_s, wait=ended and virtual,
+                                  wait_s=END_GRACE_S if ended else 0.0)  # fmt: skip
     clock.mark("last_window")
     early_search = early.result(wait=result.stopped != "interrupted")
     clock.mark("early_search")
@@ -489,6 +495,7 @@ def with_verdict(record: Record, result: Identification, *, quiet: bool) -> Reco
                     f"the whole record's fit: {_num(loop_verdict.get('refined_gap')):.4g} {unit} "
                     f"(fit {_num(loop_verdict.get('refined_nrmse')):.3g}); ")  # fmt: skip
             line += "settled" if loop_verdict["settled"] else "NOT settled: " + "; ".join(loop_verdict["reasons"])
+            line += f" ({loop_verdict['judged']})" if loop_verdict.get("judged") else ""
             (_term.stderr.print if loop_verdict["settled"] else _term.warn)(line)
     return dataclasses.replace(record, live={**record.live, "online": chosen, "online_mrgia": mrgia, "answer": said})
 
