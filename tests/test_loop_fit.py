@@ -492,6 +492,27 @@ def test_a_load_stage_grid_point_that_runs_away_fits_infinitely_badly() -> None:
     assert all(np.isfinite(nrmse) for _, nrmse in rivals)  # the runaway point never left the grid
 
 
+def test_a_light_load_at_the_floor_joins_the_interval_as_the_plays_rival(monkeypatch: pytest.MonkeyPatch) -> None:
+    # the ODrive twin with a tenth of its load (inertia ratio 0.28): the load bounces off the flanks, and a
+    # massless play about a fifth small holds the record at its floor, so the load stage does not run; the
+    # light loads fitted as rivals widen the interval to the truth, and leave the answer as it was
+    p = preset("odrive", load_encoder_cpr=4096, encoder_noise_counts=0.3)
+    twin = Twin(dataclasses.replace(p, load_inertia_kgm2=0.1 * p.load_inertia_kgm2), seed=2)
+    twin.enable()
+    period = 1.0 / (20.0 * 5.5)  # 20x the loop's bandwidth
+    rec = twin.sample(_gentle(0.05, period, int(20.0 / period), 1002), period)
+    truth = twin.truth.play_rad
+    choice = fit_loop(rec.u, rec.y, period, load=None)
+    assert not choice.model.massive and np.isnan(choice.load_validation)  # at its floor: no stage
+    assert abs(choice.play / truth - 1.0) > 0.1  # the massless play is off: the test can fail
+    lo, hi = choice.play_interval
+    assert lo <= truth <= hi
+    monkeypatch.setattr(loop_fit, "LOAD_FLOOR_RIVALS", False)
+    plain = fit_loop(rec.u, rec.y, period, load=None)
+    assert plain.play == choice.play
+    assert plain.play_interval[1] < truth  # without the rivals the interval missed the truth
+
+
 def _in_loop_search_record() -> tuple[float, ServoLoopModel, np.ndarray, np.ndarray, tuple, np.ndarray, np.ndarray]:
     """The model's own simulation of a play in the loop, centred, with what :func:`loop_fit._search` takes besides:
     the period, the truth, ``uc, yc``, the linear start, the play grid and the mask of every sample."""

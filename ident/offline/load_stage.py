@@ -40,6 +40,9 @@ __all__ = [
     "Fit",
     "Simulate",
     "load_stage",
+    "floor_rivals",
+    "FLOOR_MU_GRID",
+    "FLOOR_E_GRID",
 ]
 
 #: A least-squares fit on the estimation blocks from a start with some names free and a budget:
@@ -56,6 +59,10 @@ MU_GRID = (0.3, 1.0, 3.0)
 #: weightless load that coasts fits the ODrive twin's record at 50x 3 % better than the heavy one, with
 #: the play 11 % small.
 MU_LIMITS = (0.1, 10.0)
+#: The loads :func:`floor_rivals` fits where the massless winner is at its floor: a light and a
+#: middling load, plastic and lightly damped impacts (a bouncing light load hides play there).
+FLOOR_MU_GRID = (0.3, 1.0)
+FLOOR_E_GRID = (0.0, 0.8)
 #: Restitutions held on the grid: plastic to lightly damped (a gear contact of 5 % damping: 0.85).
 E_GRID = (0.0, 0.5, 0.8)
 #: The plays each grid point simulates first, as multiples of the massless winner's (the ODrive twin's
@@ -121,23 +128,8 @@ def load_stage(
         The play and the validation NRMSE of every grid point and of the profile's fits (of both
         passes when there are two): the models the record may not separate (:func:`~servoid.ident.offline.loop_fit.widened_to_rivals`).
     """
-    evaluations = 0
-    # the play first at every grid point, simulated (not fitted): a coasting load hides part of it from the
-    # massless fit; both passes below start from the same grid
-    starts: list[dict[str, float]] = []
-    for mu in MU_GRID:
-        for e in E_GRID:
-            tries = []
-            for factor in PLAY_FACTORS:
-                start = dict(best_d)
-                # the same loop when the load rests on a flank: (1 + mu) dv/dt = kv (v_cmd - v) + z + a0 - F(v)
-                for name in _PER_INERTIA:
-                    start[name] = (1.0 + mu) * best_d[name]
-                start.update(mu=mu, e=e, al=best_d["al"], play=factor * best_d["play"])
-                # a grid point can run away (a load the loop cannot hold): it fits infinitely badly, not an error
-                tries.append((free_run_nrmse(y[est], simulate(start)[est]), start))
-            evaluations += len(tries)
-            starts.append(min(tries, key=lambda c: c[0])[1])
+    # both passes below start from the same grid
+    starts, evaluations = _grid_starts(y, best_d, simulate, est, MU_GRID, E_GRID)
     score, d, used, rivals = _from_grid(y, starts, free, GRID_FREE, fit, simulate, est, val)
     evaluations += used
     if "ki" not in free:
@@ -153,6 +145,71 @@ def load_stage(
     evaluations += used
     # both passes' models are rivals: the record may not separate them either
     return (d_ki if score_ki < score else d), evaluations, rivals + tried
+
+
+def floor_rivals(
+    y: np.ndarray, best_d: dict[str, float], fit: Fit, simulate: Simulate, est: np.ndarray, val: np.ndarray
+) -> tuple[list[tuple[float, float]], int]:
+    """Light and heavy loads that fit a record the massless winner holds at its floor: the play's rivals only.
+
+    Where the massless winner fits at the record's floor the stage does not run (nothing is left for a
+    load to explain), yet a load that bounces off the flanks can hide there behind a smaller play: the
+    ODrive twin with a tenth of its load (``mu`` 0.28) is held at 0.98 times the floor by a massless
+    play 25-32 % small, whose interval missed the truth. Each point of :data:`FLOOR_MU_GRID` x
+    :data:`FLOOR_E_GRID` is fitted as a grid point of :func:`load_stage` (:data:`GRID_FREE`,
+    :data:`GRID_NFEV`); its play and validation NRMSE are a rival for the interval
+    (:func:`~servoid.ident.offline.loop_fit.widened_to_rivals`), never the answer.
+
+    Parameters
+    ----------
+    y, best_d, fit, simulate, est, val
+        As for :func:`load_stage`.
+
+    Returns
+    -------
+    rivals : list of (float, float)
+        Each point's play and validation NRMSE.
+    evaluations : int
+        Simulations it took.
+    """
+    starts, evaluations = _grid_starts(y, best_d, simulate, est, FLOOR_MU_GRID, FLOOR_E_GRID)
+    rivals = []
+    for start in starts:
+        d, _, used = fit(start, GRID_FREE, GRID_NFEV)
+        evaluations += used + 1
+        rivals.append((d["play"], free_run_nrmse(y[val], simulate(d)[val])))
+    return rivals, evaluations
+
+
+def _grid_starts(
+    y: np.ndarray,
+    best_d: dict[str, float],
+    simulate: Simulate,
+    est: np.ndarray,
+    mus: tuple[float, ...],
+    es: tuple[float, ...],
+) -> tuple[list[dict[str, float]], int]:
+    """The start of each grid point (``mus`` x ``es``): the play of :data:`PLAY_FACTORS` that simulates best.
+
+    The play is simulated at every grid point, not fitted: a coasting load hides part of it from the
+    massless fit. Returns the starts and the simulations they took.
+    """
+    starts: list[dict[str, float]] = []
+    evaluations = 0
+    for mu in mus:
+        for e in es:
+            tries = []
+            for factor in PLAY_FACTORS:
+                start = dict(best_d)
+                # the same loop when the load rests on a flank: (1 + mu) dv/dt = kv (v_cmd - v) + z + a0 - F(v)
+                for name in _PER_INERTIA:
+                    start[name] = (1.0 + mu) * best_d[name]
+                start.update(mu=mu, e=e, al=best_d["al"], play=factor * best_d["play"])
+                # a grid point can run away (a load the loop cannot hold): it fits infinitely badly, not an error
+                tries.append((free_run_nrmse(y[est], simulate(start)[est]), start))
+            evaluations += len(tries)
+            starts.append(min(tries, key=lambda c: c[0])[1])
+    return starts, evaluations
 
 
 def _from_grid(
