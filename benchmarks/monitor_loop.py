@@ -25,7 +25,11 @@ virtual, so a run is as fast as the refits.
    play at each estimate, from the end of the baseline (30 s) on, relative to the
    true play: raw (the model's structural bias on the twin included) and of the
    growth (estimate / first estimate against truth / first truth: what wear
-   tracking needs); and the raw RMS of the single window plays.
+   tracking needs); and the raw RMS of the single window plays. The raw error
+   split: its constant bias (the median of estimate / truth: the file's loop's,
+   the same in every window, which ``--dead-zone P%`` re-baselines away), the
+   RMS with the bias out (the monitor's own error), and that without the mean's
+   lag (against the truth 2.5 s earlier: the window plays' scatter and gain).
 2. Step: the play x1.2 at 40 s: servo seconds from the step to the alarm
    (``none`` when there was none in 20 s), and alarms before the step.
 3. False alarms: ``--quiet`` samples (default 100 000; ``--full`` 1 000 000) without wear:
@@ -59,9 +63,10 @@ comparison with the tables before it (docs/monitor.md).
 ``--input``: the monitoring input after the first fit (the first 10 s, the
 whole loop's refit, stay the identification's gentle sines, whose segments of
 many amplitudes and accelerations the loop's parameters need). ``sine``
-(default): one segment kind, the identification's highest amplitude at its
-highest acceleration (8 rad/s^2), a steady sine of 2.8-6.4 reversals a second
-(3-7 in a window), built by :func:`servoid.excitation.monitor_input.monitor_spec`, as
+(default): one segment kind, the identification's highest amplitude at half
+its highest acceleration (4 rad/s^2, ``SINE_ACCEL_SHARE``; at 8 rad/s^2 the
+XM430's windows saw +6 % of a +20 % step), a steady sine of 2.0-4.5 reversals
+a second (2-5 in a window), built by :func:`servoid.excitation.monitor_input.monitor_spec`, as
 ``servoid monitor`` builds its default input for a servo-loop model file with a design.
 The monitor drives the servo, so this is its choice: the window plays held at
 one loop carry a bias that depends on the segment (on the XM430 twin held at
@@ -105,10 +110,10 @@ from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.gentle import segment_end
-from servoid.excitation.monitor_input import IDENT, MONITOR_INPUTS, monitor_spec
+from servoid.excitation.monitor_input import IDENT, MONITOR_INPUTS, SINE, SINE_ACCEL_SHARE, monitor_spec
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
-from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, LoopWearTracker, PlayRow
+from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
 from servoid.recording import write_recording
@@ -126,9 +131,14 @@ def _excitation(name: str, n: int, seed: int) -> np.ndarray:
     return sample(monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2), n, seed=seed + 1000)
 
 
-def _monitor_input(name: str, n: int, seed: int, kind: str) -> np.ndarray:
-    """The monitoring input after the first fit (:data:`~servoid.excitation.monitor_input.MONITOR_INPUTS`), ``n`` samples."""
-    return sample(monitor_spec(kind, SINE_AMPLITUDE[name], 8.0 / RATE**2), n, seed=seed + 2000)
+def _monitor_input(name: str, n: int, seed: int, kind: str, share: float = SINE_ACCEL_SHARE) -> np.ndarray:
+    """The monitoring input after the first fit (:data:`~servoid.excitation.monitor_input.MONITOR_INPUTS`), ``n`` samples.
+
+    ``share``: the steady sine's peak acceleration over the identification's (``servoid monitor``'s
+    :data:`~servoid.excitation.monitor_input.SINE_ACCEL_SHARE`; 1 before).
+    """
+    scale = share / SINE_ACCEL_SHARE if kind == SINE else 1.0
+    return sample(monitor_spec(kind, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2), n, seed=seed + 2000)
 
 
 def _live_file(name: str, seed: int) -> ModelFile:
@@ -160,7 +170,8 @@ def _model_file(name: str, seed: int) -> ModelFile:
 
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
-         chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS):  # fmt: skip
+         chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
+         share: float = SINE_ACCEL_SHARE, count_switch: bool = False):  # fmt: skip
     """The twin's reference part, then ``seconds`` of monitoring from ``file`` with the play at ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
@@ -168,19 +179,22 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     n_ref = int(REFERENCE_S * RATE)
     n = int(seconds * RATE)
     u = _excitation(name, n_ref + n, seed)
+    steady_s = 0.0
     if monitor_input != "ident":
         # the whole loop's first fit on the identification's input, to the end of its segment (as
         # servoid monitor: monitor_stream), then the monitoring input from the offset: no step
         ident = monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2)
         cut = min(segment_end(ident, seed + 1000, n_ref + int(FIRST_FIT_S * RATE)), n_ref + n)
-        u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input)
+        u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input, share)
+        steady_s = 0.0 if count_switch else (cut - n_ref) / RATE
     twin.sample(u[:n_ref], 1.0 / RATE)
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
     model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
     low, high = (math.nan if v is None else float(v) for v in file.play_interval)
     tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
-                              identifiable=file.identifiable, fresh=fresh, min_reversals=min_reversals)  # fmt: skip
+                              identifiable=file.identifiable, fresh=fresh, min_reversals=min_reversals,
+                              steady_s=steady_s)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -230,11 +244,24 @@ def main() -> None:
         default=MIN_REVERSALS,
         help=f"fewest reversals for a window's play to count (default {MIN_REVERSALS}; 0: every window)",
     )
+    parser.add_argument(
+        "--accel-share",
+        type=float,
+        default=SINE_ACCEL_SHARE,
+        help=f"the steady sine's peak acceleration over the identification's (default {SINE_ACCEL_SHARE:g}; 1 before)",
+    )
+    parser.add_argument(
+        "--count-switch",
+        action="store_true",
+        help="windows that begin before the steady sine count (as before: no steady_s)",
+    )
     args = parser.parse_args()
     quiet = 1_000_000 if args.full else args.quiet
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     rows = []
+    opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
+            "share": args.accel_share, "count_switch": args.count_switch}  # fmt: skip
     for name in args.presets:
         started = time.perf_counter()
         file = _live_file(name, 1) if args.file == "live" else _model_file(name, 1)
@@ -244,9 +271,7 @@ def main() -> None:
             lambda s: 1.0 + 0.5 * s / args.track,
             1,
             file,
-            fresh=args.fresh,
-            monitor_input=args.input,
-            min_reversals=args.min_reversals,
+            **opts,
         )
         sel = t >= SCORED_FROM_S
         mean = np.array([r.mean for r in tr])[sel]
@@ -255,6 +280,14 @@ def main() -> None:
         raw = float(np.sqrt(np.mean((mean / truth - 1.0) ** 2)))
         growth = float(np.sqrt(np.mean((mean / mean[0] - truth / truth[0]) ** 2)))
         raw_window = float(np.sqrt(np.mean((window / truth - 1.0) ** 2)))
+        # the raw error split: the constant bias (the file's loop's, the same in every window), then what is the
+        # monitor's own (RMS with the bias out), and of that what is not the mean's lag (against the truth TRACK_S / 2
+        # earlier: the mean of the last TRACK_S of window plays lags a growth by half of it)
+        bias = float(np.median(mean / truth)) - 1.0
+        own = float(np.sqrt(np.mean((mean / truth / (1.0 + bias) - 1.0) ** 2)))
+        earlier = play0 * (1.0 + 0.5 * (t[sel] - TRACK_S / 2.0) / args.track)
+        unlagged = mean / earlier / float(np.median(mean / earlier))
+        scatter = float(np.sqrt(np.mean((unlagged - 1.0) ** 2)))
         cost = np.array([r.window.seconds for r in tr[1:]])
         counted = np.array([r.counted for r in tr[1:]])
         turns = np.array([r.window.reversals for r in tr[1:]])
@@ -264,9 +297,7 @@ def main() -> None:
             lambda s: 1.2 if s >= STEP_AT_S else 1.0,
             2,
             file,
-            fresh=args.fresh,
-            monitor_input=args.input,
-            min_reversals=args.min_reversals,
+            **opts,
         )
         raised = _raised(step)
         after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
@@ -278,16 +309,14 @@ def main() -> None:
             3,
             file,
             chunk_s=1.0,
-            fresh=args.fresh,
-            monitor_input=args.input,
-            min_reversals=args.min_reversals,
+            **opts,
         )
         base = calm.baseline()
         lo, hi = (v / play0 for v in tracker.interval)  # the file's, against the unworn play it was fitted on
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
                  f"[{lo:.2f}, {hi:.2f}]x; {'doubt' if tracker.doubt else 'no doubt'}")  # fmt: skip
         place = "in the loop" if file.structure == PLAY_IN_LOOP else "outside the loop"
-        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}", doubt, f"{raw:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
+        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}", doubt, f"{raw:.1%}", f"{bias:+.1%} / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
                      f"{base['tau']:.1f} / {base['h']:.1f} / "
@@ -297,7 +326,7 @@ def main() -> None:
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
-        ["preset", "model file play vs unworn truth, place", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "track RMS growth", "window RMS raw",
+        ["preset", "model file play vs unworn truth, place", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "raw = bias (file) / own RMS / own without lag", "track RMS growth", "window RMS raw",
          "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "windows counted / reversals (median)", "estimate ms med/max", "wall s"],
         rows,

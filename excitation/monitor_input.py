@@ -5,12 +5,18 @@ holds the loop it refitted first, so each window's play carries that loop's
 bias, and the bias depends on the segment of gentle sines the window sees
 (slow, large, small). One segment kind holds it still, and the baseline takes
 it out: after the first fit, one steady sine at the identification's largest
-amplitude and its highest peak acceleration (``benchmarks/monitor_loop.py``,
-docs/monitor.md "steady sine": the alarm within 2 s of a +20 % step on the
-twins whose file places the play, no false alarm in 10^6 samples). The first
-fit, which refits the whole loop, keeps the identification's sines: their
-segments of many amplitudes and accelerations are what the loop's parameters
-need.
+amplitude and :data:`SINE_ACCEL_SHARE` of its highest peak acceleration
+(``benchmarks/monitor_loop.py``, docs/monitor.md "steady sine"). Why not the
+highest: the held loop's load is massless, and a set point that reverses at
+the top of the identification's range lets a horn coast across part of the
+play, so the window plays follow the play less than it grows: on the XM430
+twin's data file a +20 % step moved them by +6 % at 8 rad/s^2 (no alarm), by
++19 % at 4 and +22 % at 2 (alarm 1.25 and 1.5 s). Why not lower: a window
+must hold :data:`~servoid.ident.monitoring.loop_wear.MIN_REVERSALS` reversals
+to count; at 2 rad/s^2 (1.4 reversals a second) 30 % of the XM430's windows
+did. The first fit, which refits the whole loop, keeps the identification's
+sines: their segments of many amplitudes and accelerations are what the
+loop's parameters need.
 
 The benchmark and ``servoid monitor`` build both parts here (one owner).
 """
@@ -25,17 +31,19 @@ from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "monitor_spec", "monitor_stream"]
+__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "monitor_spec", "monitor_stream"]
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
 #: One steady sine: every segment at the highest amplitude and acceleration.
 SINE = "sine"
 
-#: Each input by name: (amplitude over the identification's, spread, smallest) of gentle sines at the
-#: identification's highest acceleration. ``ident``: the identification's own (``GentleSpec``'s defaults);
-#: ``sine``: one amplitude at the highest acceleration, a steady sine.
-MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25), SINE: (1.0, 1.0, 1.0)}
+#: The steady sine's peak acceleration over the identification's highest (the module's text).
+SINE_ACCEL_SHARE = 0.5
+#: Each input by name: (amplitude over the identification's, spread, smallest, peak acceleration over the
+#: identification's highest) of gentle sines. ``ident``: the identification's own (``GentleSpec``'s defaults);
+#: ``sine``: one amplitude at :data:`SINE_ACCEL_SHARE` of the highest acceleration, a steady sine.
+MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25, 1.0), SINE: (1.0, 1.0, 1.0, SINE_ACCEL_SHARE)}
 
 
 def monitor_spec(
@@ -61,9 +69,9 @@ def monitor_spec(
     -------
     GentleSpec
     """
-    scale, spread, smallest = MONITOR_INPUTS[kind]
-    return GentleSpec(amplitude=scale * amplitude, accel=accel, spread=spread, smallest=smallest, offset=offset,
-                      rate=rate)  # fmt: skip
+    scale, spread, smallest, share = MONITOR_INPUTS[kind]
+    return GentleSpec(amplitude=scale * amplitude, accel=share * accel, spread=spread, smallest=smallest,
+                      offset=offset, rate=rate)  # fmt: skip
 
 
 def monitor_stream(

@@ -177,6 +177,7 @@ def run_loop_monitor(
     on_event: Callable[[str, str], None] | None = None,
     on_progress: Callable[[SessionProgress], None] | None = None,
     metadata: Mapping[str, Any] | None = None,
+    steady_s: float = 0.0,
 ) -> LoopMonitorResult:
     """Monitor an open driver with the servo-loop tracker until ``inputs`` end, an alarm stops it, or Ctrl-C.
 
@@ -223,6 +224,10 @@ def run_loop_monitor(
         The session's progress callback.
     metadata : mapping, optional
         Extra ``# key: value`` lines for ``estimates.csv``.
+    steady_s : float
+        Servo seconds from the start at which ``inputs`` settle on the monitoring input (the steady
+        sine after the identification's sines): windows that begin before it do not count
+        (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``steady_s``).
 
     Returns
     -------
@@ -235,7 +240,7 @@ def run_loop_monitor(
     """
     loop = _LoopRun(
         driver, session, start, model_file, [b for b in bounds if b.quantity == PLAY], Path(out),
-        stop_on_alarm, wait, true_play, on_event, rebase,
+        stop_on_alarm, wait, true_play, on_event, rebase, steady_s,
     )  # fmt: skip
     loop.tracker.warm_up()
     loop.start(metadata or {})
@@ -270,13 +275,14 @@ class _LoopRun:
         true_play: Callable[[int], float] | None,
         on_event: Callable[[str, str], None] | None,
         rebase: bool,
+        steady_s: float,
     ) -> None:
         self.driver, self.session, self.model_file, self.out = driver, session, model_file, out
         self.bounds, self.stop_on_alarm = bounds, stop_on_alarm
         self.true_play, self.on_event = true_play, on_event
         interval = tuple(math.nan if v is None else float(v) for v in model_file.play_interval)
         self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase, interval=(interval[0], interval[1]),
-                                       identifiable=model_file.identifiable)  # fmt: skip
+                                       identifiable=model_file.identifiable, steady_s=steady_s)  # fmt: skip
         self.rebase = rebase
         self.based = self.doubted = self.refused = False
         self.rows_seen = self.events_seen = 0

@@ -158,3 +158,31 @@ def test_a_window_row_counts_the_reversals_of_its_scored_readings_by_more_than_t
     for ui in wiggle:
         still.update(float(ui), float(ui))
     assert all(r.reversals == 0 for r in still.result(final=False).history)
+
+
+def test_windows_that_begin_before_the_input_settles_do_not_count_in_the_baseline() -> None:
+    # the monitor's first seconds after the first fit: windows that still hold the identification's sines read
+    # another bias (on the XM430 twin 1.14 -> 0.92x across the switch); the baseline is the steady input's alone
+    from servoid.ident.monitoring.loop_wear import PLAY, PLAY_WINDOW_S, LoopWearTracker
+    from servoid.ident.online.window import WindowRow
+
+    def run(steady_s: float) -> tuple[dict[str, float], list[bool]]:
+        tracker = LoopWearTracker(LOOP, [Bound(quantity=PLAY, low=0.9 * LOOP.play, high=1.1 * LOOP.play)],
+                                  background=False, rebase=True, steady_s=steady_s)  # fmt: skip
+        noise = np.random.default_rng(13).standard_normal(120)
+        t = 10.0
+        tracker._take(WindowRow(t, LOOP.play, 0.01, 0.01, 0.0, PLAY_IN_LOOP))  # the first fit
+        plays = LOOP.play * (1.0 + 0.01 * noise)
+        plays[:10] *= np.linspace(1.25, 1.0, 10)  # the windows across the switch at 10.6 s read high
+        for i, p in enumerate(plays):
+            tracker._take(WindowRow(t + 0.25 * (i + 1), float(p), 0.01, 0.01, 0.0, PLAY_IN_LOOP))
+        return tracker.baseline(), [r.counted for r in tracker.rows_since(0)[1:]]
+
+    base, counted = run(10.6)
+    first = math.ceil((10.6 + PLAY_WINDOW_S - 10.0) / 0.25 - 1e-9) - 1  # the first window that begins at 10.6 s
+    assert not any(counted[:first]) and all(counted[first:])
+    assert base["scatter"] == pytest.approx(0.01 * LOOP.play, rel=0.3)
+    polluted, counted = run(0.0)  # every window counts: the switch's windows widen the scatter
+    assert all(counted) and polluted["scatter"] > 2.0 * base["scatter"]
+    with pytest.raises(ConfigError, match="steady_s"):
+        LoopWearTracker(LOOP, [], background=False, steady_s=-1.0)

@@ -32,7 +32,14 @@ with :class:`~servoid.ident.online.window.WindowRefit`:
    XM430 twin held at the wrong place, every false alarm of 10^6 quiet
    samples (5) came from stretches of slow segments of the gentle sines whose
    windows hold one reversal or none, reading +10 ... +24 % for 6-12 s; with
-   the rule, none (``benchmarks/monitor_loop.py``, docs/monitor.md).
+   the rule, none (``benchmarks/monitor_loop.py``, docs/monitor.md). Nor
+   does a window that begins before ``steady_s``, where the monitor's input
+   changes from the identification's sines to its steady sine: its held-loop
+   bias is the other input's. Counted, the windows across the switch entered
+   the baseline (on the XM430 twin at 4 rad/s^2: 1.14 -> 0.92x the play
+   within 2 s, the baseline's scatter 5.4 % against 1.2 % after them, tau 5.7
+   against 1.0, the threshold 21 against 3.1, the alarm 7.25 s after a +20 %
+   step against 1.25 s).
 3. **Scatter.** The play-only estimates of the next ``baseline_s`` give the
    median play, their scatter and the correlation time ``tau`` of the
    overlapping windows. The CUSUM's ``sigma`` is the upper
@@ -184,7 +191,7 @@ class PlayRow:
         The CUSUM after this estimate, in standard deviations (NaN before the baseline is known).
     counted : bool
         Whether the window's play counted (baseline, CUSUM, tracking estimate): it held at least
-        the tracker's ``min_reversals``.
+        the tracker's ``min_reversals`` and began after its ``steady_s``.
     """
 
     window: WindowRow
@@ -225,6 +232,10 @@ class LoopWearTracker:
         (measured in ``benchmarks/monitor_loop.py --fresh``; not what ``servoid monitor`` does).
     min_reversals : int
         Fewest reversals a window's readings must hold for its play to count (:data:`MIN_REVERSALS`).
+    steady_s : float
+        Servo seconds from the stream's start at which the monitoring input settles (``servoid
+        monitor``'s steady sine after the identification's sines); a window that begins before it
+        does not count (its held-loop bias is another input's; see the module docstring).
     """
 
     def __init__(
@@ -242,6 +253,7 @@ class LoopWearTracker:
         identifiable: bool | None = None,
         fresh: bool = False,
         min_reversals: int = MIN_REVERSALS,
+        steady_s: float = 0.0,
     ) -> None:
         self.window = WindowRefit(config or play_config(start.sample_period_s), start=None if fresh else start,
                                   background=background, wait=wait, later=fit_play)  # fmt: skip
@@ -252,6 +264,7 @@ class LoopWearTracker:
         self.baseline_s = validation.positive("baseline_s", baseline_s)
         self.false_alarm_samples = validation.positive("false_alarm_samples", false_alarm_samples)
         self.min_reversals = validation.integer("min_reversals", min_reversals, minimum=0)
+        self.steady_s = validation.non_negative("steady_s", steady_s)
         self.events: list[AlarmEvent] = []
         self.alarms = Cusum(self.bounds, math.inf)  # replaced when the baseline is known
         self._seen = 0
@@ -289,7 +302,8 @@ class LoopWearTracker:
             self._first = row
             mean = row.play
             self.doubt = file_doubt(self._start_play, row.play, self._interval, self._identifiable)
-        elif 0 <= row.reversals < self.min_reversals:  # too few crossings of the play: the window's play does not count
+        elif 0 <= row.reversals < self.min_reversals or row.t_s - self.window.config.window_s < self.steady_s - 1e-9:
+            # too few crossings of the play, or the window began on the input before the steady one: it does not count
             counted = False
             mean = self._rows[-1].mean if self._rows else row.play
             stat = self.alarms.statistic(PLAY) if self.bounds and not math.isnan(self._std) else math.nan

@@ -447,7 +447,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         truth = simulated.twin_truth_at(k)
         return math.nan if truth is None else truth.play_rad
 
-    inputs, meta = _loop_inputs(args, driver, model_file, period, total)
+    inputs, meta, steady = _loop_inputs(args, driver, model_file, period, total)
     if not args.json:
         length = "until Ctrl-C" if total is None else f"{total} samples ({total * period:g} s)"
         _term.stderr.print(f"servoid monitor: {driver.describe()} at {1.0 / period:g} Hz, {length}; the servo-loop "
@@ -467,6 +467,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
             stop_on_alarm=args.fail_on_alarm, rebase=args.dead_zone.strip().endswith("%"),
             wait=simulated is not None and isinstance(simulated.clock, VirtualClock),
             true_play=true_play if twin else None, on_event=_print_event, on_progress=update, metadata=meta,
+            steady_s=steady * period,
         )  # fmt: skip
     elapsed = time.perf_counter() - started
     if result.stopped == "refused":
@@ -487,12 +488,13 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
 
 
 def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float,
-                 total: int | None) -> tuple[Iterator[float], dict[str, str]]:  # fmt: skip
-    """The servo-loop monitor's commands and their description (``input``: the line the header prints).
+                 total: int | None) -> tuple[Iterator[float], dict[str, str], int]:  # fmt: skip
+    """The servo-loop monitor's commands, their description (``input``: the line the header prints) and the sample
+    where the steady sine begins (0 without it: the input does not change).
 
     Without ``--operating`` and ``--excitation``: what ``benchmarks/monitor_loop.py`` measured, the
     identification's gentle sines for the first fit, then one steady sine at their largest amplitude
-    and highest acceleration (:func:`~servoid.excitation.monitor_input.monitor_stream`), from the model
+    and half their highest acceleration (:func:`~servoid.excitation.monitor_input.monitor_stream`), from the model
     file's design (:func:`~servoid.monitor_loop.design_sines`), inside the driver's range and rate
     limit; a file without that design gets the MRGIA monitor's default, and the line says why.
     """
@@ -509,7 +511,7 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
         if args.operating is None and args.excitation is None:
             line += (f" ({args.model} holds no gentle-sines design from `servoid identify --driver`, so not the "
                      "steady sine the monitor measured best with: give --excitation to choose)")  # fmt: skip
-        return inputs, {**meta, "input": line}
+        return inputs, {**meta, "input": line}, 0
     limits = driver.limits
     amplitude = min(sines[0], limits.high - limits.centre, limits.centre - limits.low)
     accel = sines[1]
@@ -528,7 +530,7 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
             "design; --excitation to choose another")  # fmt: skip
     meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {cut} samples, then {format_spec(sine)}",
             "seed": str(args.seed), "input": line}  # fmt: skip
-    return inputs, meta
+    return inputs, meta, cut
 
 
 def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorConfig, rate: float,
