@@ -556,9 +556,9 @@ def test_a_second_look_is_not_started_on_a_real_clock_when_the_searches_so_far_s
 
     monkeypatch.setattr(window, "_refit", first)
     monkeypatch.setattr(window, "_refit_later", later)
-    for search_s, wait in ((2.0, False), (3.0, False), (3.0, True)):
+    for search_s, wait, grace_s in ((2.0, False, 0.0), (3.0, False, 3.0), (3.0, True, 0.0)):
         took.append(search_s)
-        est = WindowRefit(config, start=None, end=u.size, wait=wait)
+        est = WindowRefit(config, start=None, end=u.size, wait=wait, grace_s=grace_s)
         for lo in range(0, 1000, 500):  # each refit collected before the next falls due
             _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
             for _ in range(2000):
@@ -566,8 +566,8 @@ def test_a_second_look_is_not_started_on_a_real_clock_when_the_searches_so_far_s
                     break
                 time.sleep(0.005)
         est.result(final=False)
-    # at 10 s, 5 s of the stream are left; the look's window is twice the first search's: 2 x 2 s fits, 2 x 3 s not,
-    # and on a virtual clock (waiting costs no sample) it always runs
+    # at 10 s, 5 s of the stream are left; the look's window is twice the first search's: 2 x 2 s fits, 2 x 3 s not
+    # (a look is optional: no grace past the end), and on a virtual clock (waiting costs no sample) it always runs
     assert looks == [True, False, True]
 
 

@@ -38,10 +38,10 @@ a receding-horizon fit:
   name the place (its validation margin under
   :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`, :attr:`WindowRow.margin`).
   On a real clock with the stream's end known a look is not started that the longest
-  search so far, scaled to the window's length, says cannot end within ``grace_s`` of
-  it (the XM430 through the ODrive emulator at load 7: a look at 20 s of 26.7 s
-  beside the answer's early search ran past the end and was abandoned, leaving 2
-  refits, too few to judge; the warm refit it replaced took 0.3 s).
+  search so far, scaled to the window's length, says cannot end before it (the
+  XM430 through the ODrive emulator at load 7: a look at 20 s of 26.7 s beside the
+  answer's early search ran past the end and was abandoned, leaving 2 refits, too
+  few to judge; the warm refit it replaced took 0.3 s).
   The first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
 * after a live design's slow phase (``slow``: its first samples, set aside, the
@@ -687,12 +687,13 @@ class WindowRefit:
     def _look_ends(self, n: int, span: int) -> bool:
         """Whether a second look at the ``n``-th sample, on ``span`` samples, ends before the stream (the ``late``
         rule for a search: the longest search's wall time so far, scaled to ``span`` from the last search's length;
-        always on a virtual clock or with no end known)."""
+        always on a virtual clock or with no end known). No ``grace_s``: a look is optional, and one that runs past
+        the end costs the verdict the warm refit it replaced."""
         if self._pool is None or self._wait or not self._end:
             return True
         left_s = (self._end - self._slow - n) * self.config.sample_period_s
         cost = max((r.seconds for r in self._history if r.searched), default=0.0) * span / self._looked
-        return cost <= left_s + self._grace
+        return cost <= left_s
 
     def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
         """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
