@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import sys
 import threading
 import time
@@ -329,7 +330,10 @@ def test_every_later_window_names_the_place_by_the_better_fit_and_searches_afres
     rough = dataclasses.replace(TRUTH, kp=10.0, c1=0.012, c2=0.012)
     # a first fit that named the wrong place, its best model of the other place a rough one; later searches are real
     first = SimpleNamespace(
-        structure=OUTPUT_BACKLASH, model=wrong, candidates=[SimpleNamespace(structure=PLAY_IN_LOOP, model=rough)]
+        structure=OUTPUT_BACKLASH,
+        model=wrong,
+        candidates=[SimpleNamespace(structure=PLAY_IN_LOOP, model=rough)],
+        margin=0.5,
     )
     real, searched = loop_fit.fit_loop, []
 
@@ -346,6 +350,102 @@ def test_every_later_window_names_the_place_by_the_better_fit_and_searches_afres
     assert len(searched) == 2  # the first window, and the window where the place changed; not after
     assert result.rival is not None and result.rival.structure == OUTPUT_BACKLASH  # the other place, still refitted
     assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05
+
+
+def test_a_window_twice_the_first_search_whose_warm_fit_is_off_its_floor_is_searched_again(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.offline import loop_fit
+
+    u, y = _record(15.0, seed=14)  # the play inside the loop
+    # the first window's search found the right place in a wrong basin (a stiffer loop, a larger play), from which
+    # a warm refit of one evaluation does not move; later searches are real
+    wrong = dataclasses.replace(TRUTH, kv=150.0, fc=0.6, fs=0.9, c1=0.016, c2=0.016)
+    first = SimpleNamespace(structure=PLAY_IN_LOOP, model=wrong, candidates=[], margin=0.5)  # the place named
+    real, searched = loop_fit.fit_loop, []
+
+    def fit(u_: np.ndarray, *args, **kwargs):
+        searched.append(u_.size)
+        return first if len(searched) == 1 else real(u_, *args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", fit)
+    # windows at 5 (the first search), 7.5, 10, 12.5 and 15 s; the window is 10 s long from 10 s on
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=2.5, first_s=5.0, max_nfev=1)
+    results, twice = {}, window.LOOK_AGAIN
+    for again in (twice, math.inf):
+        searched.clear()
+        monkeypatch.setattr(window, "LOOK_AGAIN", again)
+        est = WindowRefit(config, background=False)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        results[again] = est.result(), list(searched)
+    result, calls = results[twice]
+    assert calls == [500, 1000]  # the first window, and the first window twice as long; not after
+    assert [r.searched for r in result.history] == [True, False, True, False, False]
+    assert result.history[1].nrmse > 1.2 * result.history[1].floor  # the warm refit off its floor before the look
+    assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05
+    # without the second look the windows stay in the first search's basin
+    stuck, calls = results[math.inf]
+    assert calls == [500] and stuck.model is not None and stuck.model.play > 1.4 * TRUTH.play
+
+
+def test_a_window_twice_the_first_search_looks_again_where_that_search_did_not_name_the_place(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.offline import loop_fit
+
+    u, y = _record(12.5, seed=15)
+    real, searched = loop_fit.fit_loop, []
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=2.5, first_s=5.0)
+    rows = {}
+    for margin in (0.01, 0.5):  # the first search's places tied (under MIN_STRUCTURE_MARGIN), or named
+        first = SimpleNamespace(structure=PLAY_IN_LOOP, model=TRUTH, candidates=[], margin=margin)
+
+        def fit(u_: np.ndarray, *args, first=first, **kwargs):
+            searched.append(u_.size)
+            return first if len(searched) == 1 else real(u_, *args, **kwargs)
+
+        searched.clear()
+        monkeypatch.setattr(loop_fit, "fit_loop", fit)
+        est = WindowRefit(config, background=False)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        rows[margin] = est.result().history, list(searched)
+    tied, calls = rows[0.01]
+    # its warm refits at the floor, the place is still looked at again once, on the window twice as long
+    assert calls == [500, 1000] and [r.searched for r in tied] == [True, False, True, False]
+    assert tied[1].nrmse <= 1.2 * tied[1].floor
+    assert tied[0].margin == 0.01 and np.isfinite(tied[2].margin) and np.isnan(tied[1].margin)
+    named, calls = rows[0.5]
+    assert calls == [500] and not any(r.searched for r in named[1:])
+
+
+def test_a_first_window_that_did_not_name_the_place_does_not_hand_the_play_to_the_slow_phase(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.offline import loop_fit
+    from servoid.ident.online.window import LAST, SLOW
+
+    u, y, slow, outside, wide = _two_phase(24.0, seed=7)  # 8 s of slow phase, 16 s of fast phase at 100 Hz
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=2.5, first_s=5.0)
+    runs = {}
+    for margin in (0.01, 0.5):  # the first window's places tied (under MIN_STRUCTURE_MARGIN), or named
+        calls: list[int] = []
+
+        def fit(u_: np.ndarray, *args, margin=margin, calls=calls, **kwargs):
+            calls.append(u_.size)  # the first window's search says ``margin``; every later one names the place
+            model = wide if u_.size == slow else outside
+            return SimpleNamespace(structure=model.structure, model=model, candidates=[], fit_nrmse=1e-4,
+                                   margin=margin if len(calls) == 1 else 0.5)  # fmt: skip
+
+        monkeypatch.setattr(loop_fit, "fit_loop", fit)
+        est = WindowRefit(config, background=False, slow=slow)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        runs[margin] = [r.part for r in est.result().history], calls
+    # tied: the windows stay on the last window until the window twice the first one's looks again and names it
+    parts, calls = runs[0.01]
+    assert calls == [500, 1000, slow] and parts[:3] == [LAST] * 3 and set(parts[3:]) == {SLOW}
+    # named: the slow phase is searched at the next window and answers from then on (no second look)
+    parts, calls = runs[0.5]
+    assert calls == [500, slow] and parts[0] == LAST and set(parts[1:]) == {SLOW}
 
 
 def test_the_end_of_the_stream_is_refitted_only_when_the_last_refit_is_older_than_asked() -> None:
@@ -431,6 +531,44 @@ def test_a_refit_that_the_last_refits_say_cannot_end_before_the_stream_is_not_st
             _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
             _settle(est, lo + 500)
         assert est.result(final=False).late == 0 and len(calls) == 5
+
+
+def test_a_second_look_is_not_started_on_a_real_clock_when_the_searches_so_far_say_it_cannot_end_in_time(
+    monkeypatch,
+) -> None:
+    u, y = _record(15.0, seed=16)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=5.0, first_s=5.0)  # windows at 5 (searched) and 10 s
+    looks: list[bool] = []
+    took: list[float] = []  # the first window's search's wall seconds, per run
+
+    def first(*job: Any) -> tuple[Any, ...]:  # _refit(u, y, keep, start, config, t_s, later, load, stop)
+        return (
+            TRUTH,
+            WindowRow(job[5], TRUTH.play, 0.01, 0.01, took[-1], TRUTH.structure, searched=True, margin=0.01),
+            None,
+        )
+
+    def later(
+        *job: Any,
+    ) -> tuple[Any, ...]:  # _refit_later(u, y, keep, fast, rival, config, t_s, slow, load, look, ...)
+        looks.append(job[9])
+        return TRUTH, WindowRow(job[6], TRUTH.play, 0.01, 0.01, 0.1, TRUTH.structure), None, None, TRUTH
+
+    monkeypatch.setattr(window, "_refit", first)
+    monkeypatch.setattr(window, "_refit_later", later)
+    for search_s, wait, grace_s in ((2.0, False, 0.0), (3.0, False, 3.0), (3.0, True, 0.0)):
+        took.append(search_s)
+        est = WindowRefit(config, start=None, end=u.size, wait=wait, grace_s=grace_s)
+        for lo in range(0, 1000, 500):  # each refit collected before the next falls due
+            _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+            for _ in range(2000):
+                if len(est.rows()) + est.dropped >= lo // 500 + 1:
+                    break
+                time.sleep(0.005)
+        est.result(final=False)
+    # at 10 s, 5 s of the stream are left; the look's window is twice the first search's: 2 x 2 s fits, 2 x 3 s not
+    # (a look is optional: no grace past the end), and on a virtual clock (waiting costs no sample) it always runs
+    assert looks == [True, False, True]
 
 
 def test_a_refit_running_at_the_stream_end_is_stopped_not_waited_for_and_the_verdict_says_what_it_judged(

@@ -25,15 +25,36 @@ a receding-horizon fit:
   named it wrong on the CiA 402 and XM430 twins where 40 s did not; issue 15), and
   when the other place fits better the window is searched afresh (the other
   place's model came from the short first window: on the XM430 twin's seed-1
-  record its warm refits stayed at +47 %, a search of 15 s found -6 %). The
-  first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
+  record its warm refits stayed at +47 %, a search of 15 s found -6 %). A warm
+  refit of the last window off its floor (more than
+  :data:`~servoid.ident.offline.intervals.MAX_FIT_TO_FLOOR` times it) on a window
+  at least :data:`LOOK_AGAIN` times as long as the last one searched from scratch
+  has a second look: the window is searched afresh and the search's answer,
+  refitted warm as the others, stays when it fits the window better (a 10 s
+  first window's search can find the wrong basin of the right place: on the
+  XM430 twin's seed-1 live record a hump at ``kv`` 311, +44 %, its warm refits
+  stuck there at 1.3x the floor; the search at 20 s found ``kv`` 149, +5 %). So has
+  such a window, on or off its floor, when the last search from scratch did not
+  name the place (its validation margin under
+  :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`, :attr:`WindowRow.margin`).
+  On a real clock with the stream's end known a look is not started that the longest
+  search so far, scaled to the window's length, says cannot end before it (the
+  XM430 through the ODrive emulator at load 7: a look at 20 s of 26.7 s beside the
+  answer's early search ran past the end and was abandoned, leaving 2 refits, too
+  few to judge; the warm refit it replaced took 0.3 s).
+  The first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
 * after a live design's slow phase (``slow``: its first samples, set aside, the
   windows timed from its end) the place of the play decides what a window
   scores (issue 15): inside the loop the last window, as above; outside it the
   slow phase, whose set point decelerates gently enough for the load to show the
   whole play at each reversal where the fast phase lets it coast (the CiA 402 and
-  ODrive twins: the last windows' play -47 ... -74 %). The first time a window does, it
+  ODrive twins: the last windows' play -47 ... -74 %), unless the last search of the
+  last window tied (the refinement's step-4 rule: the slow part sizes only a place
+  the fast part names; the XM430 through the serial emulator: a first window outside
+  the loop at +172 %, margin 4.3 %, and the slow phase's search answered +287 %,
+  the windows stuck there; now they stay on the last window, whose second look at
+  20 s puts the play in the loop at +11 %). The first time a window does, it
   searches the slow phase afresh, as the live answer does
   (:func:`~servoid.ident.online.refinement.refine_online`, step 4: a warm refit
   of the fast phase's model on it does not leave that model's play), and that
@@ -136,6 +157,12 @@ LAST, SLOW = "last", "slow"
 HISTORY_ROWS = 4096
 #: Refits whose wall time predicts the next one's (the longest of them: :class:`WindowRefit`'s ``end``).
 PREDICT_ROWS = 3
+#: How many times longer than the last search from scratch of the last window (the first window's, a changed
+#: place's) a window must be for a warm refit off its floor (:data:`~servoid.ident.offline.intervals.MAX_FIT_TO_FLOOR`)
+#: to have it searched afresh (any warm refit, when that search did not name the place; the module's text): a first
+#: window of 10 s, a second look at 20 s, none after on 30 s windows. On the XM430 twin's seed-1 live record the first window's search put the play in the loop with a hump
+#: at ``kv`` 311 (+44 %) and the warm refits stayed there (1.3x the floor); a search of 20 s found ``kv`` 149.
+LOOK_AGAIN = 2.0
 #: Wall seconds a live identify lets a window refit run past the stream's end (:class:`WindowRefit`'s ``grace_s``,
 #: :meth:`WindowRefit.result`'s ``wait_s``): about what the answer's refinement takes after the run anyway
 #: (0.3-3.6 s, docs/online.md); without it the CiA 402 twin's refit due 4 s before the end (5.0 s) was not started
@@ -228,6 +255,10 @@ class WindowRow:
     searched : bool
         The refit ran a search from scratch (:func:`~servoid.ident.offline.loop_fit.fit_loop`: the
         first window, a changed place, the slow phase's first look), many times a warm refit's cost.
+    margin : float
+        When the last window was searched from scratch (the first window, a changed place, a second
+        look), that search's validation margin between the places of the play
+        (:attr:`~servoid.ident.offline.loop_fit.LoopChoice.margin`); NaN when it was not.
     """
 
     t_s: float
@@ -239,12 +270,13 @@ class WindowRow:
     part: str = LAST
     reversals: int = -1
     searched: bool = False
+    margin: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON."""
         return {"t_s": self.t_s, "play": self.play, "nrmse": self.nrmse, "floor": self.floor,
                 "seconds": self.seconds, "structure": self.structure, "part": self.part,
-                "reversals": self.reversals, "searched": self.searched}  # fmt: skip
+                "reversals": self.reversals, "searched": self.searched, "margin": self.margin}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -363,10 +395,10 @@ def _refit(
         idx = np.flatnonzero(keep)
         filled = np.interp(np.arange(u.size), idx, y[idx])
         choice = fit_loop(u, filled, config.sample_period_s, load=load)
-        model = choice.model
+        model, margin = choice.model, float(choice.margin)
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
-        model, rival = start, None
+        model, rival, margin = start, None, math.nan
     _check(stop)
     turns = reversals(y[score], 2.0 * model.play)
     if later is not None:
@@ -375,7 +407,7 @@ def _refit(
         fit = refit_loop(u, y, model, score=score, max_nfev=config.max_nfev)
         model, q = fit.model, fit.fit_nrmse
     row = WindowRow(t_s, model.play, q, floor_nrmse(y[score]), time.perf_counter() - t0, model.structure,
-                    reversals=turns, searched=start is None)  # fmt: skip
+                    reversals=turns, searched=start is None, margin=margin)  # fmt: skip
     return model, row, rival
 
 
@@ -389,6 +421,8 @@ def _refit_later(
     t_s: float,
     slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
     load: bool | None = False,
+    look: bool = False,
+    tied: bool = False,
     stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
     """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
@@ -400,11 +434,14 @@ def _refit_later(
     phase's ``u, y, keep``, the stream index of its first sample, and its model: None before the
     search) the slow phase answers: searched afresh (:func:`fit_loop`, ``load=None``, as the live
     answer searches it; standing only when it too puts the play outside the loop), else its model
-    refitted warm. Returns the estimate, its row, the other place's model, the search (None: none
-    ran) and the winning place's model of the last window.
+    refitted warm. With ``look`` (the window is :data:`LOOK_AGAIN` times as long as the last one
+    searched from scratch), a last window whose warm fit is off its floor and which the slow phase
+    does not answer, or any window when ``tied`` (that search's places tied), is searched afresh too; the search's answer refitted warm stays when it fits the
+    window better (the row is ``searched`` either way). Returns the estimate, its row, the other
+    place's model, the search (None: none ran) and the winning place's model of the last window.
     """
     from servoid.ident.models.structure_names import PLAY_IN_LOOP
-    from servoid.ident.offline.intervals import floor_nrmse, reversals
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
     t0 = time.perf_counter()
@@ -420,13 +457,27 @@ def _refit_later(
     won, q = best.model, best.fit_nrmse
     other = next((f.model for f in fits if f is not best), None)
     searched = best is not fits[0]
+    idx = np.flatnonzero(keep)
+    margin = math.nan
     if searched:  # the place changed: both places searched afresh on this window
         _check(stop)
-        idx = np.flatnonzero(keep)
         choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
-        won, q = choice.model, choice.fit_nrmse
+        won, q, margin = choice.model, choice.fit_nrmse, float(choice.margin)
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
-    model, floor, part, search = won, floor_nrmse(y[score]), LAST, None
+    floor = floor_nrmse(y[score])
+    scores_slow = slow is not None and won.structure != PLAY_IN_LOOP  # the slow phase answers, not this window
+    if look and not searched and (tied or not (scores_slow or q <= MAX_FIT_TO_FLOOR * floor)):
+        # a second look: the last search tied, or the warm refits stay in the basin a shorter window's search found;
+        # searched afresh, the search's answer refitted as the warm ones were, the better fit of the window stays
+        _check(stop)
+        choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
+        _check(stop)
+        again = refit_loop(u, y, choice.model, score=score, max_nfev=config.max_nfev)
+        searched, margin = True, float(choice.margin)
+        if again.fit_nrmse < q:
+            won, q = again.model, again.fit_nrmse
+            other = next((c.model for c in choice.candidates if c.structure != won.structure), other)
+    model, part, search = won, LAST, None
     if slow is not None and won.structure != PLAY_IN_LOOP:
         _check(stop)
         su, sy, sk, offset, held = slow
@@ -442,7 +493,7 @@ def _refit_later(
             fit = refit_loop(su, sy, held, score=sscore, max_nfev=config.max_nfev)
             model, q, floor, part = fit.model, fit.fit_nrmse, floor_nrmse(sy[sscore]), SLOW
             turns = reversals(sy[sscore], 2.0 * held.play)
-    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, turns, searched)
+    row = WindowRow(t_s, model.play, q, floor, time.perf_counter() - t0, model.structure, part, turns, searched, margin)
     return model, row, other, search, won
 
 
@@ -551,6 +602,9 @@ class WindowRefit:
         self._late = 0  # refits not started: they could not end before the stream
         self._abandoned = 0  # refits running at the stream's end, not waited for
         self._stop = threading.Event()  # set: a running refit stops at its next fit
+        self._looked = 0  # samples of the last window searched from scratch (0: none yet)
+        self._tied = False  # that search's places tied (validation margin under MIN_STRUCTURE_MARGIN)
+        self._span_due = 0  # samples of the window the refit in hand fits
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -611,8 +665,11 @@ class WindowRefit:
             job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
                    self._load, self._stop)  # fmt: skip
         else:
+            # a second look: a window this much longer than the last search's (none after a given start)
+            look = 0 < self._looked and size - lo >= LOOK_AGAIN * self._looked and self._look_ends(n, size - lo)
             work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load,
-                                       self._stop)  # fmt: skip
+                                       look, self._tied, self._stop)  # fmt: skip
+        self._span_due = size - lo
         if self._pool is None:
             self._store(work, job, t_s)
         else:
@@ -627,14 +684,28 @@ class WindowRefit:
         warm = [r for r in self._history if not r.searched] or self._history  # a search predicts no warm refit
         return max(r.seconds for r in warm[-PREDICT_ROWS:]) > left_s + self._grace
 
+    def _look_ends(self, n: int, span: int) -> bool:
+        """Whether a second look at the ``n``-th sample, on ``span`` samples, ends before the stream (the ``late``
+        rule for a search: the longest search's wall time so far, scaled to ``span`` from the last search's length;
+        always on a virtual clock or with no end known). No ``grace_s``: a look is optional, and one that runs past
+        the end costs the verdict the warm refit it replaced."""
+        if self._pool is None or self._wait or not self._end:
+            return True
+        left_s = (self._end - self._slow - n) * self.config.sample_period_s
+        cost = max((r.seconds for r in self._history if r.searched), default=0.0) * span / self._looked
+        return cost <= left_s
+
     def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
         """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
-        so far); None without one, with too few samples, or when its search put the play inside the loop."""
+        so far); None without one, with too few samples, when its search put the play inside the loop, or when
+        the last window's last search from scratch tied (the place not named: the refinement's step-4 rule)."""
         from servoid.ident.models.structure_names import PLAY_IN_LOOP
         from servoid.ident.offline.loop_fit import MIN_SAMPLES
 
         if self._search is not None and self._search.choice.structure == PLAY_IN_LOOP:
             return None  # the slow phase's search did not confirm the place
+        if self._tied:
+            return None  # the last window did not name the place: the slow phase does not size it
         keep = np.array(self._slow_keep, dtype=np.bool_)
         if int(keep.sum()) < MIN_SAMPLES:
             return None
@@ -658,6 +729,10 @@ class WindowRefit:
         self._search = search if search is not None else self._search
         self._slow_model = model if row.part == SLOW else self._slow_model
         self._fast = model if fast is None else fast
+        if math.isfinite(row.margin):  # the last window searched from scratch: its length, whether it named the place
+            from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+
+            self._looked, self._tied = self._span_due, not row.margin >= MIN_STRUCTURE_MARGIN
         self.model = model
         self._held = model if self._held is None else self._held
         self._rival = rival
