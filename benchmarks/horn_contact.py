@@ -4,7 +4,8 @@ Run: ``.venv/bin/python benchmarks/horn_contact.py [--records sts3215:20:1,xm430
 [--chaos sts3215:20:1] [--own sts3215:20:1] [--all]``; a record is ``preset:rate:seed[:gear damping factor]``
 (gentle sines, ``real_servos.py``'s).
 
-An experiment, not a feature (issue 12, hornstage session). The rigid-impact horn of
+The measurement behind :mod:`servoid.ident.offline.horn_contact` (issue 12, hornstage session), with
+its constants; ``identify`` runs the two-stage path only. The rigid-impact horn of
 ``horn_stage.py`` makes the free run chaotic (0.1 % of play moves it 0.26 counts rms); the
 model's compliant contact (:func:`~servoid.ident.models.servo_loop._advance_contact`, on its own
 sub-step) does not (``--chaos``: 0.016 counts at the twins' contact, 775 rad/s and a damping
@@ -46,19 +47,10 @@ from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline import loop_fit as lf
+from servoid.ident.offline.horn_contact import AL_START, HORN, MU, NFEV, WC_START, ZETA_START
 
-#: The horn's inertia ratio, held (the twins' horns on their bench load: 0.026-0.04).
-MU = 0.03
-#: The contact's start: natural frequency on the horn's inertia (rad/s), damping ratio.
-WC_START, ZETA_START = 500.0, 0.2
-#: The horn's friction's start, times the massless Coulomb level.
-AL_START = 2.0
-#: Each least squares' budget (function evaluations; the fit's own candidates: 40).
-NFEV = 60
 #: The model's own simulation: the horn (inertia ratio, friction rad/s^2) and its contact (rad/s, damping ratio).
 OWN_HORN, OWN_CONTACT = (0.026, 20.0), (775.0, 0.078)
-#: The horn's parameters fitted besides the loop and the play.
-HORN = ("al", "wc", "zeta")
 
 
 def _record(spec: str) -> dict[str, object]:
