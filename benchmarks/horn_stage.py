@@ -148,9 +148,31 @@ def horn_search(
     return d, free_run_nrmse(yc[~est], simulate(d)[~est]), sims
 
 
+def read_by_encoder(clean: np.ndarray, seed: int) -> np.ndarray:
+    """A simulated output read as the twins read it: :data:`~real_servos.NOISE_COUNTS` of noise, 4096 counts."""
+    q = 2.0 * np.pi / 4096
+    return np.round((clean + np.random.default_rng(seed).normal(0.0, NOISE_COUNTS * q, clean.size)) / q) * q
+
+
+def clean_and_read(clean: np.ndarray, seed: int) -> tuple[tuple[str, np.ndarray], ...]:
+    """The model's own simulation noise-free and read by the twins' encoder (:func:`read_by_encoder`), labelled."""
+    return ("noise-free", clean), ("4096 counts, 0.3 count noise", read_by_encoder(clean, seed))
+
+
 def _horn_truth(start: ServoLoopModel, play: float) -> ServoLoopModel:
     mu, e, al = TWIN_HORN
     return replace(start, mu=mu, e=e, al=al, c1=play / 2, c2=play / 2)
+
+
+def moved_by(model: ServoLoopModel, name: str, uc: np.ndarray, y0: np.ndarray) -> tuple[float, float]:
+    """The free run's change (rms, peak; the unit of ``y0``) when ``name`` (``play``: both flanks) grows by 0.1 %."""
+    changed = (
+        replace(model, c1=1.001 * model.c1, c2=1.001 * model.c2)
+        if name == "play"
+        else replace(model, **{name: 1.001 * getattr(model, name)})
+    )
+    r = changed.simulate(uc, y0=0.0) - y0
+    return float(np.sqrt(np.mean(r**2))), float(np.max(np.abs(r)))
 
 
 def chaos(spec: str) -> None:
@@ -168,13 +190,8 @@ def chaos(spec: str) -> None:
     ):
         y0 = model.simulate(uc, y0=0.0)
         for pname in ("play", "e", "al") if model.massive else ("play", "fc"):
-            changed = (
-                replace(model, c1=1.001 * model.c1, c2=1.001 * model.c2)
-                if pname == "play"
-                else replace(model, **{pname: 1.001 * getattr(model, pname)})
-            )
-            r = changed.simulate(uc, y0=0.0) - y0
-            rows.append([label, pname, f"{np.sqrt(np.mean(r**2)) / q:.3f}", f"{np.max(np.abs(r)) / q:.2f}"])
+            rms, peak = moved_by(model, pname, uc, y0)
+            rows.append([label, pname, f"{rms / q:.3f}", f"{peak / q:.2f}"])
     table(
         f"The free run's sensitivity ({name} {mult}x s{seed} massless loop, the twin's play): one parameter x 1.001",
         ["load", "parameter", "counts rms", "counts peak"],
@@ -190,19 +207,13 @@ def own(spec: str) -> None:
     start, *_ = massless(u, np.asarray(rec["y"]), period)
     truth = _horn_truth(start, play)
     uc = u - float(np.mean(u))
-    q = 2.0 * np.pi / 4096
-    clean = truth.simulate(uc, y0=0.0)
     rows = []
-    for noisy in (False, True):
-        y = clean
-        if noisy:
-            y = clean + np.random.default_rng(int(seed)).normal(0.0, NOISE_COUNTS * q, uc.size)
-            y = np.round(y / q) * q
+    for label, y in clean_and_read(truth.simulate(uc, y0=0.0), int(seed)):
         started = time.perf_counter()
         cand, integrator, val0 = massless(uc, y, period)
         d, val1, sims = horn_search(uc, y, period, cand, integrator)
         rows.append([
-            "4096 counts, 0.3 count noise" if noisy else "noise-free", f"{100 * (cand.play / play - 1):+.1f} %",
+            label, f"{100 * (cand.play / play - 1):+.1f} %",
             f"{val0:.3g}", f"{100 * (d['play'] / play - 1):+.1f} %", f"{val1:.3g}", f"{d['e']:.2f}", f"{d['al']:.3g}",
             str(sims), f"{time.perf_counter() - started:.1f}",
         ])  # fmt: skip

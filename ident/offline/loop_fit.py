@@ -127,8 +127,9 @@ DIFF_STEP = 0.03
 #: costs one simulation per free parameter on top).
 CANDIDATE_NFEV = 40
 FINAL_NFEV = 25
-#: Parameters fitted as ``ln(p / p_start)`` (the restitution ``e`` and the asymmetry are fitted as they are).
-_LOG = frozenset({"kp", "kv", "ki", "fc", "fs", "vs", "veps", "play", "mu", "al"})
+#: Parameters fitted as ``ln(p / p_start)`` (the restitution ``e`` and the asymmetry are fitted as they are;
+#: the compliant contact's ``wc``, ``zeta``: only :mod:`.horn_contact` frees them).
+_LOG = frozenset({"kp", "kv", "ki", "fc", "fs", "vs", "veps", "play", "mu", "al", "wc", "zeta"})
 #: Absolute limits of log-fitted parameters: the load stage's inertia ratio stays a heavy load's
 #: (:data:`~servoid.ident.offline.load_stage.MU_LIMITS`; towards 0 the load turns into a weightless
 #: one that coasts, which fits a heavy load's record about as well with another play).

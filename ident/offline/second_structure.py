@@ -140,8 +140,10 @@ def second_structure(
         (:data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES`). Whether it or the black box
         answers is :func:`black_box_better`'s.
     """
+    from servoid.ident.offline.horn_contact import with_horn
     from servoid.ident.offline.loop_fit import MIN_SAMPLES, fit_loop
 
     if (np.asarray(u).size if keep is None else int(np.count_nonzero(keep))) < MIN_SAMPLES:
         return None
-    return fit_loop(u, y, sample_period_s, keep=keep, load=None)
+    # where the horn's rebound is named, a light horn on a compliant contact (issue 12)
+    return with_horn(u, y, sample_period_s, fit_loop(u, y, sample_period_s, keep=keep, load=None), keep)
