@@ -928,7 +928,14 @@ def _model(structure: str, period: float, d: dict[str, float]) -> ServoLoopModel
 
 
 def fit_loop(
-    u: Any, y: Any, sample_period_s: float, *, seed: int = 0, keep: Any = None, load: bool | None = False
+    u: Any,
+    y: Any,
+    sample_period_s: float,
+    *,
+    seed: int = 0,
+    keep: Any = None,
+    load: bool | None = False,
+    light_rivals: bool = True,
 ) -> LoopChoice:
     """Fit the servo-loop model with the play outside and inside the loop; choose by validation.
 
@@ -956,6 +963,10 @@ def fit_loop(
         only, :data:`LOAD_FLOOR_RIVALS`); True always, on the massless winner's structure.
         Either starts from that structure's candidate with an integrator. It replaces the massless winner only when it validates :data:`LOAD_MARGIN` better; a kept load whose inertia ratio
         ends on its limit is named in the reasons (not identifiable).
+    light_rivals : bool
+        Where ``load`` is None and the stage does not run, fit the light loads of
+        :data:`LOAD_FLOOR_RIVALS` (they only widen the interval; False: the online windows, which
+        report no interval, save their simulations).
 
     Returns
     -------
@@ -1016,7 +1027,7 @@ def fit_loop(
     # loop: where it coasts, the massless play in the loop can win by a hair), when that is off its floor
     base, base_d = (best, best_d) if load else next((c, d) for c, d in candidates if c.structure == OUTPUT_BACKLASH)
     off_floor = load or (load is None and base.validation_nrmse > LOAD_FIT_TO_FLOOR * floor_nrmse(ys, ks))
-    if off_floor or (load is None and LOAD_FLOOR_RIVALS):
+    if off_floor or (load is None and light_rivals and LOAD_FLOOR_RIVALS):
         base, base_d = _stage_start(candidates, base.structure)
         problem = _stage_problem(us, ys, period, base, base_d, est, a_scale)
     if off_floor:
@@ -1030,7 +1041,7 @@ def fit_loop(
             candidates.insert(0, (heavy, heavy_d))
             per_structure[best.structure] = load_val
             margin = place_margin(per_structure, best.structure)
-    elif load is None and LOAD_FLOOR_RIVALS:
+    elif load is None and light_rivals and LOAD_FLOOR_RIVALS:
         # at its floor the massless fit may hide a bouncing load behind less play: such loads are the play's rivals
         fit, simulate, start = problem
         rivals, used = floor_rivals(ys, start, fit, simulate, est, val)

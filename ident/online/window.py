@@ -394,7 +394,7 @@ def _refit(
         # warm refits leave them out), from the first measured one
         idx = np.flatnonzero(keep)
         filled = np.interp(np.arange(u.size), idx, y[idx])
-        choice = fit_loop(u, filled, config.sample_period_s, load=load)
+        choice = fit_loop(u, filled, config.sample_period_s, load=load, light_rivals=False)
         model, margin = choice.model, float(choice.margin)
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
@@ -461,7 +461,14 @@ def _refit_later(
     margin = math.nan
     if searched:  # the place changed: both places searched afresh on this window
         _check(stop)
-        choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
+        choice = fit_loop(
+            u,
+            np.interp(np.arange(u.size), idx, y[idx]),
+            config.sample_period_s,
+            keep=keep,
+            load=load,
+            light_rivals=False,
+        )
         won, q, margin = choice.model, choice.fit_nrmse, float(choice.margin)
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     floor = floor_nrmse(y[score])
@@ -470,7 +477,14 @@ def _refit_later(
         # a second look: the last search tied, or the warm refits stay in the basin a shorter window's search found;
         # searched afresh, the search's answer refitted as the warm ones were, the better fit of the window stays
         _check(stop)
-        choice = fit_loop(u, np.interp(np.arange(u.size), idx, y[idx]), config.sample_period_s, keep=keep, load=load)
+        choice = fit_loop(
+            u,
+            np.interp(np.arange(u.size), idx, y[idx]),
+            config.sample_period_s,
+            keep=keep,
+            load=load,
+            light_rivals=False,
+        )
         _check(stop)
         again = refit_loop(u, y, choice.model, score=score, max_nfev=config.max_nfev)
         searched, margin = True, float(choice.margin)
@@ -482,7 +496,7 @@ def _refit_later(
         _check(stop)
         su, sy, sk, offset, held = slow
         if held is None:
-            choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)
+            choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)  # the answer may reuse its interval
             search, searched = SlowSearch(choice, offset, int(su.size)), True
             if choice.structure != PLAY_IN_LOOP:
                 model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
