@@ -84,7 +84,8 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: Short names of the verdict's rules, for the table.
 RULES = (("worse than predicting the mean", "mean"), ("zero or not finite", "play<=0"), ("reversals of the output", "reversals"), ("no 95 %", "no-interval"),
          ("structure undetermined", "margin"), ("times the floor", "fit"), ("interval", "interval"),
-         ("sampled too slowly", "dead-time"), ("stall band", "stall"), ("not white", "not-white"), ("load model", "load"), ("rebounds off the flank", "rebound"))  # fmt: skip
+         ("sampled too slowly", "dead-time"), ("stall band", "stall"), ("not white", "not-white"), ("load model", "load"), ("rebounds off the flank", "rebound"),
+         ("place test alone", "z-only"))  # fmt: skip
 
 
 def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
