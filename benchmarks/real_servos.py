@@ -37,7 +37,7 @@ gap within the issue's target) or wrong; identifiable and wrong must be 0.
 Columns: the structure and the form that gave the answer, whether the place
 of the play is named or said to be undetermined, the gap error
 against the twin's true play, the fit against the floor the record's
-resolution and noise leave (``q sqrt(1/12 + 0.3^2) / std(y)``, from the
+resolution and noise leave (``q sqrt(1/12 + s^2) / std(y)``, s the noise in counts, 0.3, from the
 twin's truth, not the estimate; the fit is the answering model's), the 95 % interval relative to the truth
 ("none (fit)": withheld because the fit is too far above the floor estimated from the record)
 and whether it covers it, the verdict and why, and the time. Printed as they
@@ -84,7 +84,8 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 #: Short names of the verdict's rules, for the table.
 RULES = (("worse than predicting the mean", "mean"), ("zero or not finite", "play<=0"), ("reversals of the output", "reversals"), ("no 95 %", "no-interval"),
          ("structure undetermined", "margin"), ("times the floor", "fit"), ("interval", "interval"),
-         ("sampled too slowly", "dead-time"), ("stall band", "stall"), ("not white", "not-white"), ("load model", "load"), ("rebounds off the flank", "rebound"))  # fmt: skip
+         ("sampled too slowly", "dead-time"), ("stall band", "stall"), ("not white", "not-white"), ("load model", "load"), ("rebounds off the flank", "rebound"),
+         ("place test alone", "z-only"))  # fmt: skip
 
 
 def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
@@ -119,9 +120,10 @@ def twin_record(
     rec = twin.sample(u, 1.0 / rate)
     q = twin.truth.output_rad_per_count
     y = np.asarray(rec.y, dtype=np.float64)
+    noise = float(over["encoder_noise_counts"])  # type: ignore[arg-type]
     return {
         "u": np.asarray(rec.u, dtype=np.float64), "y": y, "period": 1.0 / rate, "play": twin.truth.play_rad,
-        "floor": q * np.sqrt(1.0 / 12.0 + NOISE_COUNTS**2) / float(np.std(y)),
+        "floor": q * np.sqrt(1.0 / 12.0 + noise**2) / float(np.std(y)),
         "structure": PLAY_IN_LOOP if twin.truth.loop_encoder == "load" else OUTPUT_BACKLASH,
     }  # fmt: skip
 
