@@ -85,7 +85,7 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 RULES = (("worse than predicting the mean", "mean"), ("zero or not finite", "play<=0"), ("reversals of the output", "reversals"), ("no 95 %", "no-interval"),
          ("structure undetermined", "margin"), ("times the floor", "fit"), ("interval", "interval"),
          ("sampled too slowly", "dead-time"), ("stall band", "stall"), ("not white", "not-white"), ("load model", "load"), ("rebounds off the flank", "rebound"),
-         ("place test alone", "z-only"))  # fmt: skip
+         ("place test alone", "z-only"), ("compliant gear contact", "horn"))  # fmt: skip
 
 
 def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
