@@ -55,7 +55,13 @@ def test_the_pair_kernel_gives_each_simulation_to_the_bit(structure: str) -> Non
     # two massive loads: their impacts and contacts side by side
     pairs.append((others[2], _model(structure, mu=0.4, e=0.0, al=8.0, ki=0.0, c2=0.005)))
     # a load on a compliant contact (its own sub-steps) beside a rigid one: one after the other
-    pairs.append((others[2], _model(structure, mu=0.4, al=8.0, wc=900.0, zeta=0.1)))
+    compliant = _model(structure, mu=0.4, al=8.0, wc=900.0, zeta=0.1)
+    pairs.append((others[2], compliant))
+    # two compliant contacts side by side, each with its own sub-steps (more on either side), with and without
+    # an integrator and a speed limit; one beside a massless load: one after the other
+    pairs.append((compliant, _model(structure, mu=0.4, al=8.0, wc=1500.0, zeta=0.3, ki=0.0, vmax=0.4)))
+    pairs.append((_model(structure, mu=0.03, al=3.0, wc=700.0, zeta=0.05, c2=0.005), compliant))
+    pairs.append((first, compliant))
     for a, b in pairs:
         alone = [np.empty(650), np.empty(650)]
         for model, out in zip((a, b), alone, strict=True):
