@@ -458,10 +458,11 @@ def _refit_later(
     other = next((f.model for f in fits if f is not best), None)
     searched = best is not fits[0]
     idx = np.flatnonzero(keep)
-    margin = math.nan
-    if searched:  # the place changed: both places searched afresh on this window
+
+    def afresh() -> Any:
+        """Both places searched from scratch on this window (lost readings bridged; no interval is reported)."""
         _check(stop)
-        choice = fit_loop(
+        return fit_loop(
             u,
             np.interp(np.arange(u.size), idx, y[idx]),
             config.sample_period_s,
@@ -469,6 +470,10 @@ def _refit_later(
             load=load,
             light_rivals=False,
         )
+
+    margin = math.nan
+    if searched:  # the place changed: both places searched afresh on this window
+        choice = afresh()
         won, q, margin = choice.model, choice.fit_nrmse, float(choice.margin)
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     floor = floor_nrmse(y[score])
@@ -476,15 +481,7 @@ def _refit_later(
     if look and not searched and (tied or not (scores_slow or q <= MAX_FIT_TO_FLOOR * floor)):
         # a second look: the last search tied, or the warm refits stay in the basin a shorter window's search found;
         # searched afresh, the search's answer refitted as the warm ones were, the better fit of the window stays
-        _check(stop)
-        choice = fit_loop(
-            u,
-            np.interp(np.arange(u.size), idx, y[idx]),
-            config.sample_period_s,
-            keep=keep,
-            load=load,
-            light_rivals=False,
-        )
+        choice = afresh()
         _check(stop)
         again = refit_loop(u, y, choice.model, score=score, max_nfev=config.max_nfev)
         searched, margin = True, float(choice.margin)
