@@ -7,7 +7,7 @@ What ``servoid monitor`` runs for a model whose play sits in the loop, the
 same object: :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`
 (here with ``background=False``: each refit inside the feed, as on a virtual
 clock), started from the model file's loop (here: ``servoid identify --data`` on a
-recording of 20 s of the unworn twin, its ``model.json`` read back as ``servoid
+recording of 20 s (``--reference-s``) of the unworn twin, its ``model.json`` read back as ``servoid
 monitor`` reads it: the loop, the play's interval, the identifiable flag; one
 file per preset, from the tracking run's twin, used by all three runs, as a user
 identifies once and monitors many times), fed every sample at the host's default
@@ -59,6 +59,11 @@ play outside the loop on the XM430: the window plays wander with the
 sines' segments by -13 ... +28 %, one false alarm in 10^5 samples), so the
 table is measured with both files, and the default stays the recording for
 comparison with the tables before it (docs/monitor.md).
+
+``--reference-s``: the length of that recording (default 20 s; servoid's own designs record 40 s). On the
+horn servos it decides the file: identification's horn stage is kept on both lengths on the STS3215 and
+sizes its play -23.4 % on 20 s, -1.6 % on 40 s (``benchmarks/horn_live.py``: the stage needs about 40 s
+of sines; docs/online.md, "The horn stage on live records").
 
 ``--input``: the monitoring input after the first fit (the first 10 s, the
 whole loop's refit, stay the identification's gentle sines, whose segments of
@@ -152,11 +157,11 @@ def _live_file(name: str, seed: int) -> ModelFile:
         return load_model(Path(tmp) / "run" / "model.json")
 
 
-def _model_file(name: str, seed: int) -> ModelFile:
-    """What ``servoid identify --data`` writes for :data:`REFERENCE_S` of the unworn twin (the run's first part)."""
+def _model_file(name: str, seed: int, reference_s: float = REFERENCE_S) -> ModelFile:
+    """What ``servoid identify --data`` writes for ``reference_s`` of the unworn twin (the run's first part)."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
-    n_ref = int(REFERENCE_S * RATE)
+    n_ref = int(reference_s * RATE)
     ref = twin.sample(_excitation(name, n_ref, seed), 1.0 / RATE)
     with tempfile.TemporaryDirectory() as tmp:
         data = write_recording(Path(tmp) / "reference.csv", {"t": np.arange(n_ref) / RATE, "u": ref.u, "y": ref.y},
@@ -171,12 +176,13 @@ def _model_file(name: str, seed: int) -> ModelFile:
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
-         share: float = SINE_ACCEL_SHARE, count_switch: bool = False):  # fmt: skip
-    """The twin's reference part, then ``seconds`` of monitoring from ``file`` with the play at ``factor(t)`` times the new one."""
+         share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S):  # fmt: skip
+    """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
+    ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
     twin.enable()
     play0 = twin.truth.play_rad
-    n_ref = int(REFERENCE_S * RATE)
+    n_ref = int(reference_s * RATE)
     n = int(seconds * RATE)
     u = _excitation(name, n_ref + n, seed)
     steady_s = 0.0
@@ -228,6 +234,12 @@ def main() -> None:
         help="the model file: identify --data on 20 s of the unworn twin (default), or identify --driver (probe, 60 s)",
     )
     parser.add_argument(
+        "--reference-s",
+        type=float,
+        default=REFERENCE_S,
+        help=f"servo s of the unworn twin the data file is identified on (default {REFERENCE_S:g}; 40: servoid's designs)",
+    )
+    parser.add_argument(
         "--fresh",
         action="store_true",
         help="the first fit searches both places of the play from scratch (not the file's loop)",
@@ -261,10 +273,10 @@ def main() -> None:
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
-            "share": args.accel_share, "count_switch": args.count_switch}  # fmt: skip
+            "share": args.accel_share, "count_switch": args.count_switch, "reference_s": args.reference_s}  # fmt: skip
     for name in args.presets:
         started = time.perf_counter()
-        file = _live_file(name, 1) if args.file == "live" else _model_file(name, 1)
+        file = _live_file(name, 1) if args.file == "live" else _model_file(name, 1, args.reference_s)
         model, tracker, tr, t, at, play0 = _run(
             name,
             args.track,
