@@ -10,8 +10,8 @@ damping, losses), the load (inertia, friction), the motor's friction (its break-
 of it), the drive (its velocity estimate: filter or encoder PLL; its current loop; its loop
 rate; the loop encoder's resolution) and the output encoder (``--fine`` reads every record with
 a 2**20-count output encoder and no noise, so that the model's own error shows above the floor).
-``--noise-seeds`` draws the encoders' noise from each of those seeds on every record (the same
-excitation): the spread of the answers over them is what the record's resolution and noise
+``--duration-s`` runs each record longer (or shorter) than the table's 40 s. ``--noise-seeds``
+draws the encoders' noise from each of those seeds on every record (the same excitation): the spread of the answers over them is what the record's resolution and noise
 alone leave, which no model can remove. The last table gives each effect's play errors over the records and their mean and mean
 absolute value: an effect that carries the error moves all records towards 0, not one.
 The twins' physics and presets are not changed (only this run's copies, through the preset's
@@ -24,6 +24,7 @@ import argparse
 import time
 
 import numpy as np
+import real_servos
 from _table import table
 from real_servos import run, twin_record
 
@@ -77,7 +78,16 @@ def main() -> None:
         default="",
         help="comma-separated seeds of the encoders' noise, each on every record (default: the record's seed)",
     )
+    parser.add_argument(
+        "--duration-s",
+        type=float,
+        default=real_servos.DURATION_S,
+        help="the record's length, s (default: the table's; the table's sample cap scaled with it)",
+    )
     args = parser.parse_args()
+    # a longer record: the table's excitation run on for longer, its sample cap scaled alike
+    real_servos.MAX_SAMPLES = round(real_servos.MAX_SAMPLES * args.duration_s / real_servos.DURATION_S)
+    real_servos.DURATION_S = args.duration_s
     noise_seeds: list[int | None] = [int(s) for s in args.noise_seeds.split(",") if s.strip()] or [None]
     fine: dict[str, object] = {"load_encoder_cpr": 2**20, "encoder_noise_counts": 0.0} if args.fine else {}
     rows: list[list[str]] = []
