@@ -26,8 +26,8 @@ without time, when the black box is off its floor), on:
 
 A second table gives the servo-loop model's own answer on each twin record
 (:func:`servoid.ident.offline.loop_fit.fit_loop`: the place of the play it
-chose, the validation margin between the two places, the Diebold-Mariano
-statistic of its place against the other (positive: the winner's place
+chose, the validation margin between the two places, the place
+statistic of its place against the other on the catch-ups after the reversals (positive: the winner's place
 better; :mod:`servoid.ident.offline.place_test`), its gap, fit, interval,
 the play's dead time at a reversal in samples, the simulations and seconds it
 took), whether or not identify kept it. Last, the verdict's calibration: the

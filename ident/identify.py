@@ -770,9 +770,10 @@ def _both_places_hold(loop: LoopResult | None, evidence: Evidence | None) -> tup
     play outside the loop with a Stribeck hump and an integrator won by 6.4 % at 1.09 times the floor,
     with +121 % of play and a 95 % interval [2.03, 2.39] times the truth, "identifiable"; the play in
     the loop, 1.16 times the floor, had +7.5 %. Unless the winner has the play in the loop and its
-    validation errors beat the motor side's by :data:`PLACE_Z` or more in the Diebold-Mariano statistic
-    (``loop.place_z``): a small margin that holds throughout the record, not in one stretch (the XM430
-    twin's sines: margins of 1.3-7.4 % at statistics of +2.4 ... +6.9 on five of six records). Whatever the
+    validation errors beat the motor side's by :data:`PLACE_Z` or more in the place statistic on the catch-ups
+    after the reversals (``loop.place_z``, :func:`~servoid.ident.offline.place_test.reversal_z`): a small margin
+    that holds at every reversal, not in one stretch (the XM430 twin's sines: margins of 2.3-6.0 % at statistics of
+    +1.1 ... +6.6, 10/20/50x seeds 1-2). Whatever the
     margin and the statistic, the place is also undetermined where an answer that fails the fit rule is further
     off its floor than the runner-up is behind it, in mean squares (:func:`_unmodelled_exceeds_lead`).
     """

@@ -80,9 +80,15 @@ MAX_FIT_TO_FLOOR = 1.2
 MAX_FIT_FOR_INTERVAL = MAX_FIT_TO_FLOOR
 #: The smallest relative validation margin between the two places of the play that names a structure.
 MIN_STRUCTURE_MARGIN = 0.05
-#: The Diebold-Mariano statistic (:func:`~servoid.ident.offline.place_test.place_z`) at or above which a
+#: The place statistic (``LoopChoice.place_z``: :func:`~servoid.ident.offline.place_test.reversal_z`, the two places'
+#: validation errors on the catch-ups after the reversals; before the issue 12 xmname session the Diebold-Mariano
+#: statistic of the whole validation record, :func:`~servoid.ident.offline.place_test.place_z`) at or above which a
 #: play-in-loop answer's record rejects the motor side whatever its margin (``Evidence.place_z``): the 99 %
-#: one-sided normal quantile. On the twins' gentle sines (10/20/50x, seeds 1-2) the XM430 (play in the loop)
+#: one-sided normal quantile. On the catch-ups the play-in-loop winners that were wrong in the variant sweep score
+#: -1.0 ... +1.6 (CiA 402, 20x, seeds 3-4, six records; 50x: no noise s4 -0.35, position gain x2 s4 -1.32,
+#: friction x0.3 s3 -2.24), under the whole record's +2.47 / +2.77 of two of them; the XM430's (10/20/50x, seeds
+#: 1-6, margins under 5 %) +0.6 ... +6.6. One wrong winner still passes, the CiA 402 with friction x4 at 50x s3
+#: (+248 %, fit 1.13 times the floor): +3.25, the whole record +3.22. On the twins' gentle sines (10/20/50x, seeds 1-2) the XM430 (play in the loop)
 #: wins by 1.3-7.4 % at +0.9 ... +6.9 (issue 12 horn search session). A motor-side answer's own statistic
 #: does not place the play (README, issue 12 DM session): the CiA 402's right ones score +1.4 ... +4.8, the horn
 #: twins' wrong ones (held steps, friction x4) +2.6 ... +5.5, so the rule reads play-in-loop answers only; the
@@ -531,8 +537,8 @@ class Evidence:
     interval_note : str, optional
         Why the interval was withheld (:func:`interval_withheld`); None when it was not.
     place_z : float, optional
-        For a play-in-loop answer: the Diebold-Mariano statistic of its validation errors against the
-        motor side's (:func:`~servoid.ident.offline.place_test.place_z`); None: not tested.
+        For a play-in-loop answer: the place statistic of its validation errors against the motor side's
+        (``LoopChoice.place_z``, :func:`~servoid.ident.offline.place_test.reversal_z`); None: not tested.
     readings : {"output", "motor"}
         Which shaft the record's positions are of (:mod:`servoid.readings_side`; the driver says it).
     structure : {"output_backlash", "play_in_loop"}

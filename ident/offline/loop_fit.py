@@ -103,7 +103,7 @@ from servoid.ident.offline.intervals import (
     reversal_indices,
 )
 from servoid.ident.offline.load_stage import MU_LIMITS, Fit, Simulate, floor_rivals, load_stage
-from servoid.ident.offline.place_test import place_z
+from servoid.ident.offline.place_test import catch_up_groups, reversal_z
 
 __all__ = [
     "LoopChoice",
@@ -331,9 +331,9 @@ class LoopChoice:
     load_candidate : LoopCandidate or None
         The load stage's fit (estimation blocks), kept or not; None when it did not run.
     place_z : float
-        The Diebold-Mariano statistic of the winner's validation errors against the best candidate's of
-        the other place (:func:`~servoid.ident.offline.place_test.place_z`; positive: the winner's place
-        predicts the record better throughout, not by chance); NaN when it was not computed.
+        The winner's validation errors against the best candidate's of the other place on the catch-ups
+        after the reversals, one loop time constant ``1 / kp`` each (:func:`~servoid.ident.offline.place_test.reversal_z`;
+        positive: the winner's place predicts them better, not by chance); NaN when it was not computed.
     """
 
     structure: str
@@ -1049,7 +1049,10 @@ def fit_loop(
 
     # how surely the record prefers the winner's place: its validation errors against the other place's best
     rival = min((c for c, _ in candidates if c.structure != best.structure), key=lambda c: c.validation_nrmse)
-    z = place_z(*(m.simulate(us, y0=float(ys[0]))[val] - ys[val] for m in (best.model, rival.model)))
+    y_best, y_rival = (m.simulate(us, y0=float(ys[0])) for m in (best.model, rival.model))
+    # on the catch-ups after the reversals, one loop time constant (1 / kp) each: where the places differ
+    span = math.ceil(1.0 / (best.model.kp * period)) if best.model.kp > 0.0 else 0
+    z = reversal_z(y_best - ys, y_rival - ys, catch_up_groups(y_best, best.model.play, span, val))
     evaluations += 2
 
     # the final refit of the winner on every sample
