@@ -904,8 +904,7 @@ class WindowRefit:
             self._due(n)
             self._pool = pool
         elif final and n >= self._first and (stale or self._look_pending(n)) and self._abandoned == abandoned:
-            # (a look the early search has not ended for: the caller waits for that search next anyway)
-            if self._early is not None and self._shared(n) is not None:
+            if self._early is not None and self._look_pending(n):  # (the caller waits for that search next anyway)
                 self._early.result(wait=True)
             self._end = 0  # the end's own refit: not late by definition
             self._due(n)
