@@ -33,7 +33,9 @@ are, one row per run:
   started because the last refits' wall time said they could not end before
   the run (real clock), and the servo seconds between the last refit's window
   and the run's end (the estimate's age: a refit running at the end is not
-  waited for on a real clock);
+  waited for on a real clock); ``refits (searched)``: the window refits that ended, and how many
+  of them searched from scratch (the first window, a changed place, the slow phase's first look, a
+  second look);
 * ``answer``: the play identify reported (``answer`` in its JSON): ``search`` the offline
   servo-loop search on the whole live record, ``online`` the online window estimate when it
   validated better than that search as one more candidate, ``offline`` identification's own
@@ -125,7 +127,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out, seed)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 12, f"{wall:.0f}", "-", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", outcome(error)]
     verdict = result["online"]
     online_gap = verdict["online_gap"] / scale
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
@@ -155,6 +157,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
         f"{said} {answer_play:.5f} ({(answer_play - play) / play:+.0%}, {_identified(result)})",
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}"
         f"/{window.get('late', 0)}/{float('nan') if age is None else age:.1f}",
+        f"{len(costs)} ({sum(bool(r.get('searched')) for r in window['history'])})",
         f"{wall:.0f}", _stages(result), why,
     ]  # fmt: skip
 
@@ -211,10 +214,13 @@ def main() -> None:
         f"servoid identify --driver URL{'' if args.samples is None else f' --samples {args.samples}'} (probe, design, "
         "decimated MRGIA, verdict)",
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
-         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s", "wall s",
+         "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s",
+         "refits (searched)", "wall s",
          "stages s (probe/run/last/early/answer/identify)", "verdict"],
         rows,
     )  # fmt: skip
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"machine load (1 min) at the end: {load:.2f}", file=sys.stderr)
 
 
 if __name__ == "__main__":

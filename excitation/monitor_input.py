@@ -6,7 +6,9 @@ bias, and the bias depends on the segment of gentle sines the window sees
 (slow, large, small). One segment kind holds it still, and the baseline takes
 it out: after the first fit, one steady sine at the identification's largest
 amplitude and :data:`SINE_ACCEL_SHARE` of its highest peak acceleration
-(``benchmarks/monitor_loop.py``, docs/monitor.md "steady sine"). Why not the
+(``benchmarks/monitor_loop.py``, docs/monitor.md "steady sine"), and, for a
+play outside the loop, at most the acceleration of the design's slow phase,
+where the file's play was sized (:func:`coast_accel`). Why not the
 highest: the held loop's load is massless, and a set point that reverses at
 the top of the identification's range lets a horn coast across part of the
 play, so the window plays follow the play less than it grows: on the XM430
@@ -31,7 +33,7 @@ from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "monitor_spec", "monitor_stream"]
+__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "monitor_spec", "monitor_stream"]
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
@@ -47,7 +49,7 @@ MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25, 1.0), SINE: (1.0, 1.0, 1.0, SINE_ACCEL
 
 
 def monitor_spec(
-    kind: str, amplitude: float, accel: float, *, offset: float = 0.0, rate: float = math.inf
+    kind: str, amplitude: float, accel: float, *, offset: float = 0.0, rate: float = math.inf, coast: float = math.inf
 ) -> GentleSpec:
     """The gentle-sines spec of one monitoring input (:data:`MONITOR_INPUTS`).
 
@@ -64,24 +66,70 @@ def monitor_spec(
         The centre, unit of ``u``.
     rate : float
         The servo's largest step per sample (the rate limit), unit of ``u``.
+    coast : float
+        The steady sine's highest peak acceleration, unit of ``u`` per sample squared: above it the
+        load coasts across the play (:func:`coast_accel`). Where it is below the sine's own, the sine
+        keeps its frequency (its reversals a second, what a window counts) and its amplitude shrinks
+        in proportion.
 
     Returns
     -------
     GentleSpec
     """
     scale, spread, smallest, share = MONITOR_INPUTS[kind]
-    return GentleSpec(amplitude=scale * amplitude, accel=share * accel, spread=spread, smallest=smallest,
-                      offset=offset, rate=rate)  # fmt: skip
+    amp, peak = scale * amplitude, share * accel
+    if kind == SINE and coast < peak:  # the same reversals a second, a smaller amplitude: the load does not coast
+        amp, peak = amp * coast / peak, coast
+    return GentleSpec(amplitude=amp, accel=peak, spread=spread, smallest=smallest, offset=offset, rate=rate)
+
+
+def coast_accel(structure: str, slow_accel: float) -> float:
+    """The steady sine's highest peak acceleration from the model file: the slow phase's where the play is outside the loop.
+
+    A play outside the loop (the loop reads the motor; the CiA 402 and ODrive twins) is sized by
+    live identification on the design's slow phase, whose decelerations stay below the load's
+    friction's (``probe_design.SLOW_SHARE``): the fast phase, and a steady sine at half its
+    acceleration, let the load coast across part of the play at each reversal, and the window plays
+    then follow the play by less than it grows (the CiA 402 twin's live file: +11 % of a +20 % step,
+    no alarm in 20 s; at the slow phase's acceleration +15 %, the alarm 1.25 s after it; docs/monitor.md).
+    The load's friction is not measured (the probe cannot; the file's load model put the CiA 402's
+    at 112 rad/s^2, the twin's is 10), so the slow phase's acceleration, where the file's play was
+    measured, is the bound. A play inside the loop reads the load and keeps :data:`SINE_ACCEL_SHARE`.
+
+    Parameters
+    ----------
+    structure : str
+        Where the model file's play sits (``play_in_loop`` or ``output_backlash``).
+    slow_accel : float
+        The design's slow phase's highest peak acceleration, in any unit (0 or NaN: none).
+
+    Returns
+    -------
+    float
+        ``slow_accel``, or ``inf`` (no bound) for a play inside the loop or without a slow phase.
+    """
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+    if structure == PLAY_IN_LOOP or not (math.isfinite(slow_accel) and slow_accel > 0.0):
+        return math.inf
+    return float(slow_accel)
 
 
 def monitor_stream(
-    amplitude: float, accel: float, first: int, *, seed: int, offset: float = 0.0, rate: float = math.inf
+    amplitude: float,
+    accel: float,
+    first: int,
+    *,
+    seed: int,
+    offset: float = 0.0,
+    rate: float = math.inf,
+    coast: float = math.inf,
 ) -> Iterator[float]:
     """The monitor's endless input: ``first`` samples of the identification's sines, then the steady sine.
 
     Parameters
     ----------
-    amplitude, accel, offset, rate : float
+    amplitude, accel, offset, rate, coast : float
         As :func:`monitor_spec`.
     first : int
         Samples of the identification's sines at least (the first fit's, ``FIRST_FIT_S`` at the session's
@@ -97,4 +145,5 @@ def monitor_stream(
     """
     ident = monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate)
     head = stream(ident, seed=seed, n=segment_end(ident, seed, first))
-    return itertools.chain(head, stream(monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate), seed=seed))
+    steady = monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate, coast=coast)
+    return itertools.chain(head, stream(steady, seed=seed))

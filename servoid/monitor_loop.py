@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from servoid.drivers.base import Driver
+from servoid.excitation.monitor_input import coast_accel
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.monitoring.alarms import AlarmEvent, Bound
 from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
@@ -65,8 +66,8 @@ LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum
                 "reversals", "refit_s", "alarms")  # fmt: skip
 
 
-def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float] | None:
-    """The identification's largest amplitude and highest peak acceleration, from the model file's design.
+def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float, float] | None:
+    """The identification's largest amplitude and highest peak acceleration, and the steady sine's bound, from the model file's design.
 
     What the monitor's steady sine is built from
     (:func:`~servoid.excitation.monitor_input.monitor_stream`): the ``design`` section that ``servoid
@@ -82,10 +83,11 @@ def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float] 
 
     Returns
     -------
-    (float, float) or None
-        The amplitude (unit of ``u``) and the acceleration in unit of ``u`` per sample squared at
-        ``period_s``; None when the file holds no gentle-sines design (``identify --data``, a design of
-        held steps, ``--no-probe``).
+    (float, float, float) or None
+        The amplitude (unit of ``u``), the acceleration and the steady sine's highest
+        (:func:`~servoid.excitation.monitor_input.coast_accel`: the slow phase's for a play outside the
+        loop, else ``inf``), both in unit of ``u`` per sample squared at ``period_s``; None when the file
+        holds no gentle-sines design (``identify --data``, a design of held steps, ``--no-probe``).
     """
     design = model_file.extra.get("design")
     if not isinstance(design, dict) or design.get("shape") != GENTLE:
@@ -97,7 +99,12 @@ def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float] 
         return None
     if not all(math.isfinite(v) and v > 0.0 for v in (amplitude, accel, rate_hz)):
         return None
-    return amplitude, accel * (rate_hz * period_s) ** 2
+    try:
+        slow = float(design.get("slow_accel", 0.0))
+    except (TypeError, ValueError):
+        slow = 0.0
+    scale = (rate_hz * period_s) ** 2
+    return amplitude, accel * scale, coast_accel(model_file.structure, slow) * scale
 
 
 @dataclass(frozen=True)

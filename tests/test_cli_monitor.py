@@ -174,21 +174,51 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
     assert events[-1]["event"] == "stop" and events[-1]["t"] < 11.0  # stopped at the first refit (10 s)
 
 
-def _designed_loop_file(tmp_path):
+def _designed_loop_file(tmp_path, structure=None, slow_accel=0.0):
     """A servo-loop model file (play in the loop, 100 Hz) with the design ``identify --driver`` writes: gentle
-    sines of +/-0.08 rad at up to 8 rad/s^2, at a live run of 200 Hz (its acceleration per sample^2 there)."""
+    sines of +/-0.08 rad at up to 8 rad/s^2, at a live run of 200 Hz (its acceleration per sample^2 there);
+    ``structure`` another place of the play, ``slow_accel`` its slow phase's acceleration (rad/s^2)."""
     from servoid.ident import BacklashModel
     from servoid.ident.models.servo_loop import ServoLoopModel
     from servoid.ident.models.structure_names import PLAY_IN_LOOP, SERVO_LOOP
 
-    loop = ServoLoopModel(structure=PLAY_IN_LOOP, sample_period_s=0.01, kp=20.0, kv=150.0, c1=0.004, c2=0.003)
+    place = structure or PLAY_IN_LOOP
+    loop = ServoLoopModel(structure=place, sample_period_s=0.01, kp=20.0, kv=150.0, c1=0.004, c2=0.003)
     black_box = BacklashModel(a=(-0.9,), b=(0.1,), delay=1, m2=1.0, c1=0.004, c2=0.003)
     design = {"factor": 4, "shape": "gentle", "hold": 4, "amplitude": 0.08, "accel": 8.0 / 200.0**2,
-              "slow_accel": 0.0, "slow_part": 0.0, "margin": 0.5, "estimator_rate_hz": 50.0, "reasons": {}}  # fmt: skip
+              "slow_accel": slow_accel / 200.0**2, "slow_part": 0.0 if slow_accel == 0.0 else 0.4, "margin": 0.5,
+              "estimator_rate_hz": 50.0, "reasons": {}}  # fmt: skip
     content = ModelFile(model=black_box, output_unit="rad", input_unit="rad", sample_period_s=0.01, band=0.001,
-                        structure=PLAY_IN_LOOP, form=SERVO_LOOP, identifiable=True, play=loop.play,
+                        structure=place, form=SERVO_LOOP, identifiable=True, play=loop.play,
                         loop=loop.params(), extra={"design": design})  # fmt: skip
     return save_model(tmp_path / "loop.json", content)
+
+
+def test_the_steady_sine_of_a_play_outside_the_loop_stays_at_the_slow_phases_acceleration_at_the_same_frequency(
+    tmp_path,
+):
+    # the CiA 402 twin's live file: half the fast phase's acceleration let its load coast (no alarm in 20 s)
+    from servoid.excitation.generate import sample
+    from servoid.excitation.monitor_input import SINE, monitor_spec
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+    from servoid.modelfile import load_model
+    from servoid.monitor_loop import design_sines
+
+    np = pytest.importorskip("numpy")
+    outside = design_sines(load_model(_designed_loop_file(tmp_path, OUTPUT_BACKLASH, 1.5)), 0.01)
+    inside = design_sines(load_model(_designed_loop_file(tmp_path, PLAY_IN_LOOP, 1.5)), 0.01)
+    assert outside is not None and inside is not None
+    assert outside[:2] == pytest.approx((0.08, 8.0e-4)) and outside[2] == pytest.approx(1.5e-4)
+    assert inside[:2] == outside[:2] and inside[2] == float("inf")  # the play read on the load: no bound
+    slow = monitor_spec(SINE, *outside[:2], coast=outside[2])
+    half = monitor_spec(SINE, *inside[:2], coast=inside[2])
+    assert half.accel == pytest.approx(4.0e-4) and half.amplitude == pytest.approx(0.08)
+    assert slow.accel == pytest.approx(1.5e-4) and slow.amplitude == pytest.approx(0.08 * 1.5 / 4.0)
+    u, v = sample(slow, 3000, seed=0), sample(half, 3000, seed=0)
+    accel = np.abs(np.diff(u, 2))  # (but where one segment meets the next)
+    assert np.mean(accel > 1.5e-4 * 1.001) < 0.02 and np.quantile(accel, 0.9) > 0.9 * 1.5e-4
+    assert np.max(np.abs(u)) == pytest.approx(0.03, rel=0.01)
+    assert _reversals(u) == _reversals(v)  # the same reversals a second: what a window counts
 
 
 def _commands(monkeypatch):

@@ -54,19 +54,23 @@ def test_the_search_starts_at_its_sample_on_the_fast_part_so_far_and_is_the_offl
     assert not est.started  # one sample short
     _feed(est, u[slow + at - 1 :], y[slow + at - 1 :], keep[slow + at - 1 :])  # the rest of the run
     assert est.started and est.result(wait=False) is None  # still searching: an interrupted run would not wait
+    assert est.searched(wait=False) is None  # nor does a window's look on a real clock
     gate.set()
-    found = est.result()
-    assert found is not None and est.error is None
+    found = est.searched(wait=True)  # a look on a virtual clock waits for it
+    assert found is not None and est.error is None and est.result() is found
     assert (found.start, found.samples) == (3, at - 3) and searched == [(at - 3, u[slow + 3])]
     again = fit(u[slow + 3 : slow + at], y[slow + 3 : slow + at], 1 / RATE, keep=keep[slow + 3 : slow + at], load=None)
     assert found.choice.play == again.play and found.choice.structure == again.structure
 
 
-def test_a_run_that_ends_before_its_start_or_with_too_few_readings_has_no_search() -> None:
+def test_a_run_that_ends_before_its_start_or_with_too_few_readings_has_no_search(monkeypatch) -> None:
+    from servoid.ident.online import early_search
+
+    monkeypatch.setattr(early_search, "BEGIN_WAIT_S", 0.01)
     u, y = _record(4.0, seed=5)
     short = EarlySearch(1 / RATE, u.size + 1)
     _feed(short, u, y, np.ones(u.size, dtype=bool))
-    assert not short.started and short.result() is None
+    assert not short.started and short.result() is None and short.searched(wait=True) is None
     lost = EarlySearch(1 / RATE, 300)
     _feed(lost, u, y, np.arange(u.size) % 4 == 0)  # 75 usable of 300
     assert not lost.started and lost.result() is None and "usable samples" in (lost.error or "")

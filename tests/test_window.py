@@ -388,6 +388,53 @@ def test_a_window_twice_the_first_search_whose_warm_fit_is_off_its_floor_is_sear
     assert calls == [500] and stuck.model is not None and stuck.model.play > 1.4 * TRUTH.play
 
 
+def test_a_look_on_the_samples_of_the_answers_early_search_takes_its_answer_and_does_not_search_them_again(
+    monkeypatch,
+) -> None:
+    from types import SimpleNamespace
+
+    from servoid.ident.offline import loop_fit
+    from servoid.ident.online.window import SlowSearch
+
+    u, y = _record(15.0, seed=14)  # as the test above: the first search in a wrong basin, its warm refits stuck
+    wrong = dataclasses.replace(TRUTH, kv=150.0, fc=0.6, fs=0.9, c1=0.016, c2=0.016)
+    first = SimpleNamespace(structure=PLAY_IN_LOOP, model=wrong, candidates=[], margin=0.5)
+    head = SlowSearch(loop_fit.fit_loop(u[:1000], y[:1000], 1 / RATE, load=None), 0, 1000)  # the early search
+    searched: list[int] = []
+
+    def fit(u_: np.ndarray, *args, **kwargs):
+        searched.append(u_.size)
+        return first
+
+    monkeypatch.setattr(loop_fit, "fit_loop", fit)
+    config = WindowConfig(1 / RATE, window_s=10.0, every_s=2.5, first_s=5.0, max_nfev=1)
+    for ended_at in (1000, 1250):  # the early search of the first 10 s ended by the look at 10 s, or by 12.5 s
+        seen: list[int] = []
+        box: dict[str, WindowRefit] = {}
+
+        def answer(wait: bool, ended_at=ended_at, seen=seen, box=box) -> SlowSearch | None:
+            seen.append(box["est"]._n)  # the samples taken when the window asks
+            return head if box["est"]._n >= ended_at else None
+
+        early = SimpleNamespace(at=1000, searched=answer)
+        searched.clear()
+        est = box["est"] = WindowRefit(config, background=False, early=early)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        result = est.result()
+        assert searched == [500]  # the first window only: the look took the early search's answer
+        assert seen == list(range(1000, ended_at + 1, 250))  # asked at each window until it had ended, not after
+        looked = [r.searched for r in result.history]
+        assert looked == ([True, False, True, False, False] if ended_at == 1000 else [True, False, False, True, False])
+        assert result.model is not None and abs(result.model.play / TRUTH.play - 1) < 0.05
+    # a search of too few samples for a look (under twice the first window's), or not all come yet: the window searches
+    for at in (750, 1500):
+        searched.clear()
+        early = SimpleNamespace(at=at, searched=lambda wait: head)
+        est = WindowRefit(config, background=False, early=early)
+        _feed(est, u, y, np.zeros(u.size, dtype=bool))
+        assert searched == [500, 1000]
+
+
 def test_a_window_twice_the_first_search_looks_again_where_that_search_did_not_name_the_place(monkeypatch) -> None:
     from types import SimpleNamespace
 
@@ -569,6 +616,54 @@ def test_a_second_look_is_not_started_on_a_real_clock_when_the_searches_so_far_s
     # at 10 s, 5 s of the stream are left; the look's window is twice the first search's: 2 x 2 s fits, 2 x 3 s not
     # (a look is optional: no grace past the end), and on a virtual clock (waiting costs no sample) it always runs
     assert looks == [True, False, True]
+
+
+def test_on_a_real_clock_a_look_the_early_search_had_not_ended_for_is_taken_at_the_streams_end(monkeypatch) -> None:
+    from types import SimpleNamespace
+
+    u, y = _record(12.0, seed=17)
+    config = WindowConfig(1 / RATE, window_s=30.0, every_s=5.0, first_s=5.0)  # windows at 5 (searched) and 10 s
+    head = SimpleNamespace(choice=SimpleNamespace(model=TRUTH, margin=0.3, candidates=[]))  # the early search
+    asked: list[bool] = []
+
+    def first(*job: Any) -> tuple[Any, ...]:  # _refit(...): a first search whose places tied
+        return TRUTH, WindowRow(job[5], TRUTH.play, 0.01, 0.01, 0.1, TRUTH.structure, searched=True, margin=0.01), None
+
+    def later(*job: Any) -> tuple[Any, ...]:  # _refit_later(..., look, tied, early, stop)
+        found = job[-2]() if job[9] and job[-2] is not None else None
+        asked.append(found is not None)
+        margin = math.nan if found is None else found.choice.margin
+        row = WindowRow(job[6], TRUTH.play, 0.01, 0.01, 0.1, TRUTH.structure, searched=found is not None, margin=margin)
+        return TRUTH, row, None, None, TRUTH
+
+    monkeypatch.setattr(window, "_refit", first)
+    monkeypatch.setattr(window, "_refit_later", later)
+    for with_early in (True, False):
+        ended = threading.Event()  # the search ends when the caller waits for it (after the run)
+        early = SimpleNamespace(at=1000, searched=lambda wait, ended=ended: head if ended.is_set() else None,
+                                result=lambda wait=True, ended=ended: ended.set())  # fmt: skip
+        asked.clear()
+        est = WindowRefit(config, end=u.size, grace_s=2.0, early=early if with_early else None)
+        for lo in range(0, 1000, 500):
+            _feed(est, u[lo : lo + 500], y[lo : lo + 500], np.zeros(500, dtype=bool))
+            _settle_first5(est, lo + 500)
+        _feed(est, u[1000:], y[1000:], np.zeros(200, dtype=bool))
+        result = est.result(fresh_s=5.0, wait=False, wait_s=5.0)  # the last window, 2 s old, is fresh
+        if with_early:  # not ended at 10 s: no look; at the end the search is waited for and the end refitted with it
+            assert asked == [False, True] and ended.is_set()
+            assert [r.t_s for r in result.history] == pytest.approx([5.0, 10.0, 12.0])
+            assert result.history[-1].searched and result.history[-1].margin == 0.3
+        else:  # a look searches the window itself (the look at 10 s, faked: asked nothing); the fresh end is not refitted
+            assert asked == [False] and [r.t_s for r in result.history] == pytest.approx([5.0, 10.0])
+
+
+def _settle_first5(est: WindowRefit, n: int) -> None:
+    """As :func:`_settle` with the first window at 5 s."""
+    for _ in range(2000):
+        if len(est.rows()) + est.dropped + est.late >= n // 500:
+            return
+        time.sleep(0.005)
+    raise AssertionError("the worker never finished its refits")
 
 
 def test_a_refit_running_at_the_stream_end_is_stopped_not_waited_for_and_the_verdict_says_what_it_judged(

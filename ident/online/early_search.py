@@ -23,6 +23,13 @@ torque off and closed the recording); :meth:`EarlySearch.result` without
 ``wait`` leaves it. A search that fails leaves no result, and the refinement
 searches the whole fast part itself, as it does when the run ended before
 :attr:`at` (too few samples).
+
+The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
+``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
+fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
+instead of searching them again on its own worker. On a loaded real clock the
+two searches of the same samples ran side by side and the look was abandoned
+at the run's end (docs/online.md, "The online window's second look").
 """
 
 from __future__ import annotations
@@ -37,12 +44,14 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.online.window import SlowSearch, _yield_cpu
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "head_samples"]
+__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "head_samples"]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
 #: fast part is 6.7 s of servo time, about what the search of the rest takes on this machine under load.
 HEAD_SHARE = 0.75
+#: Wall seconds :meth:`EarlySearch.searched` waits for the search to start (a guard: it has started when asked).
+BEGIN_WAIT_S = 5.0
 
 
 def head_samples(samples: int, slow: int, share: float = HEAD_SHARE) -> int:
@@ -93,6 +102,7 @@ class EarlySearch:
         self._thread: threading.Thread | None = None
         self._due = False  # ``at`` reached: the search started, or could not (once either way)
         self._found: SlowSearch | None = None
+        self._begun = threading.Event()  # set once ``at`` is reached (the search started, or could not)
         self.error: str | None = None
 
     @property
@@ -136,12 +146,14 @@ class EarlySearch:
             self.error = (
                 f"{int(keep.sum())} usable samples of {keep.size} by the search's start (at least {MIN_SAMPLES})"
             )
+            self._begun.set()
             return
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
         self._thread = threading.Thread(
             target=self._search, args=(u[lo:], y[lo:], keep[lo:], lo), name="servoid-early-search", daemon=True
         )
         self._thread.start()
+        self._begun.set()
 
     def _search(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray, lo: int) -> None:
         from servoid.ident.offline.loop_fit import fit_loop
@@ -153,6 +165,18 @@ class EarlySearch:
             self.error = f"the early search failed: {exc}"
             return
         self._found = SlowSearch(choice, lo, int(u.size))
+
+    def searched(self, *, wait: bool) -> SlowSearch | None:
+        """The search for the window refit's second look (called on its worker thread), or None.
+
+        ``wait`` (a virtual clock, where waiting costs no sample): wait for the search to start
+        (:data:`BEGIN_WAIT_S` at most: a session feeds this estimator before the window refit, so
+        it has started by the time the window's look runs) and to end. Else the search only if it
+        has ended: on a real clock the look is left to a later window rather than held up.
+        """
+        if wait and not self._begun.wait(BEGIN_WAIT_S):
+            return None
+        return self.result(wait=wait)
 
     def result(self, *, wait: bool = True) -> SlowSearch | None:
         """The search of the fast part's head (``start``: its first sample after the slow phase), or None.

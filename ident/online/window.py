@@ -42,6 +42,14 @@ a receding-horizon fit:
   XM430 through the ODrive emulator at load 7: a look at 20 s of 26.7 s beside the
   answer's early search ran past the end and was abandoned, leaving 2 refits, too
   few to judge; the warm refit it replaced took 0.3 s).
+  A look due once a live answer's early search has all its samples
+  (``early``, :class:`~servoid.ident.online.early_search.EarlySearch`: the fast
+  part's first 3/4, the samples of a live run's look at 20 s) does not search
+  again: it takes that search's answer, refitted warm on the window like the
+  others (on a virtual clock it waits for the search; on a real one it takes it
+  once it has ended, at this window or a later one, and costs the worker one
+  warm refit: the two searches of the same 20 s had run side by side on a
+  loaded 2-core machine).
   The first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
 * after a live design's slow phase (``slow``: its first samples, set aside, the
@@ -114,6 +122,7 @@ from servoid.ident.models.servo_loop import ServoLoopModel
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline.loop_fit import LoopChoice
+    from servoid.ident.online.early_search import EarlySearch
 
 __all__ = [
     "WindowConfig",
@@ -423,6 +432,7 @@ def _refit_later(
     load: bool | None = False,
     look: bool = False,
     tied: bool = False,
+    early: Callable[[], SlowSearch | None] | None = None,
     stop: threading.Event | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None, SlowSearch | None, ServoLoopModel]:
     """Fit a window after the first of a run with a rival place or a slow phase (the worker's job; the module's text).
@@ -437,7 +447,9 @@ def _refit_later(
     refitted warm. With ``look`` (the window is :data:`LOOK_AGAIN` times as long as the last one
     searched from scratch), a last window whose warm fit is off its floor and which the slow phase
     does not answer, or any window when ``tied`` (that search's places tied), is searched afresh too; the search's answer refitted warm stays when it fits the
-    window better (the row is ``searched`` either way). Returns the estimate, its row, the other
+    window better (the row is ``searched`` either way). With ``early`` (a live answer's early search, its
+    samples all come) that search's answer is the look's instead of a search of the window; when it
+    returns None (not ended on a real clock) the window has no look (a later one may). Returns the estimate, its row, the other
     place's model, the search (None: none ran) and the winning place's model of the last window.
     """
     from servoid.ident.models.structure_names import PLAY_IN_LOOP
@@ -480,14 +492,17 @@ def _refit_later(
     scores_slow = slow is not None and won.structure != PLAY_IN_LOOP  # the slow phase answers, not this window
     if look and not searched and (tied or not (scores_slow or q <= MAX_FIT_TO_FLOOR * floor)):
         # a second look: the last search tied, or the warm refits stay in the basin a shorter window's search found;
-        # searched afresh, the search's answer refitted as the warm ones were, the better fit of the window stays
-        choice = afresh()
-        _check(stop)
-        again = refit_loop(u, y, choice.model, score=score, max_nfev=config.max_nfev)
-        searched, margin = True, float(choice.margin)
-        if again.fit_nrmse < q:
-            won, q = again.model, again.fit_nrmse
-            other = next((c.model for c in choice.candidates if c.structure != won.structure), other)
+        # searched afresh (or the early search of the window's head taken), the search's answer refitted as the warm
+        # ones were, the better fit of the window stays
+        found = None if early is None else early()
+        chosen = afresh() if early is None else (None if found is None else found.choice)
+        if chosen is not None:
+            _check(stop)
+            again = refit_loop(u, y, chosen.model, score=score, max_nfev=config.max_nfev)
+            searched, margin = True, float(chosen.margin)
+            if again.fit_nrmse < q:
+                won, q = again.model, again.fit_nrmse
+                other = next((c.model for c in chosen.candidates if c.structure != won.structure), other)
     model, part, search = won, LAST, None
     if slow is not None and won.structure != PLAY_IN_LOOP:
         _check(stop)
@@ -552,6 +567,10 @@ class WindowRefit:
     grace_s : float
         Wall seconds a refit may run past the stream's end in that rule (a live identify:
         :data:`END_GRACE_S`).
+    early : EarlySearch, optional
+        A live answer's search of the fast part's head, fed the same stream before this refit (its
+        ``skip`` this ``slow``): a second look due once its samples have all come takes its answer
+        instead of searching again (the module's text).
     """
 
     def __init__(
@@ -566,6 +585,7 @@ class WindowRefit:
         load: bool | None = False,
         end: int = 0,
         grace_s: float = 0.0,
+        early: EarlySearch | None = None,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -616,6 +636,7 @@ class WindowRefit:
         self._looked = 0  # samples of the last window searched from scratch (0: none yet)
         self._tied = False  # that search's places tied (validation margin under MIN_STRUCTURE_MARGIN)
         self._span_due = 0  # samples of the window the refit in hand fits
+        self._early = early
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -676,10 +697,13 @@ class WindowRefit:
             job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
                    self._load, self._stop)  # fmt: skip
         else:
-            # a second look: a window this much longer than the last search's (none after a given start)
-            look = 0 < self._looked and size - lo >= LOOK_AGAIN * self._looked and self._look_ends(n, size - lo)
+            # a second look: a window this much longer than the last search's (none after a given start); the early
+            # search's answer once its samples have all come, else a search if it can end before the stream
+            look = 0 < self._looked and size - lo >= LOOK_AGAIN * self._looked
+            early = self._shared(n) if look else None
+            look = look and (early is not None or self._look_ends(n, size - lo))
             work, job = _refit_later, (*window, self._fast, self._rival, self.config, t_s, self._slow_job(), self._load,
-                                       look, self._tied, self._stop)  # fmt: skip
+                                       look, self._tied, early, self._stop)  # fmt: skip
         self._span_due = size - lo
         if self._pool is None:
             self._store(work, job, t_s)
@@ -694,6 +718,28 @@ class WindowRefit:
         left_s = (self._end - self._slow - n) * self.config.sample_period_s
         warm = [r for r in self._history if not r.searched] or self._history  # a search predicts no warm refit
         return max(r.seconds for r in warm[-PREDICT_ROWS:]) > left_s + self._grace
+
+    def _shared(self, n: int) -> Callable[[], SlowSearch | None] | None:
+        """The early search's answer for a second look at the ``n``-th sample, when the search's samples have all
+        come and are as many as a look needs (:data:`LOOK_AGAIN` times the last search's); else None."""
+        early = self._early
+        if early is None or not (LOOK_AGAIN * self._looked <= early.at <= n):
+            return None
+        wait = self._wait and self._pool is not None  # inline (a replay) the search is taken only once it has ended
+        return lambda: early.searched(wait=wait)
+
+    def _look_pending(self, n: int) -> bool:
+        """Whether the end of the stream would take a second look from the early search that no window has taken yet
+        (the search had not ended: a real clock): :func:`_refit_later`'s rule on the last refit, the last search tied,
+        or the last window's fit off its floor where the slow phase does not answer."""
+        from servoid.ident.models.structure_names import PLAY_IN_LOOP
+        from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+
+        if self._shared(n) is None or not self._history or self._fast is None:
+            return False
+        last = self._history[-1]
+        slow = self._fast.structure != PLAY_IN_LOOP and self._slow_job() is not None
+        return self._tied or (not slow and last.part == LAST and last.nrmse > MAX_FIT_TO_FLOOR * last.floor)
 
     def _look_ends(self, n: int, span: int) -> bool:
         """Whether a second look at the ``n``-th sample, on ``span`` samples, ends before the stream (the ``late``
@@ -836,7 +882,9 @@ class WindowRefit:
         fresh_s : float
             ... unless the last refit's window ended at most this many servo seconds before the
             stream's end (a live identify: :data:`EVERY_S`, the estimate as fresh as between two
-            refits; the final refit cost 0.1-17 s of wall time after a real-clock run, issue 15).
+            refits; the final refit cost 0.1-17 s of wall time after a real-clock run, issue 15); on a
+            real clock also when a second look from the early search (``early``) is still due: that
+            search is waited for (its caller waits for it next anyway) and the end refitted with it.
         wait : bool
             Wait for a refit still running; False (a live identify on a real clock): wait at most
             ``wait_s``, then tell it to stop at its next fit and drop it
@@ -855,7 +903,9 @@ class WindowRefit:
             pool, self._pool = self._pool, None
             self._due(n)
             self._pool = pool
-        elif final and n >= self._first and stale and self._abandoned == abandoned:
+        elif final and n >= self._first and (stale or self._look_pending(n)) and self._abandoned == abandoned:
+            if self._early is not None and self._look_pending(n):  # (the caller waits for that search next anyway)
+                self._early.result(wait=True)
             self._end = 0  # the end's own refit: not late by definition
             self._due(n)
             self._bounded(wait, wait_s)

@@ -298,11 +298,12 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
         # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
-        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
-                             grace_s=END_GRACE_S)  # fmt: skip
-        window.warm_up()
-        # the answer's search of the fast part's head, started while the run goes on
+        # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
+        # whose second look on the same samples takes its answer)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
+        window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
+                             grace_s=END_GRACE_S, early=early)  # fmt: skip
+        window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
                 "servo": _flat(identity), "decimate": str(factor),
@@ -319,7 +320,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             clock.mark("setup")
             try:
                 result = run_session(
-                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(window), EstimatorFeed(early)],
+                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(early), EstimatorFeed(window)],
                     on_progress=None if quiet else update,
                 )  # fmt: skip
             except BaseException:

@@ -495,8 +495,8 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     Without ``--operating`` and ``--excitation``: what ``benchmarks/monitor_loop.py`` measured, the
     identification's gentle sines for the first fit, then one steady sine at their largest amplitude
     and half their highest acceleration (:func:`~servoid.excitation.monitor_input.monitor_stream`), from the model
-    file's design (:func:`~servoid.monitor_loop.design_sines`), inside the driver's range and rate
-    limit; a file without that design gets the MRGIA monitor's default, and the line says why.
+    file's design (:func:`~servoid.monitor_loop.design_sines`; for a play outside the loop at most the design's
+    slow phase's acceleration, at the same frequency), inside the driver's range and rate limit; a file without that design gets the MRGIA monitor's default, and the line says why.
     """
     from servoid.excitation.gentle import segment_end, segments
     from servoid.excitation.monitor_input import IDENT, SINE, monitor_spec, monitor_stream
@@ -514,23 +514,34 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
         return inputs, {**meta, "input": line}, 0
     limits = driver.limits
     amplitude = min(sines[0], limits.high - limits.centre, limits.centre - limits.low)
-    accel = sines[1]
+    accel, coast = sines[1], sines[2]
     first = int(round(FIRST_FIT_S / period))
-    inputs = monitor_stream(amplitude, accel, first, seed=args.seed, offset=limits.centre, rate=limits.max_step)
+    inputs = monitor_stream(
+        amplitude, accel, first, seed=args.seed, offset=limits.centre, rate=limits.max_step, coast=coast
+    )
     if total is not None:
         inputs = itertools.islice(inputs, total)
     ident = monitor_spec(IDENT, amplitude, accel, offset=limits.centre, rate=limits.max_step)
-    sine = monitor_spec(SINE, amplitude, accel, offset=limits.centre, rate=limits.max_step)
+    sine = monitor_spec(SINE, amplitude, accel, offset=limits.centre, rate=limits.max_step, coast=coast)
     hz = float(segments(sine, args.seed, 0, 1)[1][0]) / period
+    steady = float(sine.accel or accel)  # (set by the spec: never None)
     cut = segment_end(ident, args.seed, first)  # where monitor_stream switches: the sines back at the offset
     line = (f"the identification's gentle sines (+/-{amplitude:.4g} {unit}, peak acceleration up to "
             f"{accel / period**2:.4g} {unit}/s^2) for the first fit's {first * period:g} s and to the end of "
             f"their segment ({cut * period:.3g} s), then one steady sine "
-            f"+/-{amplitude:.4g} {unit} at {hz:.3g} Hz ({2 * hz:.3g} reversals a second), from {args.model}'s "
+            f"+/-{sine.amplitude:.4g} {unit} at {hz:.3g} Hz ({2 * hz:.3g} reversals a second, peak acceleration "
+            f"{steady / period**2:.4g} {unit}/s^2{_coast_note(coast, steady)}), from {args.model}'s "
             "design; --excitation to choose another")  # fmt: skip
     meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {cut} samples, then {format_spec(sine)}",
             "seed": str(args.seed), "input": line}  # fmt: skip
     return inputs, meta, cut
+
+
+def _coast_note(coast: float, accel: float) -> str:
+    """Why the steady sine's acceleration is what it is when the file's slow phase bounds it."""
+    if math.isfinite(coast) and coast <= accel * (1.0 + 1e-9):
+        return ": the design's slow phase's, where the file's play outside the loop was sized"
+    return ""
 
 
 def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorConfig, rate: float,
