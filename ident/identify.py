@@ -42,13 +42,16 @@ from servoid.ident.offline.intervals import (
     PLACE_Z,
     Evidence,
     Verdict,
+    dither_noise,
     floor_nrmse,
     hac_stderr,
     interval_withheld,
     model_error_halfwidth,
+    noise_std,
     play_interval,
     quantum,
     resolution_floor_nrmse,
+    resolution_halfwidth,
     reversals,
     streamed_stderr,
     verdict,
@@ -138,7 +141,9 @@ class Identification:
     play : float
         The answer's play ``c1 + c2`` (unit of y).
     play_interval : tuple of float
-        Its 95 % interval (HAC for the black box; NaN ends when there is none).
+        Its 95 % interval (HAC for the black box; NaN ends when there is none), widened by the model error's
+        bound and, for a play of a few counts, its flanks' rounding
+        (:func:`~servoid.ident.offline.intervals.resolution_halfwidth`).
     interval_note : str or None
         Why there is no interval although the play has a standard error: the fit is too far above its
         floor for the interval to hold (:func:`~servoid.ident.offline.intervals.interval_withheld`).
@@ -576,11 +581,17 @@ def identify(
     # bounds the model error, which on a physical servo dominates (intervals.model_error_halfwidth)
     guaranteed = resolution_floor_nrmse(y_arr, keep)
     scale = float(np.std(y_valid))
-    interval = with_model_error(play_interval(play, stderr), model_error_halfwidth(fit, guaranteed, scale))
+    # and a play of a few counts read with little noise is known only to its flanks' rounding
+    q_out = quantum(y_valid)
+    dither = dither_noise(noise_std(y_arr, keep), q_out)
+    interval = with_model_error(
+        play_interval(play, stderr),
+        model_error_halfwidth(fit, guaranteed, scale) + resolution_halfwidth(play, q_out, dither),
+    )
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
     # times the fit's residual RMS (the noise, where the model is right; more where it is not)
     residual_rms = fit * float(np.std(y_valid))
-    jitter = 2.0 * (quantum(y_valid) + 3.0 * residual_rms)
+    jitter = 2.0 * (q_out + 3.0 * residual_rms)
     turns = reversals(y_valid, max(2.0 * play, jitter))
     if lines_cross:
         warnings.append(
@@ -613,7 +624,10 @@ def identify(
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         noise = (float(loop.play_interval[0]), float(loop.play_interval[1]))
-        interval = with_model_error(noise, model_error_halfwidth(float(loop.fit_nrmse), guaranteed, scale))
+        interval = with_model_error(
+            noise,
+            model_error_halfwidth(float(loop.fit_nrmse), guaranteed, scale) + resolution_halfwidth(play, q_out, dither),
+        )
         evidence = Evidence(
             play=play, interval=(float(interval[0]), float(interval[1])),
             reversals=reversals(y_valid, max(2.0 * play, jitter)), fit_nrmse=float(loop.fit_nrmse), floor=floor,
@@ -623,7 +637,7 @@ def identify(
         )  # fmt: skip
     undetermined = verdict(evidence).structure_undetermined
     doubts, rival = _place_doubts(
-        loop, None if at_floor and white else rejected, fit, quantum(y_valid), already=undetermined, evidence=evidence
+        loop, None if at_floor and white else rejected, fit, q_out, already=undetermined, evidence=evidence
     )
     if rival is not None and np.isfinite(interval[0]) and np.isfinite(interval[1]):
         # the place undetermined: the interval holds the runner-up's play too (what the data cannot exclude)

@@ -523,3 +523,40 @@ def test_a_recording_read_on_the_motor_says_so_and_export_refuses(tmp_path, caps
     assert load_model(model).reason == MOTOR_SIDE_REASON
     assert main(["export", str(model), "--format", "json"]) == 2
     assert "the readings are the motor's" in capsys.readouterr().err
+
+
+def _coarse_sts3215(cpr: int, noise_counts: float) -> np.ndarray:
+    """Four seconds of gentle sines on the STS3215 twin at 350 Hz (50x its loop), its output read by ``cpr`` counts."""
+    from servoid.drivers.twin import Twin, preset
+    from servoid.excitation.generate import sample
+    from servoid.excitation.specs import GentleSpec
+
+    twin = Twin(preset("sts3215", load_encoder_cpr=cpr, encoder_noise_counts=noise_counts), seed=3)
+    twin.enable()
+    period = 1.0 / 350.0
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 * period**2, spread=8.0), 1400, seed=1003)
+    return np.asarray(twin.sample(u, period).y, dtype=float)
+
+
+def test_a_play_of_two_counts_read_without_noise_is_known_only_to_its_flanks_rounding():
+    # the STS3215's 0.6 deg play is 1.7 counts of a 1024-count encoder, 6.8 of a 4096-count one
+    from servoid.ident.offline.intervals import dither_noise, noise_std, quantum, resolution_halfwidth, rounding_bias
+
+    play = np.deg2rad(0.6)
+    y = _coarse_sts3215(1024, 0.0)
+    q = quantum(y)
+    assert q == pytest.approx(2.0 * np.pi / 1024)
+    assert dither_noise(noise_std(y), q) < 0.1 * q  # the motion's rounding is not taken for noise
+    assert resolution_halfwidth(play, q, dither_noise(noise_std(y), q)) == pytest.approx(q, rel=0.05)  # +-q/2 twice
+    noisy = _coarse_sts3215(1024, 1.0)
+    assert dither_noise(noise_std(noisy), q) == pytest.approx(q, rel=0.3)
+    # a count of noise dithers the rounding
+    assert resolution_halfwidth(play, q, dither_noise(noise_std(noisy), q)) < 1e-3 * q
+    fine = _coarse_sts3215(4096, 0.0)
+    q_fine = quantum(fine)  # 6.8 counts: the motion locates the play
+    assert resolution_halfwidth(play, q_fine, dither_noise(noise_std(fine), q_fine)) == 0.0
+    # the bound is the largest bias of the mean of rounded readings, here by simulation at 0.2 count of noise
+    rng = np.random.default_rng(5)
+    mu = np.linspace(0.0, 0.5, 51)
+    bias = [abs(np.mean(np.round(m + rng.normal(0.0, 0.2, 200_000))) - m) for m in mu]
+    assert max(bias) == pytest.approx(rounding_bias(1.0, 0.2), abs=0.005)
