@@ -89,7 +89,7 @@ MAX_FIT_FOR_INTERVAL = MAX_FIT_TO_FLOOR
 MIN_STRUCTURE_MARGIN = 0.05
 #: The place statistic (``LoopChoice.place_z``: :func:`~servoid.ident.offline.place_test.reversal_z`, the two places'
 #: validation errors on the catch-ups after the reversals; before the issue 12 xmname session the Diebold-Mariano
-#: statistic of the whole validation record, :func:`~servoid.ident.offline.place_test.place_z`) at or above which a
+#: statistic of the whole validation record) at or above which a
 #: play-in-loop answer's record rejects the motor side whatever its margin (``Evidence.place_z``): the 99 %
 #: one-sided normal quantile. On the catch-ups the play-in-loop winners that were wrong in the variant sweep score
 #: -1.0 ... +1.6 (CiA 402, 20x, seeds 3-4, six records; 50x: no noise s4 -0.35, position gain x2 s4 -1.32,
