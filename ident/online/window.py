@@ -420,6 +420,17 @@ def _refit(
     return model, row, rival
 
 
+def _looks_again(slow_answers: bool, nrmse: float, floor: float) -> bool:
+    """Whether a window's warm fit asks for a second look: off its floor where the slow phase does not answer.
+
+    Off the floor: above :data:`~servoid.ident.offline.intervals.MAX_FIT_TO_FLOOR` times it. (A look is also due
+    after a tied search, whatever the fit.)
+    """
+    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
+
+    return not (slow_answers or nrmse <= MAX_FIT_TO_FLOOR * floor)
+
+
 def _refit_later(
     u: np.ndarray,
     y: np.ndarray,
@@ -453,7 +464,7 @@ def _refit_later(
     place's model, the search (None: none ran) and the winning place's model of the last window.
     """
     from servoid.ident.models.structure_names import PLAY_IN_LOOP
-    from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR, floor_nrmse, reversals
+    from servoid.ident.offline.intervals import floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
     t0 = time.perf_counter()
@@ -490,7 +501,7 @@ def _refit_later(
         other = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     floor = floor_nrmse(y[score])
     scores_slow = slow is not None and won.structure != PLAY_IN_LOOP  # the slow phase answers, not this window
-    if look and not searched and (tied or not (scores_slow or q <= MAX_FIT_TO_FLOOR * floor)):
+    if look and not searched and (tied or _looks_again(scores_slow, q, floor)):
         # a second look: the last search tied, or the warm refits stay in the basin a shorter window's search found;
         # searched afresh (or the early search of the window's head taken), the search's answer refitted as the warm
         # ones were, the better fit of the window stays
@@ -733,13 +744,12 @@ class WindowRefit:
         (the search had not ended: a real clock): :func:`_refit_later`'s rule on the last refit, the last search tied,
         or the last window's fit off its floor where the slow phase does not answer."""
         from servoid.ident.models.structure_names import PLAY_IN_LOOP
-        from servoid.ident.offline.intervals import MAX_FIT_TO_FLOOR
 
         if self._shared(n) is None or not self._history or self._fast is None:
             return False
         last = self._history[-1]
         slow = self._fast.structure != PLAY_IN_LOOP and self._slow_job() is not None
-        return self._tied or (not slow and last.part == LAST and last.nrmse > MAX_FIT_TO_FLOOR * last.floor)
+        return self._tied or (last.part == LAST and _looks_again(slow, last.nrmse, last.floor))
 
     def _look_ends(self, n: int, span: int) -> bool:
         """Whether a second look at the ``n``-th sample, on ``span`` samples, ends before the stream (the ``late``
