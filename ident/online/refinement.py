@@ -31,6 +31,21 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    truth; the fast part: in the loop at +6 ... +10 %, margins 2-10 %), so its confirmation turned a
    fast-part tie into +270 % with the slow part's interval (the XM430 through the real-clock
    emulators: +272 ... +285 %).
+5. after a slow phase, where the fast part puts the play in the loop: the horn stage
+   (:func:`~servoid.ident.offline.horn_contact.with_horn`) on the whole record (slow and fast
+   parts, no gap), after ``fit_loop(load=None)`` on it puts the play in the loop too, answers when
+   it is kept and the load's friction it fits (``al``, the horn's deceleration by its own friction)
+   stops the load faster than the slow phase's set point ever decelerates: then the slow part's
+   reversals show the whole play (the load stays on the trailing flank) and the fast part's the
+   horn's coasting, which the horn fits. The horn stage sized the play offline only on about 40 s
+   holding turns gentler than the load's friction; the fast part alone (27 s at up to 0.35x the
+   probe's bandwidth, 16.5 rad/s^2 on the STS3215 twin, whose load stops at 20) left it to chance
+   (docs/online.md, "The horn stage on live records"). The live records of the twins
+   (``sim://``, virtual clock, seeds 0-3): STS3215 -17 / -7 / -12 / -14 % -> -10 / -9 / -1 / -12 %
+   (``al`` 16-20 rad/s^2 against the slow phase's 3), XM430 seed 3 -17 -> -1 % (``al`` 8 against
+   2.2), its seeds 0-2 not kept (the fast answer stands). A kept horn keeps its doubt
+   (:data:`~servoid.ident.offline.horn_contact.REASON`). Cost: one ``fit_loop`` on the whole record
+   and the stage (10-35 s at load 8); not run on a record with gaps (the stage refuses them).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -59,10 +74,12 @@ import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident.diagnosis.flank_rebound import rebound
 from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.offline.horn_contact import with_horn
 from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, quantum
 from servoid.ident.offline.loop_fit import (
     CANDIDATE_NFEV,
@@ -97,8 +114,8 @@ class Refined:
     online_won : bool
         Whether the online candidate validated better and answers.
     fast_play : float or None
-        With a slow phase and the play outside the loop: the answer's play on the fast part,
-        before its refit on the slow part (None: no such refit).
+        With a slow phase: the answer's play on the fast part before the slow part's refit (the
+        play outside the loop, step 4) or the whole record's horn (step 5) replaced it (None: neither did).
     slow_play : float or None
         With a slow phase, the play outside the loop on the fast part and its places tied there
         (validation margin under :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`): the
@@ -107,6 +124,11 @@ class Refined:
         The samples ``[start, stop)`` of the record on whose usable ones the answer's
         ``fit_nrmse`` was computed: the whole record, or the fast or the slow part after a
         slow phase (:meth:`score` scores another model there).
+    horn : str or None
+        Step 5 (the horn stage on the whole record after a slow phase, the play in the loop): what
+        became of it (answered, not kept, its load friction too weak for the slow phase, ...); None
+        where it does not apply. When it answered, :attr:`online_won` is False (the answer is the
+        whole record's search with the horn) and :attr:`fast_play` the fast part's play before it.
     """
 
     online: LoopCandidate
@@ -115,6 +137,7 @@ class Refined:
     fast_play: float | None = None
     slow_play: float | None = None
     scored: tuple[int, int] = (0, 0)
+    horn: str | None = None
 
     def score(self, model: ServoLoopModel, u: Any, y: Any, keep: Any = None) -> float:
         """Free-run NRMSE of ``model`` on the samples the answer's fit is on, computed as the answer's.
@@ -153,7 +176,7 @@ class Refined:
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
                 "online_won": self.online_won, "fast_play": self.fast_play, "slow_play": self.slow_play,
-                "scored": list(self.scored)}  # fmt: skip
+                "scored": list(self.scored), "horn": self.horn}  # fmt: skip
 
 
 def refine_online(
@@ -254,9 +277,56 @@ def refine_online(
                 model=slow_choice.model,
                 evaluations=choice.evaluations + slow_choice.evaluations,
             )
+    horn = None
+    if choice.structure == PLAY_IN_LOOP:
+        # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting
+        horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
+        if whole is not None:
+            fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
+            choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
-    return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored)
+    return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored, horn=horn)
+
+
+def _horn_on_whole(
+    u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, head: int, fast: LoopChoice
+) -> tuple[str, LoopChoice | None]:
+    """Step 5: what became of the horn stage on the whole record, and its answer when it answers (else None).
+
+    Run where the record has no gap and the fast part's answer ``fast`` (the play in the loop, on
+    ``[head:]``) shows the horn's rebound (the stage's own gate, checked before the search). It
+    answers when ``fit_loop(load=None)`` on the whole record puts the play in the loop, the stage
+    keeps the horn, and the horn's own friction (``al``) stops the load faster than the slow part's
+    set point decelerates into any of its reversals (:func:`_turn_accel`).
+    """
+    period = fast.model.sample_period_s
+    if not np.all(kept):
+        return "not run: the record has gaps (the horn stage fits gapless records)", None
+    if not rebound(y_arr[head:], np.asarray(fast.simulated), float(fast.play), period).named:
+        return "not run: the fast part shows no rebound off the flank", None
+    whole = fit_loop(u_arr, y_arr, period, load=None)
+    if whole.structure != PLAY_IN_LOOP:
+        return f"not run: the whole record's search puts the play {whole.structure}", None
+    found = with_horn(u_arr, y_arr, period, whole)
+    if found is whole or not found.model.compliant:
+        return "not kept (no rebound named, or the horn did not validate better)", None
+    slow_accel = _turn_accel(u_arr[:head], period)
+    if not found.model.al > slow_accel:
+        return (f"not taken: the horn's friction stops it at {found.model.al:.3g}/s^2, no faster than the slow "
+                f"part's set point decelerates ({slow_accel:.3g}/s^2)"), None  # fmt: skip
+    return (f"answered: play {found.play:.4g} (massless {whole.play:.4g}); the horn's friction stops it at "
+            f"{found.model.al:.3g}/s^2, the slow part's set point at most {slow_accel:.3g}/s^2"), found  # fmt: skip
+
+
+def _turn_accel(u: np.ndarray, period: float) -> float:
+    """The set point's largest deceleration into a reversal, unit/s^2: ``|u[k+1] - 2 u[k] + u[k-1]| / period^2``
+    where its steps change sign (a gentle sine's peak acceleration is at its turns; 0 without a turn)."""
+    step = np.sign(np.diff(u))
+    turns = np.flatnonzero((step[1:] != 0) & (step[:-1] != 0) & (step[1:] != step[:-1])) + 1
+    if turns.size == 0:
+        return 0.0
+    return float(np.max(np.abs(u[turns + 1] - 2.0 * u[turns] + u[turns - 1]))) / period**2
 
 
 def _hull(interval: tuple[float, float], values: tuple[float, ...]) -> tuple[float, float]:
