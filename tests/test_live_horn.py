@@ -71,3 +71,30 @@ def test_the_horn_answers_where_its_friction_stops_the_load_faster_than_the_slow
 def test_the_fast_answer_stands_where_the_stage_does_not_apply(monkeypatch, given, searched, says) -> None:
     note, found, calls = _gate(monkeypatch, **given)
     assert found is None and says in note and bool(calls) == searched
+
+
+@pytest.mark.parametrize("late", [False, True])
+def test_the_step_is_skipped_when_it_cannot_end_by_the_deadline(monkeypatch, late: bool) -> None:
+    import time
+
+    from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.offline.loop_fit import LoopCandidate, LoopChoice
+    from servoid.ident.online.window import WindowConfig, WindowResult
+
+    model = ServoLoopModel(PLAY_IN_LOOP, 1 / RATE, kp=12.0, kv=60.0, c1=0.005, c2=0.005)
+    u = 0.1 * np.sin(2 * math.pi * 0.8 * np.arange(800) / RATE)
+    y = model.simulate(u, y0=0.0)
+    fast = LoopChoice(structure=PLAY_IN_LOOP, play=model.play, play_interval=(0.009, 0.011), fit_nrmse=0.01,
+                      validation_nrmse={PLAY_IN_LOOP: 0.01}, margin=0.1, params=model.params(), simulated=y[400:],
+                      reasons=(), dead_time_samples=2.0, stall_band=0.0, model=model, candidates=(), seconds=2.0,
+                      evaluations=1)  # fmt: skip
+    refined = refinement.Refined(LoopCandidate(PLAY_IN_LOOP, False, model, 0.01, 0.01, 1), fast, False)
+    monkeypatch.setattr(refinement, "_refine_fast", lambda *args: (fast, refined))
+    calls: list[int] = []
+    monkeypatch.setattr(refinement, "_horn_on_whole", lambda *args: calls.append(1) or ("not kept", None))
+    online = WindowResult(model, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    # the search took 2 s: the step is predicted at HORN_PER_SEARCH times that
+    deadline = time.perf_counter() + (1.0 if late else 10.0) * refinement.HORN_PER_SEARCH * fast.seconds
+    choice, out = refinement.refine_online(u, y, online, slow=400, deadline_s=deadline)
+    assert choice.play == fast.play and bool(calls) != late
+    assert (out.horn or "").startswith("skipped") == late

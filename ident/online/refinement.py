@@ -98,7 +98,12 @@ from servoid.ident.offline.loop_fit import (
 )
 from servoid.ident.online.window import SlowSearch, WindowResult
 
-__all__ = ["refine_online", "Refined"]
+__all__ = ["refine_online", "Refined", "HORN_PER_SEARCH"]
+
+#: Step 5's wall time (the whole record's search and the horn stage) predicted as this many times the fast
+#: part's search's: 1.6-3.8 on the horn twins' live records (``sim://``, seeds 0-5, load 8-9: 17-38 s after
+#: searches of 4.7-11.3 s).
+HORN_PER_SEARCH = 4.0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -180,7 +185,14 @@ class Refined:
 
 
 def refine_online(
-    u: Any, y: Any, online: WindowResult, *, keep: Any = None, slow: int = 0, early: SlowSearch | None = None
+    u: Any,
+    y: Any,
+    online: WindowResult,
+    *,
+    keep: Any = None,
+    slow: int = 0,
+    early: SlowSearch | None = None,
+    deadline_s: float = math.inf,
 ) -> tuple[LoopChoice, Refined]:
     """The offline search on the whole record with the online estimate as one more candidate (the module's steps).
 
@@ -210,6 +222,10 @@ def refine_online(
         record): when it starts at the fast part's first usable sample and ends before the
         record does, steps 1-3 run on the samples it searched with its answer, and the answer
         is then refitted warm on the whole fast part (:func:`_extended`); else ignored.
+    deadline_s : float
+        The :func:`time.perf_counter` instant by which step 5 must end (a live run on a real clock:
+        its wall budget); it is skipped when :data:`HORN_PER_SEARCH` times the fast part's search
+        would pass it. Default: no deadline.
 
     Returns
     -------
@@ -277,13 +293,19 @@ def refine_online(
                 model=slow_choice.model,
                 evaluations=choice.evaluations + slow_choice.evaluations,
             )
-    horn = None
+    horn: str | None = None
+    whole: LoopChoice | None = None
     if choice.structure == PLAY_IN_LOOP:
         # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting
-        horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
-        if whole is not None:
-            fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
-            choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
+        left_s, predicted_s = deadline_s - time.perf_counter(), HORN_PER_SEARCH * refined.search.seconds
+        if predicted_s > left_s:
+            horn = (f"skipped: predicted {predicted_s:.1f} s ({HORN_PER_SEARCH:g}x the fast part's search) against "
+                    f"{max(left_s, 0.0):.1f} s left of the wall budget")  # fmt: skip
+        else:
+            horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
+    if whole is not None:
+        fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
+        choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
     return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored, horn=horn)
