@@ -41,11 +41,14 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    holding turns gentler than the load's friction; the fast part alone (27 s at up to 0.35x the
    probe's bandwidth, 16.5 rad/s^2 on the STS3215 twin, whose load stops at 20) left it to chance
    (docs/online.md, "The horn stage on live records"). The live records of the twins
-   (``sim://``, virtual clock, seeds 0-3): STS3215 -17 / -7 / -12 / -14 % -> -10 / -9 / -1 / -12 %
-   (``al`` 16-20 rad/s^2 against the slow phase's 3), XM430 seed 3 -17 -> -1 % (``al`` 8 against
-   2.2), its seeds 0-2 not kept (the fast answer stands). A kept horn keeps its doubt
+   (``sim://``, virtual clock, seeds 0-5): STS3215 -17 / -7 / -12 / -14 / -14 % -> -10 / -9 / -1 / -12 /
+   +7 % (``al`` 16-20 rad/s^2 against the slow phase's turns at 1.2-2.9; the twin's load stops at 20),
+   XM430 seeds 3 / 5 -17 / -30 -> -1 / -1 % (``al`` 8 / 18), its seeds 0-2 not kept and 4 not run
+   (the fast answer stands); an STS3215 with its load friction doubled -12 / -8 -> -7 / -16 % (``al``
+   40 / 17.5). A kept horn keeps its doubt
    (:data:`~servoid.ident.offline.horn_contact.REASON`). Cost: one ``fit_loop`` on the whole record
-   and the stage (10-35 s at load 8); not run on a record with gaps (the stage refuses them).
+   and the stage (17-38 s at load 8-9); not run on a record with gaps (the stage refuses them), nor
+   when it cannot end by ``deadline_s`` (:data:`HORN_PER_SEARCH`).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
