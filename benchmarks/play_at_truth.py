@@ -31,9 +31,22 @@ import numpy as np
 from _table import table
 from real_servos import twin_record
 
-from servoid.ident.models.servo_loop import LOAD_NAMES
+from servoid.ident.models.servo_loop import LOAD_NAMES, ServoLoopModel
 from servoid.ident.offline import loop_fit as lf
 from servoid.ident.offline.horn_contact import _values
+
+
+def refit_setup(
+    u: np.ndarray, y: np.ndarray, period: float, model: ServoLoopModel
+) -> tuple[np.ndarray, np.ndarray, float, tuple[str, ...], dict[str, float]]:
+    """What refitting ``model`` (fit_loop's answer on ``u, y``) as fit_loop's final refit does needs: the record centred
+    as fit_loop centres it, the scale of ``a0``, the final refit's free parameters and the answer's values."""
+    centre = float(np.mean(u))
+    uc, yc = np.ascontiguousarray(u - centre), np.ascontiguousarray(y - centre)
+    _, kv = lf._linear_start(uc, yc, period)
+    a_scale = 0.1 * kv * float(np.std(np.diff(yc))) / period
+    free = lf._free(model.structure, model.ki > 0.0) + (LOAD_NAMES if model.massive else ())
+    return uc, yc, a_scale, free, _values(model)
 
 
 def row(name: str, mult: float, seed: int, noise: int | None) -> list[str]:
@@ -44,14 +57,9 @@ def row(name: str, mult: float, seed: int, noise: int | None) -> list[str]:
     t0 = time.perf_counter()
     choice = lf.fit_loop(u, y, period, load=None)
     model = choice.model
-    centre = float(np.mean(u))
-    uc, yc = np.ascontiguousarray(u - centre), np.ascontiguousarray(y - centre)
-    _, kv = lf._linear_start(uc, yc, period)
-    a_scale = 0.1 * kv * float(np.std(np.diff(yc))) / period
+    uc, yc, a_scale, free, answer = refit_setup(u, y, period, model)
     integrator = model.ki > 0.0
-    free = lf._free(model.structure, integrator) + (LOAD_NAMES if model.massive else ())
     held = tuple(n for n in free if n != "play")
-    answer = _values(model)
     at_truth = dict(answer, play=truth)
     floor = float(rec["floor"]) * float(np.std(y))  # type: ignore[arg-type]
     est = lf.block_mask(yc.size)
