@@ -249,8 +249,10 @@ def rescore(
     noise = (_f(row["noise_interval"][0]), _f(row["noise_interval"][1]))
     floor = model_error_floor(row, white_floor) / scale
     q = row["quantum"]
-    resolution = intervals.resolution_halfwidth(row["play"], q, intervals.dither_noise(row["noise_std"], q))
-    interval = intervals.with_model_error(noise, intervals.model_error_halfwidth(row["fit"], floor, scale) + resolution)
+    interval = intervals.reported_interval(
+        noise, intervals.model_error_halfwidth(row["fit"], floor, scale), row["play"], q,
+        intervals.dither_noise(row["noise_std"], q),
+    )  # fmt: skip
     # the rival's play the place doubts took into the hull (identify widens the interval to it)
     dumped = (_f(row["interval"][0]), _f(row["interval"][1]))
     expected = intervals.with_model_error(

@@ -50,12 +50,11 @@ from servoid.ident.offline.intervals import (
     noise_std,
     play_interval,
     quantum,
+    reported_interval,
     resolution_floor_nrmse,
-    resolution_halfwidth,
     reversals,
     streamed_stderr,
     verdict,
-    with_model_error,
 )
 from servoid.ident.offline.operating_point import OperatingPoint, operating_point, to_centred, to_record
 from servoid.ident.offline.refine import Refinement, arx_start, refine
@@ -142,8 +141,8 @@ class Identification:
         The answer's play ``c1 + c2`` (unit of y).
     play_interval : tuple of float
         Its 95 % interval (HAC for the black box; NaN ends when there is none), widened by the model error's
-        bound and, for a play of a few counts, its flanks' rounding
-        (:func:`~servoid.ident.offline.intervals.resolution_halfwidth`).
+        bound and, where it holds a play of a few counts, its flanks' rounding
+        (:func:`~servoid.ident.offline.intervals.reported_interval`).
     interval_note : str or None
         Why there is no interval although the play has a standard error: the fit is too far above its
         floor for the interval to hold (:func:`~servoid.ident.offline.intervals.interval_withheld`).
@@ -584,9 +583,8 @@ def identify(
     # and a play of a few counts read with little noise is known only to its flanks' rounding
     q_out = quantum(y_valid)
     dither = dither_noise(noise_std(y_arr, keep), q_out)
-    interval = with_model_error(
-        play_interval(play, stderr),
-        model_error_halfwidth(fit, guaranteed, scale) + resolution_halfwidth(play, q_out, dither),
+    interval = reported_interval(
+        play_interval(play, stderr), model_error_halfwidth(fit, guaranteed, scale), play, q_out, dither
     )
     # a reversal must exceed twice the play and the record's own jitter: its resolution and three
     # times the fit's residual RMS (the noise, where the model is right; more where it is not)
@@ -624,9 +622,8 @@ def identify(
     if loop is not None:
         structure, form, play = loop.structure, SERVO_LOOP, float(loop.play)
         noise = (float(loop.play_interval[0]), float(loop.play_interval[1]))
-        interval = with_model_error(
-            noise,
-            model_error_halfwidth(float(loop.fit_nrmse), guaranteed, scale) + resolution_halfwidth(play, q_out, dither),
+        interval = reported_interval(
+            noise, model_error_halfwidth(float(loop.fit_nrmse), guaranteed, scale), play, q_out, dither
         )
         evidence = Evidence(
             play=play, interval=(float(interval[0]), float(interval[1])),

@@ -560,3 +560,18 @@ def test_a_play_of_two_counts_read_without_noise_is_known_only_to_its_flanks_rou
     mu = np.linspace(0.0, 0.5, 51)
     bias = [abs(np.mean(np.round(m + rng.normal(0.0, 0.2, 200_000))) - m) for m in mu]
     assert max(bias) == pytest.approx(rounding_bias(1.0, 0.2), abs=0.005)
+
+
+def test_an_answer_over_three_counts_whose_interval_reaches_under_them_is_widened_by_the_rounding():
+    # the XM430 twin at 50x s1: a 2.8-count play answered at 3.2 counts, its interval's low end at 2.4 counts
+    from servoid.ident.offline.intervals import reported_interval, rounding_bias, with_model_error
+
+    q, play, noise_interval, model_error = 1.0, 3.2, (2.9, 3.5), 0.5
+    assert rounding_bias(q, 0.0) == pytest.approx(0.5)
+    low, high = reported_interval(noise_interval, model_error, play, q, 0.0)
+    assert (low, high) == pytest.approx((2.9 - 0.5 - 1.0, 3.5 + 0.5 + 1.0))  # +-q: each flank to half a count
+    # an interval that stays above three counts gets the model error alone, as does a noisy record
+    assert reported_interval((3.4, 4.0), 0.2, 3.7, q, 0.0) == pytest.approx(with_model_error((3.4, 4.0), 0.2))
+    assert reported_interval(noise_interval, model_error, play, q, 1.0)[0] == pytest.approx(2.4, abs=1e-3)
+    # no interval stays no interval
+    assert all(np.isnan(reported_interval((np.nan, np.nan), model_error, play, q, 0.0)))

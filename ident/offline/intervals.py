@@ -54,6 +54,7 @@ __all__ = [
     "rounding_bias",
     "dither_noise",
     "resolution_halfwidth",
+    "reported_interval",
     "RESOLUTION_LIMITED_COUNTS",
     "interval_withheld",
     "MIN_REVERSALS",
@@ -533,6 +534,39 @@ def resolution_halfwidth(play: float, q: float, noise: float) -> float:
     if not (math.isfinite(q) and q > 0.0 and math.isfinite(play)) or play >= RESOLUTION_LIMITED_COUNTS * q:
         return 0.0
     return 2.0 * rounding_bias(q, noise)
+
+
+def reported_interval(
+    noise_interval: tuple[float, float], model_error: float, play: float, q: float, noise: float
+) -> tuple[float, float]:
+    """The play's interval as ``identify`` reports it: the noise's, the model error's bound, the flanks' rounding.
+
+    ``noise_interval`` widened by ``model_error`` (:func:`model_error_halfwidth`) on each side, then by
+    :func:`resolution_halfwidth` where the smallest play that interval holds (or ``play``, if smaller) is
+    under :data:`RESOLUTION_LIMITED_COUNTS` counts: the limit asks whether the play *may* be a few counts,
+    and an answer overestimated past it is still read from its flanks' rounding (the XM430 twin at 50x s1,
+    a 2.8-count play answered at 3.19 counts, +12.3 %, its interval's low end at 2.4 counts, got no term
+    when the limit tested the answer alone).
+
+    Parameters
+    ----------
+    noise_interval : tuple of float
+        The interval of the noise alone (:func:`play_interval`; NaN ends: none).
+    model_error : float
+        The model error's half-width (unit of y; NaN: no interval).
+    play : float
+        The estimated play (unit of y).
+    q, noise : float
+        The output's count and its noise without the motion's rounding (:func:`resolution_halfwidth`).
+
+    Returns
+    -------
+    tuple of float
+        ``(low, high)``; NaN ends where there is none.
+    """
+    widened = with_model_error(noise_interval, model_error)
+    smallest = min(play, widened[0]) if math.isfinite(widened[0]) else play
+    return with_model_error(widened, resolution_halfwidth(smallest, q, noise))
 
 
 def dither_noise(noise: float, q: float) -> float:
