@@ -7,7 +7,7 @@ What ``servoid monitor`` runs for a model whose play sits in the loop, the
 same object: :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`
 (here with ``background=False``: each refit inside the feed, as on a virtual
 clock), started from the model file's loop (here: ``servoid identify --data`` on a
-recording of 20 s (``--reference-s``) of the unworn twin, its ``model.json`` read back as ``servoid
+recording of 20 s (40 s where that file holds a horn sized on too short a record; ``--reference-s``) of the unworn twin, its ``model.json`` read back as ``servoid
 monitor`` reads it: the loop, the play's interval, the identifiable flag; one
 file per preset, from the tracking run's twin, used by all three runs, as a user
 identifies once and monitors many times), fed every sample at the host's default
