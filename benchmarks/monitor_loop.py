@@ -7,7 +7,7 @@ What ``servoid monitor`` runs for a model whose play sits in the loop, the
 same object: :class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`
 (here with ``background=False``: each refit inside the feed, as on a virtual
 clock), started from the model file's loop (here: ``servoid identify --data`` on a
-recording of 20 s (``--reference-s``) of the unworn twin, its ``model.json`` read back as ``servoid
+recording of 20 s (40 s where that file holds a horn sized on too short a record; ``--reference-s``) of the unworn twin, its ``model.json`` read back as ``servoid
 monitor`` reads it: the loop, the play's interval, the identifiable flag; one
 file per preset, from the tracking run's twin, used by all three runs, as a user
 identifies once and monitors many times), fed every sample at the host's default
@@ -60,10 +60,15 @@ sines' segments by -13 ... +28 %, one false alarm in 10^5 samples), so the
 table is measured with both files, and the default stays the recording for
 comparison with the tables before it (docs/monitor.md).
 
-``--reference-s``: the length of that recording (default 20 s; servoid's own designs record 40 s). On the
-horn servos it decides the file: identification's horn stage is kept on both lengths on the STS3215 and
-sizes its play -23.4 % on 20 s, -1.6 % on 40 s (``benchmarks/horn_live.py``: the stage needs about 40 s
-of sines; docs/online.md, "The horn stage on live records").
+``--reference-s``: the length of that recording. Default: by the evidence of the file, as a user would
+redo it: 20 s, then 40 s where that file holds the play in the loop on a compliant contact (the horn
+stage's answer, which sizes its play only on about 40 s of sines: ``benchmarks/horn_live.py``,
+docs/online.md, "The horn stage on live records"; on the STS3215 -23.4 % on 20 s, -1.6 % on 40 s). A
+play outside the loop (CiA 402, ODrive) or a massless loop (the XM430's 20 s file) keeps 20 s: 40 s moved
+the ODrive's raw tracking 0.3 -> 7.2 % and the XM430's file to a horn whose window plays cost 235-540 ms
+an estimate, near or past the 250 ms between them. The table's reference column says which was used.
+
+``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
 ``--input``: the monitoring input after the first fit (the first 10 s, the
 whole loop's refit, stay the identification's gentle sines, whose segments of
@@ -121,6 +126,7 @@ from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
+from servoid.monitor_loop import HORN_RECORD_S, short_horn
 from servoid.recording import write_recording
 
 RATE = 200.0
@@ -172,6 +178,19 @@ def _model_file(name: str, seed: int, reference_s: float = REFERENCE_S) -> Model
         if status != 0:
             raise SystemExit(f"servoid identify failed on the {name} twin's reference ({status})")
         return load_model(Path(tmp) / "run" / "model.json")
+
+
+def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
+    """The data file a user makes by the evidence of the first: :data:`REFERENCE_S`, then ``HORN_RECORD_S`` where that
+    file's play sits in the loop on a compliant contact sized on a shorter record (``servoid monitor``'s note,
+    :func:`~servoid.monitor_loop.short_horn`).
+
+    Returns the file and its reference's length, s (the twin's history before monitoring).
+    """
+    file = _model_file(name, seed, REFERENCE_S)
+    if short_horn(file) is not None:
+        return _model_file(name, seed, HORN_RECORD_S), HORN_RECORD_S
+    return file, REFERENCE_S
 
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
@@ -227,6 +246,7 @@ def main() -> None:
     parser.add_argument("--track", type=float, default=120.0, help="tracking run, servo s (default 120)")
     parser.add_argument("--quiet", type=int, default=100_000, help="samples of the run without wear")
     parser.add_argument("--full", action="store_true", help="1 000 000 samples without wear")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[2], help="twin seeds of the step run (default 2)")
     parser.add_argument(
         "--file",
         choices=("data", "live"),
@@ -236,8 +256,9 @@ def main() -> None:
     parser.add_argument(
         "--reference-s",
         type=float,
-        default=REFERENCE_S,
-        help=f"servo s of the unworn twin the data file is identified on (default {REFERENCE_S:g}; 40: servoid's designs)",
+        default=None,
+        help=f"servo s of the unworn twin the data file is identified on (default: {REFERENCE_S:g}, then "
+        f"{HORN_RECORD_S:g} where that file holds the play in the loop on a compliant contact, the horn stage's)",
     )
     parser.add_argument(
         "--fresh",
@@ -273,10 +294,17 @@ def main() -> None:
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
-            "share": args.accel_share, "count_switch": args.count_switch, "reference_s": args.reference_s}  # fmt: skip
+            "share": args.accel_share, "count_switch": args.count_switch}  # fmt: skip
     for name in args.presets:
         started = time.perf_counter()
-        file = _live_file(name, 1) if args.file == "live" else _model_file(name, 1, args.reference_s)
+        reference_s = REFERENCE_S if args.reference_s is None else args.reference_s
+        if args.file == "live":
+            file = _live_file(name, 1)
+        elif args.reference_s is None:
+            file, reference_s = _file_by_place(name, 1)
+        else:
+            file = _model_file(name, 1, reference_s)
+        opts["reference_s"] = reference_s
         model, tracker, tr, t, at, play0 = _run(
             name,
             args.track,
@@ -303,17 +331,13 @@ def main() -> None:
         cost = np.array([r.window.seconds for r in tr[1:]])
         counted = np.array([r.counted for r in tr[1:]])
         turns = np.array([r.window.reversals for r in tr[1:]])
-        _, step, _, _, _, _ = _run(
-            name,
-            STEP_AT_S + 20.0,
-            lambda s: 1.2 if s >= STEP_AT_S else 1.0,
-            2,
-            file,
-            **opts,
-        )
-        raised = _raised(step)
-        after = [x - STEP_AT_S for x in raised if x >= STEP_AT_S]
-        before = [x for x in raised if x < STEP_AT_S]
+        after, before = [], []  # the first alarm after the step per seed; alarms before it, all seeds
+        for seed in args.seeds:
+            _, step, _, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, seed, file,
+                                       **opts)  # fmt: skip
+            raised = _raised(step)
+            after.append(next((f"{x - STEP_AT_S:.2f}" for x in raised if x >= STEP_AT_S), "none"))
+            before += [x for x in raised if x < STEP_AT_S]
         _, calm, _, _, _, _ = _run(
             name,
             quiet / RATE,
@@ -328,8 +352,8 @@ def main() -> None:
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
                  f"[{lo:.2f}, {hi:.2f}]x; {'doubt' if tracker.doubt else 'no doubt'}")  # fmt: skip
         place = "in the loop" if file.structure == PLAY_IN_LOOP else "outside the loop"
-        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}", doubt, f"{raw:.1%}", f"{bias:+.1%} / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
-                     f"{after[0]:.2f}" if after else "none", str(len(before)), f"{len(_raised(calm))} in {quiet}",
+        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}, {reference_s:g} s", doubt, f"{raw:.1%}", f"{bias:+.1%} / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
+                     " / ".join(after), str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
                      f"{base['tau']:.1f} / {base['h']:.1f} / "
                      f"{base['false_alarm_samples']:.1e}",
@@ -338,8 +362,8 @@ def main() -> None:
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
-        ["preset", "model file play vs unworn truth, place", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "raw = bias (file) / own RMS / own without lag", "track RMS growth", "window RMS raw",
-         "alarm after +20 % step s", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
+        ["preset", "model file play vs unworn truth, place, reference", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw", "raw = bias (file) / own RMS / own without lag", "track RMS growth", "window RMS raw",
+         "alarm after +20 % step s (per seed)", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "windows counted / reversals (median)", "estimate ms med/max", "wall s"],
         rows,
     )  # fmt: skip

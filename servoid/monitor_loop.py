@@ -56,7 +56,16 @@ from servoid.monitor_run import drive
 from servoid.recording import RecordingWriter
 from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult
 
-__all__ = ["refusal", "design_sines", "LoopMonitorResult", "run_loop_monitor", "LOOP_COLUMNS", "METHOD"]
+__all__ = [
+    "refusal",
+    "design_sines",
+    "short_horn",
+    "HORN_RECORD_S",
+    "LoopMonitorResult",
+    "run_loop_monitor",
+    "LOOP_COLUMNS",
+    "METHOD",
+]
 
 #: ``method`` of the model files this monitor writes.
 METHOD = "window-tracking"
@@ -64,6 +73,41 @@ METHOD = "window-tracking"
 #: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
 LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
                 "reversals", "refit_s", "alarms")  # fmt: skip
+
+
+#: Servo seconds of gentle sines identification's horn stage needs to size a play in the loop on a compliant
+#: contact (``benchmarks/horn_live.py``: the STS3215 twin's play -23.4 % on 20 s, -1.6 % on 40 s; docs/online.md).
+HORN_RECORD_S = 40.0
+
+
+def short_horn(model_file: ModelFile) -> float | None:
+    """The seconds of record a model file's horn play was sized on, where shorter than the horn stage needs; else None.
+
+    A file whose play sits in the loop on a compliant contact (identification's horn stage kept) sized that
+    play on ``samples`` readings: under :data:`HORN_RECORD_S` its play is chance (the STS3215 twin's 20 s data
+    file -23.4 %, and the monitor's raw tracking 24.0 %; from 40 s -1.6 % and 4.6 %, docs/monitor.md). The
+    monitor judges wear against its own baseline either way; its raw play is the file's.
+
+    Parameters
+    ----------
+    model_file : ModelFile
+        The servo's model file.
+
+    Returns
+    -------
+    float or None
+        The record's length, s; None for a play outside the loop, a massless load, or a record long enough
+        (or of unknown length).
+    """
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+    from servoid.loop_compensation import has_loop, loop_model
+
+    if model_file.structure != PLAY_IN_LOOP or not has_loop(model_file) or not loop_model(model_file).compliant:
+        return None
+    if not model_file.samples or not model_file.sample_period_s:
+        return None
+    seconds = model_file.samples * model_file.sample_period_s
+    return seconds if seconds < HORN_RECORD_S - model_file.sample_period_s else None
 
 
 def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float, float] | None:

@@ -318,3 +318,26 @@ def test_excitation_overrides_the_steady_sine_and_a_file_without_a_design_says_s
     err = capsys.readouterr().err
     assert "excitation uniform:" in err and "holds no gentle-sines design" in err
     assert _reversals(np.array(sent)[1000:]) > 50
+
+
+def test_a_horn_play_sized_on_a_short_record_is_named_and_a_long_record_or_a_massless_loop_is_not() -> None:
+    # the horn stage sizes a play in the loop on a compliant contact only on about 40 s (the STS3215 twin: -23 % on 20 s)
+    import dataclasses
+
+    from servoid.ident import BacklashModel
+    from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP, SERVO_LOOP
+    from servoid.monitor_loop import HORN_RECORD_S, short_horn
+
+    horn = ServoLoopModel(structure=PLAY_IN_LOOP, sample_period_s=0.005, kp=20.0, kv=150.0, c1=0.005, c2=0.005,
+                          mu=0.03, al=20.0, wc=500.0, zeta=0.1)  # fmt: skip
+    black_box = BacklashModel(a=(-0.9,), b=(0.1,), delay=1, m2=1.0, c1=0.005, c2=0.005)
+    content = ModelFile(model=black_box, output_unit="rad", input_unit="rad", sample_period_s=0.005,
+                        structure=PLAY_IN_LOOP, form=SERVO_LOOP, play=horn.play, loop=horn.params(), samples=4000)  # fmt: skip
+    assert short_horn(content) == pytest.approx(20.0)
+    assert short_horn(dataclasses.replace(content, samples=int(HORN_RECORD_S / 0.005))) is None
+    massless = dataclasses.replace(horn, mu=0.0, al=0.0, wc=0.0, zeta=0.0)
+    assert short_horn(dataclasses.replace(content, loop=massless.params())) is None
+    outside = dataclasses.replace(horn, structure=OUTPUT_BACKLASH)
+    assert short_horn(dataclasses.replace(content, structure=OUTPUT_BACKLASH, loop=outside.params())) is None
+    assert short_horn(dataclasses.replace(content, samples=None)) is None

@@ -186,3 +186,48 @@ def test_windows_that_begin_before_the_input_settles_do_not_count_in_the_baselin
     assert all(counted) and polluted["scatter"] > 2.0 * base["scatter"]
     with pytest.raises(ConfigError, match="steady_s"):
         LoopWearTracker(LOOP, [], background=False, steady_s=-1.0)
+
+
+def test_the_first_refit_keeps_the_refit_that_fits_better_and_moves_a_worn_play() -> None:
+    # the monitor's first fit: the whole loop refitted free and with the play held at the file's, the better kept
+    from servoid.ident.monitoring.loop_wear import LoopWearTracker, first_refit
+    from servoid.ident.offline.loop_fit import refit_loop
+    from servoid.ident.online.window import WindowConfig
+
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), int(6.0 * RATE), seed=8)
+    score = np.ones(u.size, dtype=bool)
+    score[:80] = False
+    noise = 1e-4 * np.random.default_rng(9).standard_normal(u.size)
+    start = dataclasses.replace(LOOP, kv=54.0, fs=0.5)  # the file: the loop a little off
+    for worn in (1.0, 1.3):
+        y = dataclasses.replace(LOOP, c1=LOOP.c1 * worn, c2=LOOP.c2 * worn).simulate(u) + noise
+        model, q = first_refit(u, y, score, start, max_nfev=10)
+        free = refit_loop(u, y, start, score=score, max_nfev=10)
+        held = refit_loop(u, y, start, score=score, max_nfev=10, hold=("play",))
+        assert q == pytest.approx(min(free.fit_nrmse, held.fit_nrmse))
+        assert model.play == pytest.approx((held if held.fit_nrmse < free.fit_nrmse else free).model.play)
+        if worn > 1.0:  # a worn play fits better moved: the free refit, near the truth
+            assert free.fit_nrmse < held.fit_nrmse and model.play == pytest.approx(worn * LOOP.play, rel=0.05)
+    # the tracker's first row is that fit
+    config = WindowConfig(1 / RATE, window_s=1.6, every_s=0.25, first_s=u.size / RATE, burn_in_s=80 / RATE)
+    tracker = LoopWearTracker(start, [], config, background=False)
+    for ui, yi in zip([*u.tolist(), 0.0], [*y.tolist(), 0.0], strict=True):
+        tracker.update(ui, yi)
+    first = tracker.rows_since(0)[0].window
+    assert first.play == pytest.approx(model.play, rel=1e-9)
+
+
+@pytest.mark.parametrize("held_nrmse", [0.009, 0.011])
+def test_the_first_refit_keeps_the_play_held_only_where_the_free_search_ended_higher(monkeypatch, held_nrmse) -> None:
+    # the rule alone (the fits stubbed): the free refit unless the play-held one fits strictly better
+    from servoid.ident.monitoring.loop_wear import first_refit
+    from servoid.ident.offline import loop_fit
+
+    def stub(u, y, start, *, score=None, max_nfev=10, hold=()):  # type: ignore[no-untyped-def]
+        held = "play" in hold
+        model = start if held else dataclasses.replace(start, c1=0.5 * start.c1, c2=0.5 * start.c2)
+        return loop_fit.LoopRefit(model, held_nrmse if held else 0.010, 1, 0.0)
+
+    monkeypatch.setattr(loop_fit, "refit_loop", stub)
+    model, q = first_refit(np.zeros(10), np.zeros(10), np.ones(10, dtype=bool), LOOP)
+    assert (model.play, q) == ((LOOP.play, 0.009) if held_nrmse < 0.010 else (0.5 * LOOP.play, 0.010))

@@ -562,6 +562,10 @@ class WindowRefit:
         ``held`` the first fit's model (the monitor's play-only estimate,
         :func:`servoid.ident.monitoring.play_fit.fit_play`); default
         :func:`~servoid.ident.offline.loop_fit.refit_loop` from the last answer.
+    first : callable, optional
+        The fit of the first window from ``start``, ``first(u, y, score, start) -> (model, nrmse)``
+        (the monitor's :func:`servoid.ident.monitoring.loop_wear.first_refit`); default
+        :func:`~servoid.ident.offline.loop_fit.refit_loop` from ``start``. Unused without a start.
     slow : int
         How many of the stream's first samples are a live design's slow phase: kept aside, the
         windows timed from its end, scored by the windows once they put the play outside the
@@ -592,6 +596,7 @@ class WindowRefit:
         background: bool = True,
         wait: bool = False,
         later: LaterFit | None = None,
+        first: LaterFit | None = None,
         slow: int = 0,
         load: bool | None = False,
         end: int = 0,
@@ -606,6 +611,7 @@ class WindowRefit:
         self.config = config
         self.model = start
         self._later = later
+        self._first_fit = first if start is not None else None
         self._held: ServoLoopModel | None = None  # the first fit's model, which ``later`` holds
         self._u: list[float] = []
         self._y: list[float] = []
@@ -705,7 +711,7 @@ class WindowRefit:
         work: Callable[..., Any] = _refit
         job: tuple[Any, ...]
         if first or self._later is not None:
-            job = (*window, self.model if first else self._held, self.config, t_s, None if first else self._later,
+            job = (*window, self.model if first else self._held, self.config, t_s, self._first_fit if first else self._later,
                    self._load, self._stop)  # fmt: skip
         else:
             # a second look: a window this much longer than the last search's (none after a given start); the early

@@ -429,7 +429,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
     from servoid.drivers.clock import VirtualClock
     from servoid.drivers.simulated import SimulatedServo
     from servoid.loop_compensation import loop_model
-    from servoid.monitor_loop import run_loop_monitor
+    from servoid.monitor_loop import HORN_RECORD_S, run_loop_monitor, short_horn
     from servoid.session import SessionConfig
 
     unit = driver.position_unit.unit
@@ -455,6 +455,12 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
                            f"windows; bound {bound.describe() if bound else 'none'}; writing to {args.out}/",
                            markup=False, soft_wrap=True)  # fmt: skip
         _term.stderr.print(f"  input: {meta['input']}", markup=False, soft_wrap=True)
+        short = short_horn(model_file)
+        if short is not None:
+            _term.stderr.print(f"  note: the file's play in the loop on a compliant contact was sized on {short:.1f} s "
+                               f"of record; identification's horn stage needs about {HORN_RECORD_S:g} s, so its play "
+                               "is chance: wear is judged against the monitor's own baseline, and for its raw play "
+                               f"identify the servo again on {HORN_RECORD_S:g} s", markup=False, soft_wrap=True)  # fmt: skip
     started = time.perf_counter()
     with _term.live_progress("monitor", total) as bar:
 
