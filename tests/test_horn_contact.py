@@ -29,10 +29,10 @@ LOOP = dict(kp=28.7, kv=47.9, fc=11.0, fs=14.1, vs=0.03, veps=0.003, c1=0.0052, 
 Q = 2.0 * np.pi / 4096
 
 
-def _record(seed: int, **horn: float) -> tuple[np.ndarray, np.ndarray, ServoLoopModel]:
+def _record(seed: int, seconds: float = SECONDS, **horn: float) -> tuple[np.ndarray, np.ndarray, ServoLoopModel]:
     """Gentle sines through the model (``horn``: its ``mu``, ``al``, ``wc``, ``zeta``), 0.3 count of noise, 4096 counts."""
     model = ServoLoopModel(structure=PLAY_IN_LOOP, sample_period_s=PERIOD, **LOOP, **horn)
-    u = sample(GentleSpec(amplitude=0.1, accel=8.0 * PERIOD**2, spread=8.0), int(SECONDS / PERIOD), seed=seed)
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 * PERIOD**2, spread=8.0), int(seconds / PERIOD), seed=seed)
     y = model.simulate(u) + np.random.default_rng(seed).normal(0.0, 0.3 * Q, u.size)
     return u, np.round(y / Q) * Q, model
 
@@ -61,3 +61,22 @@ def test_a_massless_record_is_left_as_it_is():
     u, y, _ = _record(3)
     choice = fit_loop(u, y, PERIOD, load=None)
     assert with_horn(u, y, PERIOD, choice) is choice
+
+
+def test_a_record_with_gaps_gets_the_stage_and_about_the_gapless_answer():
+    """3 % of the readings lost (NaN, as a live session leaves them): the stage fits through them.
+
+    A 10 s record (seed 2, where the stage keeps the horn without gaps: on 10 s records it keeps it
+    on 3 of seeds 1-5, the validation being short) from the same massless answer: gapless -1.7 %,
+    with the gaps -3.5 % (seeds 4 / 5: -4.2 / -1.1 % gapless, not kept / -0.3 % with the gaps).
+    """
+    u, y, model = _record(2, seconds=10.0, mu=0.026, al=20.0, wc=775.0, zeta=0.078)
+    choice = fit_loop(u, y, PERIOD, load=None)
+    gapless = with_horn(u, y, PERIOD, choice)
+    keep = np.random.default_rng(2).random(u.size) > 0.03
+    gaps = with_horn(u, np.where(keep, y, np.nan), PERIOD, choice, keep)
+    assert gapless.model.compliant and gaps.model.compliant and REASON in gaps.reasons
+    assert abs(gaps.play - gapless.play) < 0.05 * model.play
+    assert (
+        np.isfinite(gaps.fit_nrmse) and np.all(np.isfinite(gaps.play_interval)) and np.all(np.isfinite(gaps.simulated))
+    )

@@ -81,7 +81,10 @@ def with_horn(
     choice : LoopChoice
         fit_loop's answer.
     keep : ndarray of bool, optional
-        fit_loop's scored readings; a record with gaps is left as it is.
+        fit_loop's scored readings (a live record's validity mask: lost and late readings False,
+        their ``y`` may be NaN). As in fit_loop, the model runs through every sample, ``y`` is read
+        bridged across the gaps for the starts, and the rebound, the fit, the validation, the NRMSE
+        and the interval read kept readings only. Default: all kept.
 
     Returns
     -------
@@ -89,23 +92,25 @@ def with_horn(
         ``choice`` itself where the play is not in the loop, the rebound is not named or the horn
         does not validate better; otherwise the horn's answer (play, model, fit, interval, a doubt).
     """
-    if not HORN_CONTACT or choice.structure != PLAY_IN_LOOP or (keep is not None and not np.all(keep)):
+    if not HORN_CONTACT or choice.structure != PLAY_IN_LOOP:
         return choice
-    if not rebound(y, np.asarray(choice.simulated), float(choice.play), period).named:
+    u_arr, y_arr, kept, _ = lf._checked(u, y, period, keep)
+    if not rebound(y_arr, np.asarray(choice.simulated), float(choice.play), period, valid=kept).named:
         return choice
     t0 = time.perf_counter()
     cand = min((c for c in choice.candidates if c.structure == PLAY_IN_LOOP), key=lambda c: c.validation_nrmse)
-    n = np.asarray(u).size
+    n = u_arr.size
     w = lf.SEARCH_SAMPLES if n >= 2 * lf.SEARCH_SAMPLES else n
-    centre = float(np.mean(u))
-    uc = np.ascontiguousarray(np.asarray(u, dtype=np.float64) - centre)
-    yc = np.ascontiguousarray(np.asarray(y, dtype=np.float64) - centre)
+    centre = float(np.mean(u_arr))
+    uc = np.ascontiguousarray(u_arr - centre)
+    yc = np.ascontiguousarray(y_arr - centre)
     us, ys = uc[:w], yc[:w]
     _, kv = lf._linear_start(us, ys, period)
     v_typ = float(np.std(np.diff(ys))) / period
     a_scale = 0.1 * kv * v_typ
-    est = lf.block_mask(w)
-    val0 = free_run_nrmse(ys[~est], cand.model.simulate(us, y0=float(ys[0]))[~est])
+    # fit_loop's blocks: estimation and validation on the window's kept readings
+    est, val = lf.block_mask(w) & kept[:w], ~lf.block_mask(w) & kept[:w]
+    val0 = free_run_nrmse(ys[val], cand.model.simulate(us, y0=float(ys[0]))[val])
     d0 = _values(cand.model)
     start = dict(d0, mu=MU, e=0.0, al=AL_START * d0["fc"], wc=WC_START, zeta=ZETA_START)
     if start["fs"] <= start["fc"]:  # the searches lose the hump (loop_fit._final_fit): restart from one
@@ -117,18 +122,17 @@ def with_horn(
         d, prob, _ = lf._fit(us, ys, period, PLAY_IN_LOOP, d, est, a_scale, integrator=cand.integrator,
                              max_nfev=NFEV, free=free)  # fmt: skip
         evaluations += prob.evaluations
-    val = free_run_nrmse(ys[~est], lf._model(PLAY_IN_LOOP, period, d).simulate(us, y0=float(ys[0]))[~est])
-    if not val < (1.0 - lf.LOAD_MARGIN) * val0:
+    horn_val = free_run_nrmse(ys[val], lf._model(PLAY_IN_LOOP, period, d).simulate(us, y0=float(ys[0]))[val])
+    if not horn_val < (1.0 - lf.LOAD_MARGIN) * val0:
         return replace(choice, evaluations=choice.evaluations + evaluations)
-    every = np.ones(n, dtype=bool)
-    d, prob, sol = lf._fit(uc, yc, period, PLAY_IN_LOOP, d, every, a_scale, integrator=cand.integrator,
+    d, prob, sol = lf._fit(uc, yc, period, PLAY_IN_LOOP, d, kept, a_scale, integrator=cand.integrator,
                            max_nfev=lf.FINAL_NFEV, free=loop + HORN)  # fmt: skip
     evaluations += prob.evaluations
     final = lf._model(PLAY_IN_LOOP, period, d)
     simulated = final.simulate(uc, y0=float(yc[0]))
     lo, hi = (math.nan, math.nan)
     if sol is not None:
-        lo, hi = lf._play_interval(*lf._spaced(sol.jac, sol.fun, every), prob.free, d["play"])
+        lo, hi = lf._play_interval(*lf._spaced(sol.jac, sol.fun, kept), prob.free, d["play"])
     interval = (lo, hi)
     if math.isfinite(lo + hi):
         # the massless play is a rival the record does not exclude, and the horn's correction of it is as
@@ -139,7 +143,7 @@ def with_horn(
         choice,
         play=final.play,
         play_interval=interval,
-        fit_nrmse=nrmse(yc, simulated),
+        fit_nrmse=nrmse(yc[kept], simulated[kept]),
         params=final.params(),
         simulated=simulated + centre,
         reasons=(*choice.reasons, REASON),

@@ -33,7 +33,7 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    emulators: +272 ... +285 %).
 5. after a slow phase, where the fast part puts the play in the loop: the horn stage
    (:func:`~servoid.ident.offline.horn_contact.with_horn`) on the whole record (slow and fast
-   parts, no gap), after ``fit_loop(load=None)`` on it puts the play in the loop too, answers when
+   parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=None)`` on it puts the play in the loop too, answers when
    it is kept and the load's friction it fits (``al``, the horn's deceleration by its own friction)
    stops the load faster than the slow phase's set point ever decelerates: then the slow part's
    reversals show the whole play (the load stays on the trailing flank) and the fast part's the
@@ -47,8 +47,8 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    (the fast answer stands); an STS3215 with its load friction doubled -12 / -8 -> -7 / -16 % (``al``
    40 / 17.5). A kept horn keeps its doubt
    (:data:`~servoid.ident.offline.horn_contact.REASON`). Cost: one ``fit_loop`` on the whole record
-   and the stage (17-38 s at load 8-9); not run on a record with gaps (the stage refuses them), nor
-   when it cannot end by ``deadline_s`` (:data:`HORN_PER_SEARCH`).
+   and the stage (17-38 s at load 8-9); not run when it cannot end by ``deadline_s``
+   (:data:`HORN_PER_SEARCH`).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -107,6 +107,8 @@ __all__ = ["refine_online", "Refined", "HORN_PER_SEARCH"]
 #: part's search's: 1.6-3.8 on the horn twins' live records (``sim://``, seeds 0-5, load 8-9: 17-38 s after
 #: searches of 4.7-11.3 s).
 HORN_PER_SEARCH = 4.0
+#: Samples each side of a set point's turn that :func:`_turn_accel` fits its parabola to, at least.
+TURN_HALF = 3
 
 
 @dataclasses.dataclass(frozen=True)
@@ -319,21 +321,20 @@ def _horn_on_whole(
 ) -> tuple[str, LoopChoice | None]:
     """Step 5: what became of the horn stage on the whole record, and its answer when it answers (else None).
 
-    Run where the record has no gap and the fast part's answer ``fast`` (the play in the loop, on
-    ``[head:]``) shows the horn's rebound (the stage's own gate, checked before the search). It
+    Run where the fast part's answer ``fast`` (the play in the loop, on ``[head:]``) shows the
+    horn's rebound on its usable readings ``kept`` (the stage's own gate, checked before the search);
+    the search and the stage run through the gaps and score the usable readings only. It
     answers when ``fit_loop(load=None)`` on the whole record puts the play in the loop, the stage
     keeps the horn, and the horn's own friction (``al``) stops the load faster than the slow part's
     set point decelerates into any of its reversals (:func:`_turn_accel`).
     """
     period = fast.model.sample_period_s
-    if not np.all(kept):
-        return "not run: the record has gaps (the horn stage fits gapless records)", None
-    if not rebound(y_arr[head:], np.asarray(fast.simulated), float(fast.play), period).named:
+    if not rebound(y_arr[head:], np.asarray(fast.simulated), float(fast.play), period, valid=kept[head:]).named:
         return "not run: the fast part shows no rebound off the flank", None
-    whole = fit_loop(u_arr, y_arr, period, load=None)
+    whole = fit_loop(u_arr, y_arr, period, keep=kept, load=None)
     if whole.structure != PLAY_IN_LOOP:
         return f"not run: the whole record's search puts the play {whole.structure}", None
-    found = with_horn(u_arr, y_arr, period, whole)
+    found = with_horn(u_arr, y_arr, period, whole, kept)
     if found is whole or not found.model.compliant:
         return "not kept (no rebound named, or the horn did not validate better)", None
     slow_accel = _turn_accel(u_arr[:head], period)
@@ -345,13 +346,29 @@ def _horn_on_whole(
 
 
 def _turn_accel(u: np.ndarray, period: float) -> float:
-    """The set point's largest deceleration into a reversal, unit/s^2: ``|u[k+1] - 2 u[k] + u[k-1]| / period^2``
-    where its steps change sign (a gentle sine's peak acceleration is at its turns; 0 without a turn)."""
-    step = np.sign(np.diff(u))
-    turns = np.flatnonzero((step[1:] != 0) & (step[:-1] != 0) & (step[1:] != step[:-1])) + 1
-    if turns.size == 0:
+    """The set point's largest deceleration into a reversal, unit/s^2 (0 without a turn).
+
+    At each reversal of the set point's moving steps, the curvature of a parabola fitted by least
+    squares to the samples around the turn: :data:`TURN_HALF` samples each side of it, or twice the
+    turn's plateau where the set point is sent in counts (a gentle sine held at its top count for
+    several samples: the 200 Hz STS3215 records through serial (C) hold it 4-8). A gentle sine's peak
+    acceleration is at its turns. (The turns' second difference alone reads 0 where the top count is
+    held: the gate then never held the horn back on a real transport.)
+    """
+    moving = np.flatnonzero(np.diff(u) != 0.0)
+    if moving.size < 2:
         return 0.0
-    return float(np.max(np.abs(u[turns + 1] - 2.0 * u[turns] + u[turns - 1]))) / period**2
+    sign = np.sign(np.diff(u)[moving])
+    largest = 0.0
+    for f in np.flatnonzero(sign[1:] != sign[:-1]):
+        first, last = moving[f] + 1, moving[f + 1]  # the turn's samples (one where the set point is not held)
+        half = max(TURN_HALF, 2 * (last - first))
+        lo, hi = first - half, last + half
+        if lo < 0 or hi >= u.size:
+            continue
+        t = (np.arange(lo, hi + 1) - 0.5 * (first + last)) * period
+        largest = max(largest, abs(2.0 * float(np.polyfit(t, u[lo : hi + 1], 2)[0])))
+    return largest
 
 
 def _hull(interval: tuple[float, float], values: tuple[float, ...]) -> tuple[float, float]:
