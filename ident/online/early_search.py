@@ -24,6 +24,15 @@ torque off and closed the recording); :meth:`EarlySearch.result` without
 searches the whole fast part itself, as it does when the run ended before
 :attr:`at` (too few samples).
 
+The same class searches a live design's slow phase (``skip=0``, ``at`` the slow
+phase's samples: :func:`~servoid.ident.offline.loop_fit.fit_loop`, ``load=None``,
+on the slow phase from its first measured sample, as the window refit searched it
+when a window first put the play outside the loop, and as the refinement's step 4
+does): started at the slow phase's end, while the window refit waits for its first
+window's samples, and handed to both (:class:`~servoid.ident.online.window.WindowRefit`'s
+``slow_early``, :func:`~servoid.ident.online.refinement.refine_online`'s
+``slow_search``): one search of the slow phase instead of two, neither at the run's end.
+
 The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
 ``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
 fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
@@ -109,6 +118,12 @@ class EarlySearch:
     def started(self) -> bool:
         """Whether the search was started."""
         return self._thread is not None
+
+    @property
+    def running(self) -> bool:
+        """Whether the search was started and has not ended yet."""
+        thread = self._thread
+        return thread is not None and thread.is_alive()
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""

@@ -21,7 +21,9 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    with the play outside the loop is replaced by the search on the slow part when that
    search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %); when
    the online estimate searched the same slow phase already (:attr:`WindowResult.slow_search`,
-   its windows having put the play outside the loop), that search is taken, not run again.
+   its windows having put the play outside the loop), or the session searched it from the slow
+   phase's end (``slow_search``: :class:`~servoid.ident.online.early_search.EarlySearch`), that
+   search is taken, not run again.
    Only where the fast part names the place: where its places tie (validation margin under
    :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`) the fast answer stands and its
    interval takes in the slow part's play (:attr:`Refined.slow_play`). The slow part cannot place
@@ -53,6 +55,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -157,7 +160,14 @@ class Refined:
 
 
 def refine_online(
-    u: Any, y: Any, online: WindowResult, *, keep: Any = None, slow: int = 0, early: SlowSearch | None = None
+    u: Any,
+    y: Any,
+    online: WindowResult,
+    *,
+    keep: Any = None,
+    slow: int = 0,
+    early: SlowSearch | None = None,
+    slow_search: Callable[[], SlowSearch | None] | None = None,
 ) -> tuple[LoopChoice, Refined]:
     """The offline search on the whole record with the online estimate as one more candidate (the module's steps).
 
@@ -187,6 +197,12 @@ def refine_online(
         record): when it starts at the fast part's first usable sample and ends before the
         record does, steps 1-3 run on the samples it searched with its answer, and the answer
         is then refitted warm on the whole fast part (:func:`_extended`); else ignored.
+    slow_search : callable, optional
+        Asked (once, only when step 4 needs the slow part's search and the windows did not run it)
+        for the slow phase's search run during the session
+        (:class:`~servoid.ident.online.early_search.EarlySearch` of the slow phase; ``start`` an
+        index of this record): taken when it starts at this record's first sample and covers the
+        slow part, else the slow part is searched here.
 
     Returns
     -------
@@ -214,7 +230,8 @@ def refine_online(
     if int(kept.sum()) < MIN_SAMPLES:
         raise ConfigError(f"{int(kept.sum())} usable samples; the servo-loop refinement needs at least {MIN_SAMPLES}")
     y_arr = np.where(kept, y_arr, y_arr[0])
-    head = _fast_start(kept, validation.integer("slow", slow, minimum=0))
+    slow = validation.integer("slow", slow, minimum=0)
+    head = _fast_start(kept, slow)
     searched = None
     if early is not None and early.start == head and MIN_SAMPLES <= early.samples < u_arr.size - head:
         searched = early
@@ -227,8 +244,15 @@ def refine_online(
     uc, yc = u_arr - centre, y_arr - centre
     fast_play = slow_play = None
     if choice.structure != PLAY_IN_LOOP:
+        # the slow part as searched during the session: up to the fast part's first usable sample, or to the slow
+        # phase's end when the fast part starts with unusable samples (not scored: the same search; on the ODrive
+        # twin through the serial emulator one such sample cost a second search of the slow part, 11 s at load 8)
+        same = {head, slow}
         done = online.slow_search
-        if done is not None and done.samples == head:  # the online estimate's search of the same samples
+        if (done is None or done.samples not in same) and slow_search is not None:
+            done = slow_search()  # the session's own search of the slow phase
+            done = done if done is not None and done.start == 0 else None
+        if done is not None and done.samples in same:  # the online estimate's search of the same samples
             slow_choice = done.choice
         else:
             slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)

@@ -301,8 +301,11 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
+        # the slow phase's search, started at its end on a thread of its own: the windows and the answer take it (one
+        # search of the slow phase), and a slow machine's first window starts from it instead of searching from scratch
+        slow_search = EarlySearch(config.period_s, slow_samples) if slow_samples else None
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
-                             grace_s=END_GRACE_S, early=early)  # fmt: skip
+                             grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
@@ -320,7 +323,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             clock.mark("setup")
             try:
                 result = run_session(
-                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(early), EstimatorFeed(window)],
+                    driver, u, config, recording=path, metadata=meta,
+                    listeners=[online, *([] if slow_search is None else [EstimatorFeed(slow_search)]), EstimatorFeed(early),
+                               EstimatorFeed(window)],
                     on_progress=None if quiet else update,
                 )  # fmt: skip
             except BaseException:
@@ -349,7 +354,10 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
     live["slow_samples"] = slow_samples
     live["early_search"] = _early_dict(early, early_search)
-    live["online_loop"], loop = loop_online(window_result, result, slow_samples, early_search)
+    if slow_search is not None:
+        live["slow_search"] = _early_dict(slow_search, slow_search.result(wait=False))
+    slow_found = None if slow_search is None else (lambda: slow_search.result(wait=True))
+    live["online_loop"], loop = loop_online(window_result, result, slow_samples, early_search, slow_found)
     clock.mark("loop_answer")
     live["wall_s"] = clock.seconds
     est = online.estimator
@@ -537,7 +545,11 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
 
 
 def loop_online(
-    online: WindowResult, result: SessionResult, slow_samples: int = 0, early: SlowSearch | None = None
+    online: WindowResult,
+    result: SessionResult,
+    slow_samples: int = 0,
+    early: SlowSearch | None = None,
+    slow_search: Callable[[], SlowSearch | None] | None = None,
 ) -> tuple[dict[str, Any], LoopChoice | None]:
     """The servo-loop answer of a live run, the online estimate among its candidates, and the estimate's verdict (JSON-ready).
 
@@ -565,6 +577,9 @@ def loop_online(
         The search of the fast part's head run during the session
         (:class:`~servoid.ident.online.early_search.EarlySearch`, ``start`` counted from the
         slow phase's end), which the refinement takes instead of searching those samples again.
+    slow_search : callable, optional
+        The slow phase's search run during the session (``EarlySearch(period, slow_samples)``), when
+        the refinement needs it and the windows did not take it (``refine_online(slow_search=)``).
     """
     import numpy as np
 
@@ -581,7 +596,9 @@ def loop_online(
     try:
         if early is not None:  # its start on this record: the session's samples from the first usable one
             early = dataclasses.replace(early, start=slow_samples + early.start - first)
-        choice, refined = refine_online(u, y, online, keep=keep, slow=max(slow_samples - first, 0), early=early)
+        slow_done = _moved(slow_search, -first)
+        choice, refined = refine_online(u, y, online, keep=keep, slow=max(slow_samples - first, 0), early=early,
+                                        slow_search=slow_done)  # fmt: skip
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
@@ -591,6 +608,18 @@ def loop_online(
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
     return out, choice
+
+
+def _moved(search: Callable[[], SlowSearch | None] | None, by: int) -> Callable[[], SlowSearch | None] | None:
+    """A search's start moved ``by`` samples (onto a record that starts elsewhere), when it is asked for."""
+    if search is None:
+        return None
+
+    def moved() -> SlowSearch | None:
+        found = search()
+        return None if found is None else dataclasses.replace(found, start=found.start + by)
+
+    return moved
 
 
 def _on_record(loop: LoopChoice | None, result: SessionResult, record: Record, factor: int) -> LoopChoice | None:
