@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from test_window import RATE, _two_phase
+from test_window import RATE, TRUTH, _record, _two_phase
 
 from servoid.ident.online.early_search import EarlySearch
 from servoid.ident.online.window import SLOW, WindowConfig, WindowRefit, WindowResult
@@ -62,3 +62,24 @@ def test_the_windows_and_the_answer_take_the_slow_phase_search_run_from_its_end(
     choice, refined = refine_online(u, y, result, keep=keep, slow=slow)
     assert calls == [u.size - slow] and refined.fast_play is not None
     assert choice.play == result.slow_search.choice.play  # type: ignore[union-attr]
+
+
+def test_with_no_online_model_the_search_answers_alone_and_the_verdict_says_why(monkeypatch) -> None:
+    # a loaded real clock: no window refit ended before the run did; the answer is still the servo-loop search (before:
+    # no loop answer, and identification searched the record itself after the run)
+    from types import SimpleNamespace
+
+    from servoid.cli import _live
+    from servoid.ident.online import refinement
+
+    u, y = _record(8.0, seed=5)
+    bare = WindowResult(None, (), CONFIG, dropped=3, stall_s=0.0, end_s=8.0)
+    choice, refined = refinement.refine_online(u, y, bare)
+    assert refined.online is None and not refined.online_won and choice.play == refined.search.play
+    assert refined.to_dict()["online_candidate"] is None and abs(choice.play / TRUTH.play - 1) < 0.1
+    monkeypatch.setattr(refinement, "refine_online", lambda *args, **kwargs: (choice, refined))
+    session = SimpleNamespace(u=u, y=y, valid=np.ones(u.size, dtype=bool))
+    out, loop = _live.loop_online(bare, session)  # type: ignore[arg-type]
+    verdict = out["verdict"]
+    assert loop is choice and not verdict["settled"] and "0 window refit(s)" in verdict["reasons"][0]
+    assert verdict["refined_gap"] == choice.play and out["refined"]["online_won"] is False

@@ -536,6 +536,9 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
                else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
         line = (f"the answer: {how}: play {play:.4g} {unit}; the online estimate ({est}, {why}) "
                 f"{online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
+        if not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
+            line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
+                    f"({est}: no refit ended before the run did)")  # fmt: skip
     else:
         line = (f"the answer: identification's own fit ({result.form}): play {play:.4g} {unit}; the online estimate "
                 f"({est}, {why}) {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
@@ -562,7 +565,11 @@ def loop_online(
 
     Returns the JSON-ready summary and the answer as identification's servo-loop
     answer (``identify(loop=)``, which applies the offline honesty rules to it; None
-    when there is no online model, and identification fits its own).
+    when the refinement failed, and identification fits its own). With no online model
+    (no window refit ended before the run did: the CiA 402 twin at load 7-12) the search
+    answers alone and the verdict says why there is no estimate: identification then
+    does not search the record again (24-30 s at load 8, and the MRGIA's offline fit
+    answered there, -97 ... +32 %).
 
     Parameters
     ----------
@@ -587,8 +594,6 @@ def loop_online(
     from servoid.ident.online.verdict import judge_window
 
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
-    if online.model is None:
-        return out, None
     keep = result.valid
     first = int(np.argmax(keep))
     u, y, keep = result.u[first:], result.y[first:], keep[first:]
@@ -602,8 +607,12 @@ def loop_online(
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
-    # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part of the record)
-    verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
+    if (
+        online.model is None
+    ):  # no window refit ended (a loaded real clock): the search answered alone, no estimate to judge
+        verdict = dataclasses.replace(judge_window(online), refined_gap=choice.play, refined_nrmse=choice.fit_nrmse)
+    else:  # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part)
+        verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
     out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
