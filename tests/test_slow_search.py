@@ -36,9 +36,14 @@ def test_the_windows_and_the_answer_take_the_slow_phase_search_run_from_its_end(
 
     u, y, slow, outside, _ = _two_phase(15.0, seed=7)  # short: the hand-over, not the play's accuracy
     calls = _counted(monkeypatch)
-    search = EarlySearch(1 / RATE, slow)  # fed first, as the session feeds it
+    search = EarlySearch(1 / RATE, slow, hold=True)  # fed first, as the session feeds it
     est = WindowRefit(CONFIG, start=dataclasses.replace(outside, kp=10.0), wait=True, slow=slow, slow_early=search)
-    for ui, yi in zip(u, y, strict=True):
+    first = slow + CONFIG.samples(CONFIG.first_s)
+    for ui, yi in zip(u[:first], y[:first], strict=True):
+        search.update(ui, yi)
+        est.update(ui, yi)
+    assert search.ready and not search.started and calls == []  # held: no window has named the place yet
+    for ui, yi in zip(u[first:], y[first:], strict=True):
         search.update(ui, yi)
         est.update(ui, yi)
     result = est.result()
@@ -53,6 +58,11 @@ def test_the_windows_and_the_answer_take_the_slow_phase_search_run_from_its_end(
     asked: list[bool] = []
     choice, refined = refine_online(u, y, bare, slow=slow, slow_search=lambda: asked.append(True) or search.result())
     assert asked == [True] and calls == [u.size - slow]
+    held = EarlySearch(1 / RATE, slow, hold=True)  # never asked for by a window: started by the refinement
+    for ui, yi in zip(u[:slow], y[:slow], strict=True):
+        held.update(ui, yi)
+    assert not held.started and held.searched(wait=True) is not None and calls == [u.size - slow, slow]
+    calls.clear()
     assert refined.fast_play is not None and choice.play == search.result().choice.play  # type: ignore[union-attr]
     # the fast part starting with unusable samples (the refinement's slow part runs to its first usable one): the
     # windows' search of the slow phase alone is the same search, not run again (the fast part's answer as above)
@@ -60,7 +70,7 @@ def test_the_windows_and_the_answer_take_the_slow_phase_search_run_from_its_end(
     keep[slow : slow + 2] = False
     monkeypatch.setattr(refinement, "_refine_fast", lambda *a: fast[0])
     choice, refined = refine_online(u, y, result, keep=keep, slow=slow)
-    assert calls == [u.size - slow] and refined.fast_play is not None
+    assert calls == [] and refined.fast_play is not None
     assert choice.play == result.slow_search.choice.play  # type: ignore[union-attr]
 
 

@@ -21,9 +21,9 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    with the play outside the loop is replaced by the search on the slow part when that
    search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %); when
    the online estimate searched the same slow phase already (:attr:`WindowResult.slow_search`,
-   its windows having put the play outside the loop), or the session searched it from the slow
-   phase's end (``slow_search``: :class:`~servoid.ident.online.early_search.EarlySearch`), that
-   search is taken, not run again.
+   its windows having put the play outside the loop), or the session holds a search of it
+   (``slow_search``: :class:`~servoid.ident.online.early_search.EarlySearch`, started when first
+   asked for), that search is taken, not run again.
    Only where the fast part names the place: where its places tie (validation margin under
    :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`) the fast answer stands and its
    interval takes in the slow part's play (:attr:`Refined.slow_play`). The slow part cannot place

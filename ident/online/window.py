@@ -63,8 +63,9 @@ a receding-horizon fit:
   the loop at +172 %, margin 4.3 %, and the slow phase's search answered +287 %,
   the windows stuck there; now they stay on the last window, whose second look at
   20 s puts the play in the loop at +11 %). The first time a window does, it
-  searches the slow phase afresh (or takes ``slow_early``'s search of it: on a real clock once it
-  has ended, the window staying on the last window until then), as the live answer does
+  searches the slow phase afresh (or starts ``slow_early``'s held search of it on that search's
+  own thread and takes it: on a real clock once it has ended, the window staying on the last
+  window until then and the worker free for the next windows), as the live answer does
   (:func:`~servoid.ident.online.refinement.refine_online`, step 4: a warm refit
   of the fast phase's model on it does not leave that model's play), and that
   search stands only when it too puts the play outside the loop (else the windows
@@ -599,9 +600,9 @@ class WindowRefit:
         ``skip`` this ``slow``): a second look due once its samples have all come takes its answer
         instead of searching again (the module's text).
     slow_early : EarlySearch, optional
-        The slow phase's search on a thread of its own (``at`` this ``slow``, ``skip`` 0), fed the
-        same stream before this refit: the windows take it instead of searching the slow phase (the
-        module's text).
+        The slow phase's search on a thread of its own (``at`` this ``slow``, ``skip`` 0, ``hold``:
+        started by the first window that asks for it), fed the same stream before this refit: the
+        windows take it instead of searching the slow phase on the worker (the module's text).
     """
 
     def __init__(
@@ -801,7 +802,7 @@ class WindowRefit:
             return None
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
         early, shared = self._slow_early, None
-        if early is not None and early.started and early.error is None:
+        if early is not None and early.ready:
             wait = self._wait and self._pool is not None  # a virtual clock waits for it; a real one takes it once ended
             shared = lambda: early.searched(wait=wait)  # noqa: E731
         return np.array(self._slow_u[lo:]), np.array(self._slow_y[lo:]), keep[lo:], lo, self._slow_model, shared
@@ -831,6 +832,13 @@ class WindowRefit:
         self._held = model if self._held is None else self._held
         self._rival = rival
         self._history.append(row)
+        from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+        if self._slow_early is not None and self._fast.structure != PLAY_IN_LOOP and not self._tied:
+            # the next window will ask for the slow phase's held search: started now, on its own thread (the ODrive
+            # twin at load 7: the first window's search ended at 15.5 s, the window at 15 s dropped, and a search
+            # started by the window at 20 s had not ended by the run's end, the windows never scored the slow phase)
+            self._slow_early.begin()
         if len(self._history) > 2 * HISTORY_ROWS:
             del self._history[:-HISTORY_ROWS]
             self._gone += HISTORY_ROWS

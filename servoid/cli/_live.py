@@ -301,9 +301,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
-        # the slow phase's search, started at its end on a thread of its own: the windows and the answer take it (one
-        # search of the slow phase), and a slow machine's first window starts from it instead of searching from scratch
-        slow_search = EarlySearch(config.period_s, slow_samples) if slow_samples else None
+        # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
+        # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
+        slow_search = EarlySearch(config.period_s, slow_samples, hold=True) if slow_samples else None
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
                              grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
@@ -332,6 +332,11 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                 window.close()  # the worker stopped and the switch interval restored on an error's way out too
                 raise
     clock.mark("run")
+    if slow_search is not None and result.stopped != "interrupted" and _maybe_outside(window.model):
+        # no sampler to share the machine with any more: the slow phase's search, if no window has started it, now
+        # runs beside the waits below (the answer's step 4 takes it when the place is outside the loop; the CiA 402
+        # twin at load 7 with no window refit: 20 s of loop_answer after a 30 s wait for the early search)
+        slow_search.begin()
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
@@ -356,7 +361,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     live["early_search"] = _early_dict(early, early_search)
     if slow_search is not None:
         live["slow_search"] = _early_dict(slow_search, slow_search.result(wait=False))
-    slow_found = None if slow_search is None else (lambda: slow_search.result(wait=True))
+    slow_found = None if slow_search is None else (lambda: slow_search.searched(wait=True))
     live["online_loop"], loop = loop_online(window_result, result, slow_samples, early_search, slow_found)
     clock.mark("loop_answer")
     live["wall_s"] = clock.seconds
@@ -369,6 +374,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
+
+
+def _maybe_outside(model: Any) -> bool:
+    """Whether the window refit's model leaves a play outside the loop possible (none yet, or one outside)."""
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+    return model is None or model.structure != PLAY_IN_LOOP
 
 
 class _Stages:
@@ -585,8 +597,9 @@ def loop_online(
         (:class:`~servoid.ident.online.early_search.EarlySearch`, ``start`` counted from the
         slow phase's end), which the refinement takes instead of searching those samples again.
     slow_search : callable, optional
-        The slow phase's search run during the session (``EarlySearch(period, slow_samples)``), when
-        the refinement needs it and the windows did not take it (``refine_online(slow_search=)``).
+        The slow phase's search held by the session (``EarlySearch(period, slow_samples, hold=True)``,
+        started when first asked for), when the refinement needs it and the windows did not take it
+        (``refine_online(slow_search=)``).
     """
     import numpy as np
 
