@@ -111,6 +111,8 @@ def seconds_to_within(out: Path, result: dict) -> float:
 def window_seconds_to_within(history: list[dict], target: float | None = None) -> float:
     """Servo seconds until the window refits' play stays within WITHIN of ``target`` (default its final value; from
     the run's history); NaN when the last refit is not within it."""
+    if not history:  # no window refit ended before the run did
+        return float("nan")
     plays = np.array([r["play"] for r in history])
     t = np.array([r["t_s"] for r in history])
     goal = plays[-1] if target is None else target
@@ -129,7 +131,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
     if result is None:
         return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", outcome(error)]
     verdict = result["online"]
-    online_gap = verdict["online_gap"] / scale
+    online_gap = (verdict["online_gap"] or float("nan")) / scale  # null: no window refit ended
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
     fit_ratio = (verdict["online_nrmse"] or float("nan")) / (verdict["refined_nrmse"] or float("nan"))
     why = "settled" if verdict["settled"] else "not: " + (verdict["reasons"][0][:40] if verdict["reasons"] else "?")

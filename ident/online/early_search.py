@@ -24,6 +24,20 @@ torque off and closed the recording); :meth:`EarlySearch.result` without
 searches the whole fast part itself, as it does when the run ended before
 :attr:`at` (too few samples).
 
+The same class searches a live design's slow phase (``skip=0``, ``at`` the slow
+phase's samples: :func:`~servoid.ident.offline.loop_fit.fit_loop`, ``load=None``,
+on the slow phase from its first measured sample, as the window refit searched it
+when a window first put the play outside the loop, and as the refinement's step 4
+does), held (``hold``) until first asked for, by the first window that puts the play
+outside the loop or else by the refinement, and handed to both
+(:class:`~servoid.ident.online.window.WindowRefit`'s ``slow_early``,
+:func:`~servoid.ident.online.refinement.refine_online`'s ``slow_search``): one search of
+the slow phase instead of two, and not on the window refit's worker, whose windows go on
+meanwhile. Held, not started at the slow phase's end: a search from there ran beside the
+sampler through the fast part's first 10 s, which had been quiet, and the CAN emulators
+over UDP lost more samples (unusable 0.17-0.44 of them on 8 runs at load 6.7-9.5, 7 refused
+above 0.2; 0.10-0.19 on 5 runs without it at load 5.2-9.6, none refused; the loads differ).
+
 The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
 ``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
 fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
@@ -89,9 +103,13 @@ class EarlySearch:
         Samples after the slow phase at which the search starts, on those samples.
     skip : int
         How many of the stream's first samples are the design's slow phase (not searched here).
+    hold : bool
+        Keep the samples at ``at`` and start the search only when it is first asked for
+        (:meth:`searched`, :meth:`begin`): the slow phase's search, which only a play outside
+        the loop needs (the module's text).
     """
 
-    def __init__(self, sample_period_s: float, at: int, *, skip: int = 0) -> None:
+    def __init__(self, sample_period_s: float, at: int, *, skip: int = 0, hold: bool = False) -> None:
         self.sample_period_s = validation.positive("sample_period_s", sample_period_s)
         self.at = validation.integer("at", at, minimum=1)
         self._skip = validation.integer("skip", skip, minimum=0)
@@ -102,13 +120,21 @@ class EarlySearch:
         self._thread: threading.Thread | None = None
         self._due = False  # ``at`` reached: the search started, or could not (once either way)
         self._found: SlowSearch | None = None
-        self._begun = threading.Event()  # set once ``at`` is reached (the search started, or could not)
+        self._begun = threading.Event()  # set once ``at`` is reached (the search started or held, or could not)
+        self._hold = bool(hold)
+        self._job: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None  # held: the samples, not yet searched
+        self._lock = threading.Lock()  # begin() is called from the window's worker and the main thread
         self.error: str | None = None
 
     @property
     def started(self) -> bool:
         """Whether the search was started."""
         return self._thread is not None
+
+    @property
+    def ready(self) -> bool:
+        """Whether ``at`` was reached with enough usable samples (the search started, or held to be started)."""
+        return self._due and self.error is None
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -149,11 +175,18 @@ class EarlySearch:
             self._begun.set()
             return
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
-        self._thread = threading.Thread(
-            target=self._search, args=(u[lo:], y[lo:], keep[lo:], lo), name="servoid-early-search", daemon=True
-        )
-        self._thread.start()
+        self._job = (u[lo:], y[lo:], keep[lo:], lo)
+        if not self._hold:
+            self.begin()
         self._begun.set()
+
+    def begin(self) -> None:
+        """Start a held search (``hold``) whose samples have all come; nothing otherwise (once)."""
+        with self._lock:
+            job, self._job = self._job, None
+            if job is not None:
+                self._thread = threading.Thread(target=self._search, args=job, name="servoid-early-search", daemon=True)
+                self._thread.start()
 
     def _search(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray, lo: int) -> None:
         from servoid.ident.offline.loop_fit import fit_loop
@@ -173,9 +206,11 @@ class EarlySearch:
         (:data:`BEGIN_WAIT_S` at most: a session feeds this estimator before the window refit, so
         it has started by the time the window's look runs) and to end. Else the search only if it
         has ended: on a real clock the look is left to a later window rather than held up.
+        A held search (``hold``) whose samples have all come is started here.
         """
         if wait and not self._begun.wait(BEGIN_WAIT_S):
             return None
+        self.begin()
         return self.result(wait=wait)
 
     def result(self, *, wait: bool = True) -> SlowSearch | None:

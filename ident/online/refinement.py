@@ -21,7 +21,9 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    with the play outside the loop is replaced by the search on the slow part when that
    search puts the play outside the loop too (issue 15: CiA 402 twin -19/-16 % -> +3/+3 %); when
    the online estimate searched the same slow phase already (:attr:`WindowResult.slow_search`,
-   its windows having put the play outside the loop), that search is taken, not run again.
+   its windows having put the play outside the loop), or the session holds a search of it
+   (``slow_search``: :class:`~servoid.ident.online.early_search.EarlySearch`, started when first
+   asked for), that search is taken, not run again.
    Only where the fast part names the place: where its places tie (validation margin under
    :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN`) the fast answer stands and its
    interval takes in the slow part's play (:attr:`Refined.slow_play`). The slow part cannot place
@@ -71,6 +73,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -117,8 +120,9 @@ class Refined:
 
     Attributes
     ----------
-    online : LoopCandidate
-        The online model refitted on the estimation blocks and scored on the validation blocks.
+    online : LoopCandidate or None
+        The online model refitted on the estimation blocks and scored on the validation blocks
+        (None: there was no online model, and the search answered alone).
     search : LoopChoice
         The offline search's own answer (:func:`~servoid.ident.offline.loop_fit.fit_loop`).
     online_won : bool
@@ -141,7 +145,7 @@ class Refined:
         whole record's search with the horn) and :attr:`fast_play` the fast part's play before it.
     """
 
-    online: LoopCandidate
+    online: LoopCandidate | None
     search: LoopChoice
     online_won: bool
     fast_play: float | None = None
@@ -181,8 +185,9 @@ class Refined:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready: the candidate's place, play and fits, the search's, and which answered."""
         c, s = self.online, self.search
-        return {"online_candidate": {"structure": c.structure, "play": c.model.play,
-                                     "estimation_nrmse": c.estimation_nrmse, "validation_nrmse": c.validation_nrmse},
+        return {"online_candidate": None if c is None else {
+                    "structure": c.structure, "play": c.model.play, "estimation_nrmse": c.estimation_nrmse,
+                    "validation_nrmse": c.validation_nrmse},
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
                 "online_won": self.online_won, "fast_play": self.fast_play, "slow_play": self.slow_play,
@@ -198,6 +203,7 @@ def refine_online(
     slow: int = 0,
     early: SlowSearch | None = None,
     deadline_s: float = math.inf,
+    slow_search: Callable[[], SlowSearch | None] | None = None,
 ) -> tuple[LoopChoice, Refined]:
     """The offline search on the whole record with the online estimate as one more candidate (the module's steps).
 
@@ -215,7 +221,9 @@ def refine_online(
         The record at the online estimate's sample period (``y`` is not read where ``keep`` is False);
         ``y[0]`` must be measured.
     online : WindowResult
-        The window refit's run; its :attr:`~WindowResult.model` is the candidate.
+        The window refit's run; its :attr:`~WindowResult.model` is the candidate (None: no window
+        refit ended before the run did, on a loaded real clock: the search answers alone, where
+        identification would otherwise search the record itself after it, 24-30 s at load 8).
     keep : array_like of bool, optional
         The usable samples (a live session's validity mask); default all.
     slow : int
@@ -231,6 +239,12 @@ def refine_online(
         The :func:`time.perf_counter` instant by which step 5 must end (a live run on a real clock:
         its wall budget); it is skipped when :data:`HORN_PER_SEARCH` times the fast part's search
         would pass it. Default: no deadline.
+    slow_search : callable, optional
+        Asked (once, only when step 4 needs the slow part's search and the windows did not run it)
+        for the slow phase's search run during the session
+        (:class:`~servoid.ident.online.early_search.EarlySearch` of the slow phase; ``start`` an
+        index of this record): taken when it starts at this record's first sample and covers the
+        slow part, else the slow part is searched here.
 
     Returns
     -------
@@ -243,13 +257,12 @@ def refine_online(
     Raises
     ------
     ConfigError
-        No online model, mismatched signals or fewer than
+        Mismatched signals or fewer than
         :data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES` usable samples.
     """
     t0 = time.perf_counter()
-    start = online.model
-    if start is None:
-        raise ConfigError("the online estimate has no model (no window was fitted): nothing to refine")
+    start = online.model  # None: no window refit ended (a loaded real clock); the search alone answers
+    period = online.config.sample_period_s
     u_arr = validation.signal("u", u, min_length=MIN_SAMPLES)
     y_arr = np.asarray(y, dtype=np.float64)
     kept = np.ones(u_arr.size, dtype=bool) if keep is None else np.asarray(keep, dtype=np.bool_)
@@ -258,11 +271,12 @@ def refine_online(
     if int(kept.sum()) < MIN_SAMPLES:
         raise ConfigError(f"{int(kept.sum())} usable samples; the servo-loop refinement needs at least {MIN_SAMPLES}")
     y_arr = np.where(kept, y_arr, y_arr[0])
-    head = _fast_start(kept, validation.integer("slow", slow, minimum=0))
+    slow = validation.integer("slow", slow, minimum=0)
+    head = _fast_start(kept, slow)
     searched = None
     if early is not None and early.start == head and MIN_SAMPLES <= early.samples < u_arr.size - head:
         searched = early
-    choice, refined = _refine_fast(u_arr[head:], y_arr[head:], kept[head:], start, t0, searched)
+    choice, refined = _refine_fast(u_arr[head:], y_arr[head:], kept[head:], start, period, t0, searched)
     if head == 0:
         return choice, dataclasses.replace(refined, scored=(0, u_arr.size))
     scored = (head, u_arr.size)
@@ -271,11 +285,18 @@ def refine_online(
     uc, yc = u_arr - centre, y_arr - centre
     fast_play = slow_play = None
     if choice.structure != PLAY_IN_LOOP:
+        # the slow part as searched during the session: up to the fast part's first usable sample, or to the slow
+        # phase's end when the fast part starts with unusable samples (not scored: the same search; on the ODrive
+        # twin through the serial emulator one such sample cost a second search of the slow part, 11 s at load 8)
+        same = {head, slow}
         done = online.slow_search
-        if done is not None and done.samples == head:  # the online estimate's search of the same samples
+        if (done is None or done.samples not in same) and slow_search is not None:
+            done = slow_search()  # the session's own search of the slow phase
+            done = done if done is not None and done.start == 0 else None
+        if done is not None and done.samples in same:  # the online estimate's search of the same samples
             slow_choice = done.choice
         else:
-            slow_choice = fit_loop(u_arr[:head], y_arr[:head], start.sample_period_s, keep=kept[:head], load=None)
+            slow_choice = fit_loop(u_arr[:head], y_arr[:head], period, keep=kept[:head], load=None)
         if slow_choice.structure == PLAY_IN_LOOP:
             pass  # the slow part does not confirm the place: the fast answer stands
         elif not choice.margin >= MIN_STRUCTURE_MARGIN:
@@ -392,15 +413,16 @@ def _refine_fast(
     u_arr: np.ndarray,
     y_arr: np.ndarray,
     kept: np.ndarray,
-    start: ServoLoopModel,
+    start: ServoLoopModel | None,
+    period: float,
     t0: float,
     early: SlowSearch | None,
 ) -> tuple[LoopChoice, Refined]:
     """Steps 1-3 on the fast part: on all of it, or on the head ``early`` searched and then extended to all."""
     if early is None:
-        return _refine(u_arr, y_arr, kept, start, t0)
+        return _refine(u_arr, y_arr, kept, start, period, t0)
     m = early.samples
-    choice, refined = _refine(u_arr[:m], y_arr[:m], kept[:m], start, t0, early.choice)
+    choice, refined = _refine(u_arr[:m], y_arr[:m], kept[:m], start, period, t0, early.choice)
     return _extended(choice, u_arr, y_arr, kept, t0), refined
 
 
@@ -440,15 +462,18 @@ def _refine(
     u_arr: np.ndarray,
     y_arr: np.ndarray,
     kept: np.ndarray,
-    start: ServoLoopModel,
+    start: ServoLoopModel | None,
+    period: float,
     t0: float,
     search: LoopChoice | None = None,
 ) -> tuple[LoopChoice, Refined]:
     """The module's steps 1-3 on one record (``y_arr[0]`` measured, unusable samples filled); ``search``: its
-    ``fit_loop(load=None)`` when already run."""
+    ``fit_loop(load=None)`` when already run; ``start`` None (no online model): the search answers alone."""
     # the search identification's second structure runs (second_structure: load=None)
     if search is None:
-        search = fit_loop(u_arr, y_arr, start.sample_period_s, keep=kept, load=None)
+        search = fit_loop(u_arr, y_arr, period, keep=kept, load=None)
+    if start is None:
+        return dataclasses.replace(search, seconds=time.perf_counter() - t0), Refined(None, search, False)
     # 1. the online model as a candidate: the estimation blocks fitted, the validation blocks scored (fit_loop's split)
     blocks = block_mask(u_arr.size)
     est, val = blocks & kept, ~blocks & kept

@@ -63,7 +63,9 @@ a receding-horizon fit:
   the loop at +172 %, margin 4.3 %, and the slow phase's search answered +287 %,
   the windows stuck there; now they stay on the last window, whose second look at
   20 s puts the play in the loop at +11 %). The first time a window does, it
-  searches the slow phase afresh, as the live answer does
+  searches the slow phase afresh (or starts ``slow_early``'s held search of it on that search's
+  own thread and takes it: on a real clock once it has ended, the window staying on the last
+  window until then and the worker free for the next windows), as the live answer does
   (:func:`~servoid.ident.online.refinement.refine_online`, step 4: a warm refit
   of the fast phase's model on it does not leave that model's play), and that
   search stands only when it too puts the play outside the loop (else the windows
@@ -307,6 +309,12 @@ class SlowSearch:
     samples: int
 
 
+#: The slow phase as :func:`_refit_later` takes it: ``u, y, keep`` from its first measured sample, that sample's
+#: index, its model so far (None before its search), and its own search when one runs (``slow_early``).
+SlowJob = tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None,
+                Callable[[], SlowSearch | None] | None]  # fmt: skip
+
+
 @dataclass(frozen=True)
 class WindowResult:
     """What a :class:`WindowRefit` run produced.
@@ -439,7 +447,7 @@ def _refit_later(
     rival: ServoLoopModel | None,
     config: WindowConfig,
     t_s: float,
-    slow: tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None,
+    slow: SlowJob | None,
     load: bool | None = False,
     look: bool = False,
     tied: bool = False,
@@ -452,10 +460,11 @@ def _refit_later(
     window; the better fit names the place. When that is the rival's (the place changed), the
     window is searched afresh (:func:`fit_loop` with ``load``, both places): the rival came from a
     shorter first window and a warm refit does not leave its play. With the play outside the loop and ``slow`` (the slow
-    phase's ``u, y, keep``, the stream index of its first sample, and its model: None before the
-    search) the slow phase answers: searched afresh (:func:`fit_loop`, ``load=None``, as the live
-    answer searches it; standing only when it too puts the play outside the loop), else its model
-    refitted warm. With ``look`` (the window is :data:`LOOK_AGAIN` times as long as the last one
+    phase's ``u, y, keep``, the stream index of its first sample, its model: None before the
+    search, and the slow phase's own search, ``slow_early``'s, when one runs: None while it runs on a
+    real clock) the slow phase answers: searched afresh (:func:`fit_loop`, ``load=None``, as the live
+    answer searches it; standing only when it too puts the play outside the loop) or that search
+    taken (the window stays on the last window while it runs), else its model refitted warm. With ``look`` (the window is :data:`LOOK_AGAIN` times as long as the last one
     searched from scratch), a last window whose warm fit is off its floor and which the slow phase
     does not answer, or any window when ``tied`` (that search's places tied), is searched afresh too; the search's answer refitted warm stays when it fits the
     window better (the row is ``searched`` either way). With ``early`` (a live answer's early search, its
@@ -517,13 +526,21 @@ def _refit_later(
     model, part, search = won, LAST, None
     if slow is not None and won.structure != PLAY_IN_LOOP:
         _check(stop)
-        su, sy, sk, offset, held = slow
+        su, sy, sk, offset, held, shared = slow
         if held is None:
-            choice = fit_loop(su, sy, config.sample_period_s, keep=sk, load=None)  # the answer may reuse its interval
-            search, searched = SlowSearch(choice, offset, int(su.size)), True
-            if choice.structure != PLAY_IN_LOOP:
-                model, q, floor, part = choice.model, choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
-                turns = reversals(sy[sk], 2.0 * fast.play)
+            search = None if shared is None else shared()  # the slow phase's own search (None: still running)
+            if search is not None and search.samples != su.size:
+                search = shared = None  # not these samples: searched here
+            if shared is None:
+                choice = fit_loop(
+                    su, sy, config.sample_period_s, keep=sk, load=None
+                )  # the answer may reuse its interval
+                search = SlowSearch(choice, offset, int(su.size))
+            if search is not None:
+                searched = True
+                if search.choice.structure != PLAY_IN_LOOP:
+                    model, q, floor, part = search.choice.model, search.choice.fit_nrmse, floor_nrmse(sy[sk]), SLOW
+                    turns = reversals(sy[sk], 2.0 * fast.play)
         else:
             sscore = sk.copy()
             sscore[: min(config.samples(config.burn_in_s), su.size - 2)] = False
@@ -586,6 +603,10 @@ class WindowRefit:
         A live answer's search of the fast part's head, fed the same stream before this refit (its
         ``skip`` this ``slow``): a second look due once its samples have all come takes its answer
         instead of searching again (the module's text).
+    slow_early : EarlySearch, optional
+        The slow phase's search on a thread of its own (``at`` this ``slow``, ``skip`` 0, ``hold``:
+        started by the first window that asks for it), fed the same stream before this refit: the
+        windows take it instead of searching the slow phase on the worker (the module's text).
     """
 
     def __init__(
@@ -602,6 +623,7 @@ class WindowRefit:
         end: int = 0,
         grace_s: float = 0.0,
         early: EarlySearch | None = None,
+        slow_early: EarlySearch | None = None,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -654,6 +676,7 @@ class WindowRefit:
         self._tied = False  # that search's places tied (validation margin under MIN_STRUCTURE_MARGIN)
         self._span_due = 0  # samples of the window the refit in hand fits
         self._early = early
+        self._slow_early = slow_early
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -768,10 +791,11 @@ class WindowRefit:
         cost = max((r.seconds for r in self._history if r.searched), default=0.0) * span / self._looked
         return cost <= left_s
 
-    def _slow_job(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, ServoLoopModel | None] | None:
+    def _slow_job(self) -> SlowJob | None:
         """The slow phase for :func:`_refit_later` (its samples from the first measured one, that index, its model
-        so far); None without one, with too few samples, when its search put the play inside the loop, or when
-        the last window's last search from scratch tied (the place not named: the refinement's step-4 rule)."""
+        so far, and ``slow_early``'s search of it while it has not failed); None without one, with too few samples,
+        when its search put the play inside the loop, or when the last window's last search from scratch tied (the
+        place not named: the refinement's step-4 rule)."""
         from servoid.ident.models.structure_names import PLAY_IN_LOOP
         from servoid.ident.offline.loop_fit import MIN_SAMPLES
 
@@ -783,7 +807,11 @@ class WindowRefit:
         if int(keep.sum()) < MIN_SAMPLES:
             return None
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
-        return np.array(self._slow_u[lo:]), np.array(self._slow_y[lo:]), keep[lo:], lo, self._slow_model
+        early, shared = self._slow_early, None
+        if early is not None and early.ready:
+            wait = self._wait and self._pool is not None  # a virtual clock waits for it; a real one takes it once ended
+            shared = lambda: early.searched(wait=wait)  # noqa: E731
+        return np.array(self._slow_u[lo:]), np.array(self._slow_y[lo:]), keep[lo:], lo, self._slow_model, shared
 
     def _store(self, work: Callable[..., Any], job: tuple[Any, ...], t_s: float) -> None:
         try:
@@ -810,6 +838,13 @@ class WindowRefit:
         self._held = model if self._held is None else self._held
         self._rival = rival
         self._history.append(row)
+        from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+        if self._slow_early is not None and self._fast.structure != PLAY_IN_LOOP and not self._tied:
+            # the next window will ask for the slow phase's held search: started now, on its own thread (the ODrive
+            # twin at load 7: the first window's search ended at 15.5 s, the window at 15 s dropped, and a search
+            # started by the window at 20 s had not ended by the run's end, the windows never scored the slow phase)
+            self._slow_early.begin()
         if len(self._history) > 2 * HISTORY_ROWS:
             del self._history[:-HISTORY_ROWS]
             self._gone += HISTORY_ROWS

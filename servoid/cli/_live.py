@@ -305,8 +305,11 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
+        # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
+        # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
+        slow_search = EarlySearch(config.period_s, slow_samples, hold=True) if slow_samples else None
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
-                             grace_s=END_GRACE_S, early=early)  # fmt: skip
+                             grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
@@ -324,13 +327,20 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             clock.mark("setup")
             try:
                 result = run_session(
-                    driver, u, config, recording=path, metadata=meta, listeners=[online, EstimatorFeed(early), EstimatorFeed(window)],
+                    driver, u, config, recording=path, metadata=meta,
+                    listeners=[online, *([] if slow_search is None else [EstimatorFeed(slow_search)]), EstimatorFeed(early),
+                               EstimatorFeed(window)],
                     on_progress=None if quiet else update,
                 )  # fmt: skip
             except BaseException:
                 window.close()  # the worker stopped and the switch interval restored on an error's way out too
                 raise
     clock.mark("run")
+    if slow_search is not None and result.stopped != "interrupted" and _maybe_outside(window.model):
+        # no sampler to share the machine with any more: the slow phase's search, if no window has started it, now
+        # runs beside the waits below (the answer's step 4 takes it when the place is outside the loop; the CiA 402
+        # twin at load 7 with no window refit: 20 s of loop_answer after a 30 s wait for the early search)
+        slow_search.begin()
     if not quiet:
         cols, rows = session_rows(result)
         _term.table(f"session: {driver.describe()}", cols, rows, console=_term.stderr)
@@ -353,9 +363,14 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     live["lost"] = check_lost(result, args.max_lost, allow=args.allow_lost, path=path)
     live["slow_samples"] = slow_samples
     live["early_search"] = _early_dict(early, early_search)
+    if slow_search is not None:
+        live["slow_search"] = _early_dict(slow_search, slow_search.result(wait=False))
+    slow_found = None if slow_search is None else (lambda: slow_search.searched(wait=True))
     # (on a real clock the answer's horn stage only where it can end within the wall budget, identification after it)
     deadline = math.inf if virtual else clock.started + WALL_TARGET_S - AFTER_ANSWER_S
-    live["online_loop"], loop = loop_online(window_result, result, slow_samples, early_search, deadline_s=deadline)
+    live["online_loop"], loop = loop_online(
+        window_result, result, slow_samples, early_search, slow_found, deadline_s=deadline
+    )
     clock.mark("loop_answer")
     live["wall_s"] = clock.seconds
     est = online.estimator
@@ -367,6 +382,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
+
+
+def _maybe_outside(model: Any) -> bool:
+    """Whether the window refit's model leaves a play outside the loop possible (none yet, or one outside)."""
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+    return model is None or model.structure != PLAY_IN_LOOP
 
 
 class _Stages:
@@ -534,6 +556,9 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
                else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
         line = (f"the answer: {how}: play {play:.4g} {unit}; the online estimate ({est}, {why}) "
                 f"{online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
+        if not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
+            line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
+                    f"({est}: no refit ended before the run did)")  # fmt: skip
     else:
         line = (f"the answer: identification's own fit ({result.form}): play {play:.4g} {unit}; the online estimate "
                 f"({est}, {why}) {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
@@ -547,6 +572,7 @@ def loop_online(
     result: SessionResult,
     slow_samples: int = 0,
     early: SlowSearch | None = None,
+    slow_search: Callable[[], SlowSearch | None] | None = None,
     *,
     deadline_s: float = math.inf,
 ) -> tuple[dict[str, Any], LoopChoice | None]:
@@ -561,7 +587,11 @@ def loop_online(
 
     Returns the JSON-ready summary and the answer as identification's servo-loop
     answer (``identify(loop=)``, which applies the offline honesty rules to it; None
-    when there is no online model, and identification fits its own).
+    when the refinement failed, and identification fits its own). With no online model
+    (no window refit ended before the run did: the CiA 402 twin at load 7-12) the search
+    answers alone and the verdict says why there is no estimate: identification then
+    does not search the record again (24-30 s at load 8, and the MRGIA's offline fit
+    answered there, -97 ... +32 %).
 
     Parameters
     ----------
@@ -576,6 +606,10 @@ def loop_online(
         The search of the fast part's head run during the session
         (:class:`~servoid.ident.online.early_search.EarlySearch`, ``start`` counted from the
         slow phase's end), which the refinement takes instead of searching those samples again.
+    slow_search : callable, optional
+        The slow phase's search held by the session (``EarlySearch(period, slow_samples, hold=True)``,
+        started when first asked for), when the refinement needs it and the windows did not take it
+        (``refine_online(slow_search=)``).
     deadline_s : float
         The :func:`time.perf_counter` instant by which the refinement's horn stage must end (its step 5).
     """
@@ -585,8 +619,6 @@ def loop_online(
     from servoid.ident.online.verdict import judge_window
 
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
-    if online.model is None:
-        return out, None
     keep = result.valid
     first = int(np.argmax(keep))
     u, y, keep = result.u[first:], result.y[first:], keep[first:]
@@ -594,17 +626,34 @@ def loop_online(
     try:
         if early is not None:  # its start on this record: the session's samples from the first usable one
             early = dataclasses.replace(early, start=slow_samples + early.start - first)
+        slow_done = _moved(slow_search, -first)
         choice, refined = refine_online(u, y, online, keep=keep, slow=max(slow_samples - first, 0), early=early,
-                                        deadline_s=deadline_s)  # fmt: skip
+                                        slow_search=slow_done, deadline_s=deadline_s)  # fmt: skip
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
-    # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part of the record)
-    verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
+    if (
+        online.model is None
+    ):  # no window refit ended (a loaded real clock): the search answered alone, no estimate to judge
+        verdict = dataclasses.replace(judge_window(online), refined_gap=choice.play, refined_nrmse=choice.fit_nrmse)
+    else:  # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part)
+        verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
     out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
     return out, choice
+
+
+def _moved(search: Callable[[], SlowSearch | None] | None, by: int) -> Callable[[], SlowSearch | None] | None:
+    """A search's start moved ``by`` samples (onto a record that starts elsewhere), when it is asked for."""
+    if search is None:
+        return None
+
+    def moved() -> SlowSearch | None:
+        found = search()
+        return None if found is None else dataclasses.replace(found, start=found.start + by)
+
+    return moved
 
 
 def _on_record(loop: LoopChoice | None, result: SessionResult, record: Record, factor: int) -> LoopChoice | None:
