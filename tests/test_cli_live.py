@@ -159,3 +159,15 @@ def test_a_live_twin_with_lost_samples_gets_one_servo_loop_answer_the_online_one
     saved = json.loads((tmp_path / "model.json").read_text(), parse_constant=lambda c: pytest.fail(c))
     assert (saved["structure"]["name"], saved["structure"]["form"]) == (obj["structure"], obj["form"])
     assert saved["answer"] == answer
+
+
+def test_a_live_record_whose_first_samples_were_lost_keeps_the_session_s_online_estimate(tmp_path, capsys):
+    # seed 34 loses the run's first samples (and their guard window): the record starts at the first measured
+    # one, and identification refines the session's MRGIA estimate instead of running the MRGIA again
+    code, obj, err = run_json(capsys, "--driver", "sim://xm430?clock=virtual&drop=0.03&seed=34", "--rate", "200",
+                              "--samples", "600", "--no-probe", "--no-plots", "--allow-lost", "--max-lost", "1",
+                              "--out", str(tmp_path))  # fmt: skip
+    assert code == 0, err
+    session = obj["lost"]["samples"]
+    assert obj["samples"] < session  # the record starts after the lost samples
+    assert obj["mrgia"]["samples"] == session and obj["mrgia"]["updates"] <= obj["lost"]["usable"]

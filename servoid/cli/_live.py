@@ -453,14 +453,16 @@ def _record(
         truth = None
     if not valid.any():
         raise ConfigError(f"no sample of {source} was usable ({result.counts}); the recording is in {path}")
-    # the free-run simulation starts at the first measured sample; the online run, which began
-    # before it, then no longer matches the record, and identification runs the MRGIA itself
+    # the free-run simulation starts at the first measured sample; the online run began before it, on
+    # unusable samples it skipped, so its estimate is the MRGIA's on this record (its sample counts are the
+    # session's) and identification refines it rather than running the MRGIA again (9 s at load 7-9
+    # after a run whose first decimated sample was unusable, issue 15 wall15 session)
     first = int(np.argmax(valid))
     unit = result.unit
     return Record(
         u=u[first:], y=y[first:], t=t[first:], source=source, input_unit=unit,
         output_unit=unit, truth=truth, servo=identity, written_to=path, valid=valid[first:],
-        acquisition=acquisition(result), online=online if first == 0 else None, readings=readings_side.of(identity),
+        acquisition=acquisition(result), online=online, readings=readings_side.of(identity),
     )  # fmt: skip
 
 
