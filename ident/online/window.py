@@ -121,6 +121,7 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline.loop_fit import LoopChoice
@@ -472,7 +473,6 @@ def _refit_later(
     returns None (not ended on a real clock) the window has no look (a later one may). Returns the estimate, its row, the other
     place's model, the search (None: none ran) and the winning place's model of the last window.
     """
-    from servoid.ident.models.structure_names import PLAY_IN_LOOP
     from servoid.ident.offline.intervals import floor_nrmse, reversals
     from servoid.ident.offline.loop_fit import fit_loop, refit_loop
 
@@ -772,8 +772,6 @@ class WindowRefit:
         """Whether the end of the stream would take a second look from the early search that no window has taken yet
         (the search had not ended: a real clock): :func:`_refit_later`'s rule on the last refit, the last search tied,
         or the last window's fit off its floor where the slow phase does not answer."""
-        from servoid.ident.models.structure_names import PLAY_IN_LOOP
-
         if self._shared(n) is None or not self._history or self._fast is None:
             return False
         last = self._history[-1]
@@ -796,7 +794,6 @@ class WindowRefit:
         so far, and ``slow_early``'s search of it while it has not failed); None without one, with too few samples,
         when its search put the play inside the loop, or when the last window's last search from scratch tied (the
         place not named: the refinement's step-4 rule)."""
-        from servoid.ident.models.structure_names import PLAY_IN_LOOP
         from servoid.ident.offline.loop_fit import MIN_SAMPLES
 
         if self._search is not None and self._search.choice.structure == PLAY_IN_LOOP:
@@ -838,8 +835,6 @@ class WindowRefit:
         self._held = model if self._held is None else self._held
         self._rival = rival
         self._history.append(row)
-        from servoid.ident.models.structure_names import PLAY_IN_LOOP
-
         if self._slow_early is not None and self._fast.structure != PLAY_IN_LOOP and not self._tied:
             # the next window will ask for the slow phase's held search: started now, on its own thread (the ODrive
             # twin at load 7: the first window's search ended at 15.5 s, the window at 15 s dropped, and a search

@@ -553,14 +553,14 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     source = ("loop_online" if won else "loop_search") if took_online else "offline_fit"
     est = "the servo loop's window refit" if online.get("estimator") == "window" else "the decimated MRGIA"
     why = "settled" if online.get("settled") else "NOT settled"
-    if took_online:
+    if took_online and not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
+        line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
+                f"({est}: no refit ended before the run did)")  # fmt: skip
+    elif took_online:
         how = ("the online estimate won the offline search's validation on the whole record" if won
                else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
         line = (f"the answer: {how}: play {play:.4g} {unit}; the online estimate ({est}, {why}) "
                 f"{online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
-        if not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
-            line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
-                    f"({est}: no refit ended before the run did)")  # fmt: skip
     else:
         line = (f"the answer: identification's own fit ({result.form}): play {play:.4g} {unit}; the online estimate "
                 f"({est}, {why}) {online_play:.4g} {unit}, {100 * gap:+.1f} % from it")  # fmt: skip
@@ -634,9 +634,7 @@ def loop_online(
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
-    if (
-        online.model is None
-    ):  # no window refit ended (a loaded real clock): the search answered alone, no estimate to judge
+    if online.model is None:  # no window refit ended (a loaded real clock): the search answered alone, nothing to judge
         verdict = dataclasses.replace(judge_window(online), refined_gap=choice.play, refined_nrmse=choice.fit_nrmse)
     else:  # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part)
         verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
