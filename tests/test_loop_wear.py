@@ -11,12 +11,12 @@ import pytest
 from servoid.errors import ConfigError
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
-from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.models.servo_loop import ServoLoopModel, simulate_kernel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.cusum import Cusum, correlation_time, false_alarm_checks, threshold
 from servoid.ident.monitoring.loop_wear import file_doubt
-from servoid.ident.monitoring.play_fit import STEP, fit_play
+from servoid.ident.monitoring.play_fit import STEP, SUBSTEP_S, fit_play, fit_substeps
 
 RATE = 200.0
 LOOP = ServoLoopModel(PLAY_IN_LOOP, 1 / RATE, kp=12.0, kv=60.0, fc=0.3, fs=0.45, vs=0.05, veps=0.005, c1=0.01, c2=0.01)
@@ -29,13 +29,25 @@ def test_the_play_alone_is_recovered_on_a_short_window_of_the_models_own_output(
     held = dataclasses.replace(LOOP, structure=structure, c1=0.012, c2=0.008)
     truth = dataclasses.replace(held, c1=held.c1 * worn, c2=held.c2 * worn)
     u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), int(1.6 * RATE), seed=4)
-    y = truth.simulate(u) + 1e-5 * np.random.default_rng(5).standard_normal(u.size)
+    # the truth simulated as the play fit simulates (its sub-steps: finer than the model's own for a massless load)
+    y = np.empty(u.size)
+    simulate_kernel(truth.vector(), truth.feedback_load, u - u[0], 0.0, 1 / RATE, fit_substeps(truth), y)
+    y += u[0] + 1e-5 * np.random.default_rng(5).standard_normal(u.size)
     score = np.ones(u.size, dtype=bool)
     score[:80] = False  # the burn-in: simulated from rest, not scored
     model, q = fit_play(u, y, score, held)
     assert model.play == pytest.approx(truth.play, rel=STEP)
     assert model.c1 / model.c2 == pytest.approx(1.5) and model.kp == held.kp  # only the play moved
     assert 0.0 <= q < 0.05
+
+
+def test_the_play_fit_simulates_a_massless_load_on_fine_sub_steps_and_a_massive_one_on_its_own() -> None:
+    assert LOOP.substeps == 2 and not LOOP.massive
+    assert fit_substeps(LOOP) == math.ceil(LOOP.sample_period_s / SUBSTEP_S)  # 25 at 200 Hz
+    fast = dataclasses.replace(LOOP, sample_period_s=SUBSTEP_S / 3)
+    assert fit_substeps(fast) == fast.substeps  # already finer: the model's own
+    heavy = dataclasses.replace(LOOP, mu=0.5)
+    assert heavy.massive and fit_substeps(heavy) == heavy.substeps
 
 
 def test_the_cusum_threshold_gives_the_false_alarm_rate_it_was_set_for_on_independent_checks() -> None:
