@@ -47,7 +47,8 @@ def _gate(monkeypatch: Any, *, named: bool = True, place: str = PLAY_IN_LOOP, ke
     whole = SimpleNamespace(structure=place, play=0.009)
     horn = SimpleNamespace(play=0.0105, model=SimpleNamespace(compliant=True, al=al))
 
-    def search(u_arr: np.ndarray, *args: Any, keep: np.ndarray, **kwargs: Any) -> Any:
+    def search(u_arr: np.ndarray, *args: Any, keep: np.ndarray, load: Any) -> Any:
+        assert load is False  # the massless search: its load stage could only move the place outside
         calls.append(("search", u_arr.size - int(np.sum(keep))))
         return whole
 

@@ -35,7 +35,8 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    emulators: +272 ... +285 %).
 5. after a slow phase, where the fast part puts the play in the loop: the horn stage
    (:func:`~servoid.ident.offline.horn_contact.with_horn`) on the whole record (slow and fast
-   parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=None)`` on it puts the play in the loop too, answers when
+   parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=False)`` on it (the massless search:
+   its load stage was 40-70 % of the step's time, :func:`_horn_on_whole`) puts the play in the loop too, answers when
    it is kept and the load's friction it fits (``al``, the horn's deceleration by its own friction)
    stops the load faster than the slow phase's set point ever decelerates: then the slow part's
    reversals show the whole play (the load stays on the trailing flank) and the fast part's the
@@ -106,10 +107,11 @@ from servoid.ident.online.window import SlowSearch, WindowResult
 
 __all__ = ["refine_online", "Refined", "HORN_PER_SEARCH"]
 
-#: Step 5's wall time (the whole record's search and the horn stage) predicted as this many times the fast
-#: part's search's: 1.6-3.8 on the horn twins' live records (``sim://``, seeds 0-5, load 8-9: 17-38 s after
-#: searches of 4.7-11.3 s).
-HORN_PER_SEARCH = 4.0
+#: Step 5's wall time (the whole record's massless search and the horn stage) predicted as this many times
+#: the fast part's search's: 0.7-2.1 on the horn twins' live records (``sim://``, seeds 0-3, load 6-8: 7.7-14.8 s
+#: after searches of 4.3-12.7 s), 0.75 / 3.2 on two through serial (C) (load 6, ``benchmarks/horn_cost.py``: 9.1 /
+#: 18.3 s after 12.2 / 5.8 s). With the search's load stage it was 1.6-3.8 (17-38 s at load 8-9), and this 4.0.
+HORN_PER_SEARCH = 3.5
 #: Samples each side of a set point's turn that :func:`_turn_accel` fits its parabola to, at least.
 TURN_HALF = 3
 
@@ -328,7 +330,9 @@ def refine_online(
             horn = (f"skipped: predicted {predicted_s:.1f} s ({HORN_PER_SEARCH:g}x the fast part's search) against "
                     f"{max(left_s, 0.0):.1f} s left of the wall budget")  # fmt: skip
         else:
+            began = time.perf_counter()
             horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
+            horn = f"{horn} [{time.perf_counter() - began:.1f} s]"
     if whole is not None:
         fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
         choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
@@ -345,16 +349,24 @@ def _horn_on_whole(
     Run where the fast part's answer ``fast`` (the play in the loop, on ``[head:]``) shows the
     horn's rebound on its usable readings ``kept`` (the stage's own gate, checked before the search);
     the search and the stage run through the gaps and score the usable readings only. It
-    answers when ``fit_loop(load=None)`` on the whole record puts the play in the loop, the stage
-    keeps the horn, and the horn's own friction (``al``) stops the load faster than the slow part's
-    set point decelerates into any of its reversals (:func:`_turn_accel`).
+    answers when the massless search on the whole record (``fit_loop(load=False)``) puts the play in
+    the loop, the stage keeps the horn, and the horn's own friction (``al``) stops the load faster than
+    the slow part's set point decelerates into any of its reversals (:func:`_turn_accel`).
+
+    The search runs without its load stage (a heavy load behind a play outside the loop): the stage
+    can only move the search's answer outside the loop, where the horn is not run, never change the
+    horn's start (the best play-in-loop candidate) or its answer, and the fast part's search, which
+    put the play in the loop for this step to run, had run it already. On the horn twins' live records
+    it was 40-70 % of the step's wall time (``benchmarks/horn_cost.py``: STS3215 7.5 of 17.5 s, XM430
+    13.2 of 31.9 s, ``sim://``, load 8-9; through serial (C) 5.2 of 23.5 s and 20.4 of 29.5 s, load 6)
+    and moved the place on none of them (``sim://`` seeds 0-3 of both, and two through serial (C)).
     """
     period = fast.model.sample_period_s
     if not rebound(y_arr[head:], np.asarray(fast.simulated), float(fast.play), period, valid=kept[head:]).named:
         return "not run: the fast part shows no rebound off the flank", None
-    whole = fit_loop(u_arr, y_arr, period, keep=kept, load=None)
+    whole = fit_loop(u_arr, y_arr, period, keep=kept, load=False)
     if whole.structure != PLAY_IN_LOOP:
-        return f"not run: the whole record's search puts the play {whole.structure}", None
+        return f"not run: the whole record's massless search puts the play {whole.structure}", None
     found = with_horn(u_arr, y_arr, period, whole, kept)
     if found is whole or not found.model.compliant:
         return "not kept (no rebound named, or the horn did not validate better)", None
