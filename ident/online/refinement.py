@@ -36,7 +36,7 @@ like the search's own on the same validation blocks (:func:`refine_online`):
 5. after a slow phase, where the fast part puts the play in the loop: the horn stage
    (:func:`~servoid.ident.offline.horn_contact.with_horn`) on the whole record (slow and fast
    parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=False)`` on it (the massless search:
-   its load stage was 40-70 % of the step's time, :func:`_horn_on_whole`) puts the play in the loop too, answers when
+   its load stage was 22-69 % of the step's time, :func:`_horn_on_whole`) puts the play in the loop too, answers when
    it is kept and the load's friction it fits (``al``, the horn's deceleration by its own friction)
    stops the load faster than the slow phase's set point ever decelerates: then the slow part's
    reversals show the whole play (the load stays on the trailing flank) and the fast part's the
@@ -392,7 +392,7 @@ def _horn_on_whole(
     can only move the search's answer outside the loop, where the horn is not run, never change the
     horn's start (the best play-in-loop candidate) or its answer, and the fast part's search, which
     put the play in the loop for this step to run, had run it already. On the horn twins' live records
-    it was 40-70 % of the step's wall time (``benchmarks/horn_cost.py``: STS3215 7.5 of 17.5 s, XM430
+    it was 22-69 % of the step's wall time (``benchmarks/horn_cost.py``: STS3215 7.5 of 17.5 s, XM430
     13.2 of 31.9 s, ``sim://``, load 8-9; through serial (C) 5.2 of 23.5 s and 20.4 of 29.5 s, load 6)
     and moved the place on none of them (``sim://`` seeds 0-3 of both, and two through serial (C)).
     """
