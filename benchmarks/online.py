@@ -44,7 +44,8 @@ are, one row per run:
 * ``wall s``: the whole command, probe included; ``stages s``: where it went (``wall_s`` in identify's JSON):
   the probe, the run (the session), the last window's refit after it, the wait for the answer's early
   search (``ident/online/early_search.py``), the servo-loop answer (``refine_online``), identification
-  (``identify``), each in wall seconds.
+  (``identify``), each in wall seconds; ``horn stage``: what became of the answer's horn stage
+  (``refine_online``'s step 5: answered, not kept, skipped by the wall budget, ...; ``-`` where it does not apply).
 
 The monitor's tracking of a growing play on the wearing twin is
 ``benchmarks/monitor_loop.py``. The machine may be shared: wall times depend on its load.
@@ -129,7 +130,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out, seed)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", "-", outcome(error)]
     verdict = result["online"]
     online_gap = (verdict["online_gap"] or float("nan")) / scale  # null: no window refit ended
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
@@ -160,7 +161,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}"
         f"/{window.get('late', 0)}/{float('nan') if age is None else age:.1f}",
         f"{len(costs)} ({sum(bool(r.get('searched')) for r in window['history'])})",
-        f"{wall:.0f}", _stages(result), why,
+        f"{wall:.0f}", _stages(result), _horn(result), why,
     ]  # fmt: skip
 
 
@@ -169,6 +170,12 @@ def _stages(result: dict) -> str:
     s = result.get("wall_s", {})
     stages = ("probe", "run", "last_window", "early_search", "loop_answer", "identify")
     return "/".join(f"{s.get(k, float('nan')):.1f}" for k in stages)
+
+
+def _horn(result: dict) -> str:
+    """What became of the answer's horn stage (``refine_online``'s step 5): its first words, ``-`` where it did not apply."""
+    said = (result["online_loop"].get("refined") or {}).get("horn")
+    return "-" if said is None else re.split(r"[:(]", said, maxsplit=1)[0].strip()[:24]
 
 
 def _identified(result: dict) -> str:
@@ -218,7 +225,7 @@ def main() -> None:
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
          "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s",
          "refits (searched)", "wall s",
-         "stages s (probe/run/last/early/answer/identify)", "verdict"],
+         "stages s (probe/run/last/early/answer/identify)", "horn stage", "verdict"],
         rows,
     )  # fmt: skip
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")

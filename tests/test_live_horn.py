@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import threading
 from types import SimpleNamespace
 from typing import Any
 
@@ -47,7 +49,8 @@ def _gate(monkeypatch: Any, *, named: bool = True, place: str = PLAY_IN_LOOP, ke
     whole = SimpleNamespace(structure=place, play=0.009)
     horn = SimpleNamespace(play=0.0105, model=SimpleNamespace(compliant=True, al=al))
 
-    def search(u_arr: np.ndarray, *args: Any, keep: np.ndarray, **kwargs: Any) -> Any:
+    def search(u_arr: np.ndarray, *args: Any, keep: np.ndarray, load: Any) -> Any:
+        assert load is False  # the massless search: its load stage could only move the place outside
         calls.append(("search", u_arr.size - int(np.sum(keep))))
         return whole
 
@@ -97,7 +100,7 @@ def test_the_fast_answer_stands_where_the_stage_does_not_apply(monkeypatch, give
 
 
 @pytest.mark.parametrize("late", [False, True])
-def test_the_step_is_skipped_when_it_cannot_end_by_the_deadline(monkeypatch, late: bool) -> None:
+def test_the_step_is_taken_only_when_it_ends_by_the_deadline(monkeypatch, late: bool) -> None:
     import time
 
     from servoid.ident.models.servo_loop import ServoLoopModel
@@ -113,11 +116,37 @@ def test_the_step_is_skipped_when_it_cannot_end_by_the_deadline(monkeypatch, lat
                       evaluations=1)  # fmt: skip
     refined = refinement.Refined(LoopCandidate(PLAY_IN_LOOP, False, model, 0.01, 0.01, 1), fast, False)
     monkeypatch.setattr(refinement, "_refine_fast", lambda *args: (fast, refined))
-    calls: list[tuple[str, int]] = []
-    monkeypatch.setattr(refinement, "_horn_on_whole", lambda *args: calls.append(1) or ("not kept", None))
+    horn = dataclasses.replace(fast, play=0.0105)
+    release = threading.Event()
+    threads: list[str] = []
+
+    def step(*args: Any) -> Any:
+        threads.append(threading.current_thread().name)
+        release.wait(5.0)  # a step that ends only when let go (late: after the deadline)
+        return "answered", horn
+
+    monkeypatch.setattr(refinement, "_horn_on_whole", step)
     online = WindowResult(model, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
-    # the search took 2 s: the step is predicted at HORN_PER_SEARCH times that
-    deadline = time.perf_counter() + (1.0 if late else 10.0) * refinement.HORN_PER_SEARCH * fast.seconds
-    choice, out = refinement.refine_online(u, y, online, slow=400, deadline_s=deadline)
-    assert choice.play == fast.play and bool(calls) != late
-    assert (out.horn or "").startswith("skipped") == late
+    if not late:
+        release.set()
+    choice, out = refinement.refine_online(u, y, online, slow=400, deadline_s=time.perf_counter() + 0.3)
+    release.set()
+    assert threads and threads[0] != threading.main_thread().name  # waited for on a thread of its own
+    assert choice.play == (fast.play if late else 0.0105)
+    assert (out.horn or "").startswith("skipped: not ended") == late
+    # no time left: not started; no deadline (a virtual clock): run here and waited for
+    threads.clear()
+    _, out = refinement.refine_online(u, y, online, slow=400, deadline_s=time.perf_counter() - 1.0)
+    assert threads == [] and (out.horn or "").startswith("skipped")
+    choice, out = refinement.refine_online(u, y, online, slow=400)
+    assert threads == [threading.main_thread().name] and choice.play == 0.0105
+
+
+def test_a_failure_of_the_step_on_its_thread_is_raised_to_the_caller() -> None:
+    import time
+
+    def failing() -> Any:
+        raise ValueError("no fit")
+
+    with pytest.raises(ValueError, match="no fit"):
+        refinement._by_deadline(failing, time.perf_counter() + 5.0)

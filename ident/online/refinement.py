@@ -35,7 +35,8 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    emulators: +272 ... +285 %).
 5. after a slow phase, where the fast part puts the play in the loop: the horn stage
    (:func:`~servoid.ident.offline.horn_contact.with_horn`) on the whole record (slow and fast
-   parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=None)`` on it puts the play in the loop too, answers when
+   parts, fitted through its gaps as ``fit_loop`` fits), after ``fit_loop(load=False)`` on it (the massless search:
+   its load stage was 22-69 % of the step's time, :func:`_horn_on_whole`) puts the play in the loop too, answers when
    it is kept and the load's friction it fits (``al``, the horn's deceleration by its own friction)
    stops the load faster than the slow phase's set point ever decelerates: then the slow part's
    reversals show the whole play (the load stays on the trailing flank) and the fast part's the
@@ -49,8 +50,8 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    (the fast answer stands); an STS3215 with its load friction doubled -12 / -8 -> -7 / -16 % (``al``
    40 / 17.5). A kept horn keeps its doubt
    (:data:`~servoid.ident.offline.horn_contact.REASON`). Cost: one ``fit_loop`` on the whole record
-   and the stage (17-38 s at load 8-9); not run when it cannot end by ``deadline_s``
-   (:data:`HORN_PER_SEARCH`).
+   and the stage (7.7-14.8 s at load 6-8 with the search massless; 17-38 s at load 8-9 with its load stage);
+   not taken when it does not end by ``deadline_s`` (:func:`_by_deadline`).
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -71,10 +72,12 @@ Cost: ``fit_loop`` on the whole record (2-4 warm-started searches; 8-40 s on
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -104,12 +107,10 @@ from servoid.ident.offline.loop_fit import (
 )
 from servoid.ident.online.window import SlowSearch, WindowResult
 
-__all__ = ["refine_online", "Refined", "HORN_PER_SEARCH"]
+__all__ = ["refine_online", "Refined"]
 
-#: Step 5's wall time (the whole record's search and the horn stage) predicted as this many times the fast
-#: part's search's: 1.6-3.8 on the horn twins' live records (``sim://``, seeds 0-5, load 8-9: 17-38 s after
-#: searches of 4.7-11.3 s).
-HORN_PER_SEARCH = 4.0
+#: What :func:`_by_deadline` returns from its work.
+_Done = TypeVar("_Done")
 #: Samples each side of a set point's turn that :func:`_turn_accel` fits its parabola to, at least.
 TURN_HALF = 3
 
@@ -237,8 +238,9 @@ def refine_online(
         is then refitted warm on the whole fast part (:func:`_extended`); else ignored.
     deadline_s : float
         The :func:`time.perf_counter` instant by which step 5 must end (a live run on a real clock:
-        its wall budget); it is skipped when :data:`HORN_PER_SEARCH` times the fast part's search
-        would pass it. Default: no deadline.
+        its wall budget): it then runs on a thread of its own and is waited for until this instant
+        only (:func:`_by_deadline`); when it has not ended by then it is skipped (the thread runs on,
+        a daemon). Default: no deadline (run and waited for here).
     slow_search : callable, optional
         Asked (once, only when step 4 needs the slow part's search and the windows did not run it)
         for the slow phase's search run during the session
@@ -322,19 +324,56 @@ def refine_online(
     horn: str | None = None
     whole: LoopChoice | None = None
     if choice.structure == PLAY_IN_LOOP:
-        # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting
-        left_s, predicted_s = deadline_s - time.perf_counter(), HORN_PER_SEARCH * refined.search.seconds
-        if predicted_s > left_s:
-            horn = (f"skipped: predicted {predicted_s:.1f} s ({HORN_PER_SEARCH:g}x the fast part's search) against "
-                    f"{max(left_s, 0.0):.1f} s left of the wall budget")  # fmt: skip
+        # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting; taken
+        # only when it ends by the deadline (its cost is not predicted: 3.4-23 s on the twins' records, below)
+        began = time.perf_counter()
+        left_s = deadline_s - began
+        if left_s <= 0.0:
+            horn = f"skipped: no time left of the wall budget ({-left_s:.1f} s past it)"
         else:
-            horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
+            ran = _by_deadline(functools.partial(_horn_on_whole, u_arr, y_arr, kept, head, choice), deadline_s)
+            if ran is None:
+                horn = (f"skipped: not ended within the {left_s:.1f} s left of the wall budget (it runs on beside "
+                        "the rest of the command, its answer not taken)")  # fmt: skip
+            else:
+                horn, whole = ran
+                horn = f"{horn} [{time.perf_counter() - began:.1f} s]"
     if whole is not None:
         fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
         choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
     return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored, horn=horn)
+
+
+def _by_deadline(work: Callable[[], _Done], deadline_s: float) -> _Done | None:
+    """``work()``, or None when it has not ended by the :func:`time.perf_counter` instant ``deadline_s``.
+
+    Without a deadline (infinite) it runs here. Else on a daemon thread, waited for until the deadline:
+    one left running is not stopped (the fits cannot be) and ends with the process or on its own; an
+    exception it raised is raised here. Its cost is not predicted: on the horn twins' live records the
+    step took 3.4-23.4 s, and neither the fast part's search (0.5-5.5 times it: the predictor this
+    replaces, ``benchmarks/horn_cost.py``) nor one free run of the horn's start (156-1456 times it) tells it;
+    the horn stage that is not kept is the slowest (40-85 ms a simulation of the record against 8-31 ms where it is
+    kept: its contact stiffens, and the contact's sub-steps follow its stiffness).
+    """
+    if math.isinf(deadline_s):
+        return work()
+    out: list[_Done] = []
+    failed: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            out.append(work())
+        except BaseException as exc:  # noqa: BLE001 - raised on the caller's thread below
+            failed.append(exc)
+
+    thread = threading.Thread(target=run, name="servoid-horn-stage", daemon=True)
+    thread.start()
+    thread.join(max(deadline_s - time.perf_counter(), 0.0))
+    if failed:
+        raise failed[0]
+    return out[0] if out else None
 
 
 def _horn_on_whole(
@@ -345,16 +384,24 @@ def _horn_on_whole(
     Run where the fast part's answer ``fast`` (the play in the loop, on ``[head:]``) shows the
     horn's rebound on its usable readings ``kept`` (the stage's own gate, checked before the search);
     the search and the stage run through the gaps and score the usable readings only. It
-    answers when ``fit_loop(load=None)`` on the whole record puts the play in the loop, the stage
-    keeps the horn, and the horn's own friction (``al``) stops the load faster than the slow part's
-    set point decelerates into any of its reversals (:func:`_turn_accel`).
+    answers when the massless search on the whole record (``fit_loop(load=False)``) puts the play in
+    the loop, the stage keeps the horn, and the horn's own friction (``al``) stops the load faster than
+    the slow part's set point decelerates into any of its reversals (:func:`_turn_accel`).
+
+    The search runs without its load stage (a heavy load behind a play outside the loop): the stage
+    can only move the search's answer outside the loop, where the horn is not run, never change the
+    horn's start (the best play-in-loop candidate) or its answer, and the fast part's search, which
+    put the play in the loop for this step to run, had run it already. On the horn twins' live records
+    it was 22-69 % of the step's wall time (``benchmarks/horn_cost.py``: STS3215 7.5 of 17.5 s, XM430
+    13.2 of 31.9 s, ``sim://``, load 8-9; through serial (C) 5.2 of 23.5 s and 20.4 of 29.5 s, load 6)
+    and moved the place on none of them (``sim://`` seeds 0-3 of both, and two through serial (C)).
     """
     period = fast.model.sample_period_s
     if not rebound(y_arr[head:], np.asarray(fast.simulated), float(fast.play), period, valid=kept[head:]).named:
         return "not run: the fast part shows no rebound off the flank", None
-    whole = fit_loop(u_arr, y_arr, period, keep=kept, load=None)
+    whole = fit_loop(u_arr, y_arr, period, keep=kept, load=False)
     if whole.structure != PLAY_IN_LOOP:
-        return f"not run: the whole record's search puts the play {whole.structure}", None
+        return f"not run: the whole record's massless search puts the play {whole.structure}", None
     found = with_horn(u_arr, y_arr, period, whole, kept)
     if found is whole or not found.model.compliant:
         return "not kept (no rebound named, or the horn did not validate better)", None
