@@ -4,15 +4,21 @@ from __future__ import annotations
 
 import dataclasses
 import threading
+import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from test_window import RATE, TRUTH, _record
 
 from servoid.errors import ConfigError
-from servoid.ident.models.structure_names import PLAY_IN_LOOP
-from servoid.ident.online.early_search import HEAD_SHARE, EarlySearch, head_samples
-from servoid.ident.online.window import SlowSearch, WindowConfig, WindowResult
+from servoid.excitation.generate import sample
+from servoid.excitation.specs import GentleSpec
+from servoid.ident.models.servo_loop import ServoLoopModel
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
+from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+from servoid.ident.online.early_search import HEAD_LATE_S, HEAD_SHARE, EarlySearch, full_in_time, head_samples
+from servoid.ident.online.window import SlowSearch, WindowConfig, WindowRefit, WindowResult
 
 
 def _feed(est: EarlySearch, u: np.ndarray, y: np.ndarray, keep: np.ndarray) -> None:
@@ -168,3 +174,107 @@ def test_the_slow_phase_holds_enough_reversals_and_a_default_run_keeps_its_fast_
     told, first_told = _live.excitation(_args(seed=1, samples=8000), 0.05, Limits(), designed=spec,
                                         slow=(slow_text, 1 / 3))  # fmt: skip
     assert told.size == 8000 and first_told == first  # a length the user gave stays; the fast part gives way
+
+
+#: A heavy load behind a play outside the loop (the CiA 402 and ODrive twins' kind): a massless fit ties the places.
+HEAVY = ServoLoopModel(
+    OUTPUT_BACKLASH, 1 / RATE, kp=12.0, kv=60.0, fc=0.3, fs=0.45, vs=0.05, veps=0.005, c1=0.01, c2=0.01, mu=1.0, al=2.0
+)
+
+
+def _heavy_record(n: int = 1200) -> tuple[np.ndarray, np.ndarray]:
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), n, seed=7)
+    return u, HEAVY.simulate(u, y0=0.0) + 1e-4 * np.random.default_rng(7).standard_normal(n)
+
+
+def test_a_slow_machine_searches_the_head_warm_from_the_first_windows_load() -> None:
+    u, y = _heavy_record()
+    # the first window's search found a load elsewhere in its basin (a shorter window) and took 100 s: on a real clock
+    # the head's full search would end long after the run
+    first = dataclasses.replace(HEAVY, c1=0.008, c2=0.008, mu=0.6, al=3.0, kv=50.0)
+    est = EarlySearch(1 / RATE, u.size, end=u.size + 400)
+    est.offer(first, 100.0, 600)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    found = est.result(wait=True)
+    assert found is not None and est.warm and est.error is None
+    assert found.choice.structure == OUTPUT_BACKLASH and found.choice.model.massive
+    assert found.choice.margin >= MIN_STRUCTURE_MARGIN  # the massless fit alone ties the places here
+    assert abs(found.choice.play / HEAVY.play - 1) < 0.1
+
+
+@pytest.mark.parametrize(
+    ("end", "offered", "seconds", "loads"),
+    [
+        (0, "heavy", 100.0, [None]),  # a virtual clock: always the full search
+        (1600, "heavy", 0.1, [None]),  # a fast machine: the full search ends in time
+        (1600, "inside", 100.0, [None]),  # the first window found no load outside the loop: the grid runs here
+        (1600, None, 0.0, [False, None]),  # no first window by the head's end: massless meanwhile, then in full
+    ],
+)
+def test_the_head_is_searched_in_full_unless_a_slow_machine_has_the_first_windows_load(
+    monkeypatch, end: int, offered: str | None, seconds: float, loads: list[bool | None]
+) -> None:
+    from servoid.ident.offline import loop_fit
+
+    calls: list[bool | None] = []
+
+    def recorded(u_: np.ndarray, y_: np.ndarray, *args, load: bool | None = False, **kwargs):
+        calls.append(load)
+        return "massless" if load is False else "full"
+
+    monkeypatch.setattr(loop_fit, "fit_loop", recorded)
+    u, y = _heavy_record(300)
+    est = EarlySearch(1 / RATE, u.size, end=end)
+    if offered is not None:
+        est.offer(HEAVY if offered == "heavy" else dataclasses.replace(HEAVY, structure=PLAY_IN_LOOP), seconds, 200)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    if offered is None:
+        time.sleep(0.05)
+        assert est.result(wait=False) is None  # waiting for the first window, which the stream's end releases
+        est.release()
+    found = est.result(wait=True)
+    assert found is not None and found.choice == "full" and calls == loads and not est.warm
+
+
+def test_the_head_is_predicted_in_time_from_the_first_windows_search() -> None:
+    assert full_in_time(4.0, 2000, 4000, left_s=7.0)  # 8 s predicted, 7 + HEAD_LATE_S left
+    assert not full_in_time(15.0, 2000, 4000, left_s=7.0)
+    assert full_in_time(15.0, 2000, 4000, left_s=30.0 - HEAD_LATE_S)
+
+
+def test_the_window_offers_its_first_search_to_the_head_or_releases_it_at_the_end() -> None:
+    u, y = _record(16.0, seed=3)
+    est = EarlySearch(1 / RATE, u.size + 1, end=u.size)  # never reached: only the offer is looked at
+    refit = WindowRefit(WindowConfig(1 / RATE, first_s=10.0), background=False, early=est)
+    for ui, yi in zip(u, y, strict=True):
+        refit.update(ui, yi)
+    rows = refit.rows()
+    assert est._first is not None and rows[0].searched
+    model, seconds, samples = est._first
+    assert 0.0 < seconds <= rows[0].seconds and samples == 1000 and model.structure == rows[0].structure
+    # no first window's search (a run shorter than it): released at the stream's end, the head's search runs in full
+    none = EarlySearch(1 / RATE, u.size + 1, end=u.size)
+    short = WindowRefit(WindowConfig(1 / RATE, first_s=10.0), background=False, early=none)
+    for ui, yi in zip(u[:500], y[:500], strict=True):
+        short.update(ui, yi)
+    assert not none._offered.is_set()
+    short.result()
+    assert none._offered.is_set() and none._first is None
+
+
+def test_the_first_windows_search_starts_the_slow_phases_search_where_it_names_the_play_outside() -> None:
+    began: list[bool] = []
+
+    class Held:  # the slow phase's held search: only whether it is started matters here
+        def begin(self) -> None:
+            began.append(True)
+
+    refit = WindowRefit(WindowConfig(1 / RATE), background=False, slow=100, slow_early=Held())
+    tied = SimpleNamespace(structure=OUTPUT_BACKLASH, margin=0.5 * MIN_STRUCTURE_MARGIN, model=HEAVY)
+    refit._first_searched(tied, 1.0, 1000)
+    refit._first_searched(SimpleNamespace(structure=PLAY_IN_LOOP, margin=1.0, model=HEAVY), 1.0, 1000)
+    assert began == []  # the place not named outside the loop: the slow phase may never be needed
+    refit._first_searched(
+        SimpleNamespace(structure=OUTPUT_BACKLASH, margin=2 * MIN_STRUCTURE_MARGIN, model=HEAVY), 1.0, 1000
+    )
+    assert began == [True]

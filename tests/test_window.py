@@ -38,6 +38,10 @@ def _record(seconds: float, seed: int, play_growth: float = 0.0) -> tuple[np.nda
     return u, y + 1e-4 * np.random.default_rng(seed).standard_normal(n)
 
 
+def _ignored(*args: Any) -> None:
+    """A stub early search's ``offer`` and ``release`` (the first window's search handed to it)."""
+
+
 def _feed(est: WindowRefit, u: np.ndarray, y: np.ndarray, lost: np.ndarray) -> None:
     for ui, yi, gone in zip(u, y, lost, strict=True):
         if gone:
@@ -415,7 +419,7 @@ def test_a_look_on_the_samples_of_the_answers_early_search_takes_its_answer_and_
             seen.append(box["est"]._n)  # the samples taken when the window asks
             return head if box["est"]._n >= ended_at else None
 
-        early = SimpleNamespace(at=1000, searched=answer)
+        early = SimpleNamespace(at=1000, searched=answer, offer=_ignored, release=_ignored)
         searched.clear()
         est = box["est"] = WindowRefit(config, background=False, early=early)
         _feed(est, u, y, np.zeros(u.size, dtype=bool))
@@ -428,7 +432,7 @@ def test_a_look_on_the_samples_of_the_answers_early_search_takes_its_answer_and_
     # a search of too few samples for a look (under twice the first window's), or not all come yet: the window searches
     for at in (750, 1500):
         searched.clear()
-        early = SimpleNamespace(at=at, searched=lambda wait: head)
+        early = SimpleNamespace(at=at, searched=lambda wait: head, offer=_ignored, release=_ignored)
         est = WindowRefit(config, background=False, early=early)
         _feed(est, u, y, np.zeros(u.size, dtype=bool))
         assert searched == [500, 1000]
@@ -640,7 +644,8 @@ def test_on_a_real_clock_a_look_the_early_search_had_not_ended_for_is_taken_at_t
     for with_early in (True, False):
         ended = threading.Event()  # the search ends when the caller waits for it (after the run)
         early = SimpleNamespace(at=1000, searched=lambda wait, ended=ended: head if ended.is_set() else None,
-                                result=lambda wait=True, ended=ended: ended.set())  # fmt: skip
+                                result=lambda wait=True, ended=ended: ended.set(), offer=_ignored,
+                                release=_ignored)  # fmt: skip
         asked.clear()
         est = WindowRefit(config, end=u.size, grace_s=2.0, early=early if with_early else None)
         for lo in range(0, 1000, 500):

@@ -38,6 +38,22 @@ sampler through the fast part's first 10 s, which had been quiet, and the CAN em
 over UDP lost more samples (unusable 0.17-0.44 of them on 8 runs at load 6.7-9.5, 7 refused
 above 0.2; 0.10-0.19 on 5 runs without it at load 5.2-9.6, none refused; the loads differ).
 
+On a slow machine the head's search is warm (``end``, a real clock's run; :meth:`EarlySearch.offer`):
+``fit_loop(load=None)``'s load stage (its grid of inertia ratios and restitutions, refitted at each point)
+was 21.7 of the 24.7 s the CiA 402 twin's head search took at load 6 (the massless search 1.4 s), and on a
+loaded real clock that search took 22-64 s of wall time, ended up to 57 s after the run and put the
+CiA 402 at 80-111 s (issue 15). The window refit's first window has run the same search, the load stage
+included, on the fast part's first 10 s by then. Where that search kept a load with the play outside the
+loop and the head's full search, predicted from its wall time scaled to the head's samples, would not
+end within :data:`HEAD_LATE_S` of the run's end (or had not ended when the head's samples had all come),
+the head is searched massless (``fit_loop(load=False)``) and the first window's model joins it as one more
+candidate, refitted on the head's estimation blocks and judged on its validation blocks, as the refinement
+judges the online estimate (:func:`~servoid.ident.online.refinement.refine_online`, steps 1-3): the
+grid's search of a load is not run twice on the same servo. It answers only where that candidate wins and
+names the place (the play outside the loop by at least
+:data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN` in validation); else the head's full
+search runs after all. A virtual clock (no ``end``) always runs the full search.
+
 The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
 ``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
 fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
@@ -50,15 +66,22 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from servoid import validation
 from servoid.errors import ConfigError
+from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.online.window import SlowSearch, _yield_cpu
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "head_samples"]
+if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.offline.loop_fit import LoopChoice
+
+__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "head_samples", "full_in_time"]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
@@ -66,6 +89,20 @@ __all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "head_samples"]
 HEAD_SHARE = 0.75
 #: Wall seconds :meth:`EarlySearch.searched` waits for the search to start (a guard: it has started when asked).
 BEGIN_WAIT_S = 5.0
+#: Wall seconds after the run's end by which the head's full search must be predicted to end for it to run
+#: on a real clock (else it is searched warm from the first window's load, the module's text): issue 15's
+#: 60 s leave about 14 s after the probe (6.2 s) and a 40 s run, of which the answer's refit and the
+#: identification take 1-4 s.
+HEAD_LATE_S = 8.0
+
+
+def full_in_time(first_s: float, first_samples: int, head: int, left_s: float) -> bool:
+    """Whether the head's full search is predicted to end within :data:`HEAD_LATE_S` of the run's end.
+
+    Predicted as the first window's search (``first_s`` wall seconds on ``first_samples``) scaled to the
+    head's ``head`` samples, against ``left_s``, the servo seconds the run has left.
+    """
+    return first_s * head / max(first_samples, 1) <= left_s + HEAD_LATE_S
 
 
 def head_samples(samples: int, slow: int, share: float = HEAD_SHARE) -> int:
@@ -107,9 +144,13 @@ class EarlySearch:
         Keep the samples at ``at`` and start the search only when it is first asked for
         (:meth:`searched`, :meth:`begin`): the slow phase's search, which only a play outside
         the loop needs (the module's text).
+    end : int
+        Samples the stream will hold in all (a real clock's run): the head may then be searched
+        warm from the first window's search (:meth:`offer`, the module's text); 0 (a virtual
+        clock): always the full search.
     """
 
-    def __init__(self, sample_period_s: float, at: int, *, skip: int = 0, hold: bool = False) -> None:
+    def __init__(self, sample_period_s: float, at: int, *, skip: int = 0, hold: bool = False, end: int = 0) -> None:
         self.sample_period_s = validation.positive("sample_period_s", sample_period_s)
         self.at = validation.integer("at", at, minimum=1)
         self._skip = validation.integer("skip", skip, minimum=0)
@@ -125,6 +166,10 @@ class EarlySearch:
         self._job: tuple[np.ndarray, np.ndarray, np.ndarray, int] | None = None  # held: the samples, not yet searched
         self._lock = threading.Lock()  # begin() is called from the window's worker and the main thread
         self.error: str | None = None
+        self._end = validation.integer("end", end, minimum=0)
+        self._first: tuple[ServoLoopModel, float, int] | None = None  # the first window's model, wall s, samples
+        self._offered = threading.Event()  # set by offer() or release(): nothing more will be offered
+        self.warm = False  # the head was searched warm from the first window's model (the module's text)
 
     @property
     def started(self) -> bool:
@@ -180,6 +225,16 @@ class EarlySearch:
             self.begin()
         self._begun.set()
 
+    def offer(self, model: ServoLoopModel, seconds: float, samples: int) -> None:
+        """The window refit's first window: its search's model, the search's wall seconds and its samples (once)."""
+        if not self._offered.is_set():
+            self._first = (model, float(seconds), int(samples))
+            self._offered.set()
+
+    def release(self) -> None:
+        """No first window will be offered (the stream ended): a search waiting for one runs in full."""
+        self._offered.set()
+
     def begin(self) -> None:
         """Start a held search (``hold``) whose samples have all come; nothing otherwise (once)."""
         with self._lock:
@@ -193,11 +248,43 @@ class EarlySearch:
 
         _yield_cpu()
         try:
-            choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
+            choice = self._warm(u, y, keep)
+            if choice is None:
+                choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
         except Exception as exc:  # noqa: BLE001 - the refinement then searches itself, and meets it there
             self.error = f"the early search failed: {exc}"
             return
         self._found = SlowSearch(choice, lo, int(u.size))
+
+    def _warm(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray) -> LoopChoice | None:
+        """The head searched warm from the first window's model (the module's text), or None: the full search runs."""
+        from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+        from servoid.ident.offline.loop_fit import fit_loop
+        from servoid.ident.online.refinement import _refine
+
+        if not self._end:
+            return None
+        t0 = time.perf_counter()
+        massless = None
+        if not self._offered.is_set():
+            # the first window's search has not ended by now: a slow machine; the massless head meanwhile
+            massless = fit_loop(u, y, self.sample_period_s, keep=keep, load=False)
+            self._offered.wait()
+        elif self._first is not None and full_in_time(
+            self._first[1], self._first[2], int(u.size), (self._end - self._seen) * self.sample_period_s
+        ):
+            return None
+        first = None if self._first is None else self._first[0]
+        if first is None or first.structure == PLAY_IN_LOOP or not first.massive:
+            return None  # no load found by the first window's search: the grid runs here
+        if massless is None:
+            massless = fit_loop(u, y, self.sample_period_s, keep=keep, load=False)
+        filled = np.where(keep, y, y[int(np.argmax(keep))])
+        choice, refined = _refine(u, filled, keep, first, self.sample_period_s, t0, massless)
+        if not (refined.online_won and choice.structure != PLAY_IN_LOOP and choice.margin >= MIN_STRUCTURE_MARGIN):
+            return None  # the first window's load did not name the place on the head: the full search decides
+        self.warm = True
+        return choice
 
     def searched(self, *, wait: bool) -> SlowSearch | None:
         """The search for the window refit's second look (called on its worker thread), or None.

@@ -50,7 +50,11 @@ a receding-horizon fit:
   once it has ended, at this window or a later one, and costs the worker one
   warm refit: the two searches of the same 20 s had run side by side on a
   loaded 2-core machine).
-  The first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
+  The first window's search, as it ends (on the worker, before its warm refit, and even when the refit is
+  then stopped at the stream's end), is handed to the answer's head search (``early``, which on a slow
+  machine searches the head warm from that search's load: ``EarlySearch.offer``) and, where it names the
+  play outside the loop, starts the slow phase's held search (``slow_early``);
+  the first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
 * after a live design's slow phase (``slow``: its first samples, set aside, the
   windows timed from its end) the place of the play decides what a window
@@ -391,12 +395,14 @@ def _refit(
     later: LaterFit | None = None,
     load: bool | None = False,
     stop: threading.Event | None = None,
+    searched: Callable[[LoopChoice | None, float, int], None] | None = None,
 ) -> tuple[ServoLoopModel, WindowRow, ServoLoopModel | None]:
     """Fit one window (the worker's job): from scratch with both places of the play, or warm from ``start``.
 
     ``later``: the fit to use instead of :func:`refit_loop` (``later(u, y, score, start)``); ``load``:
     :func:`fit_loop`'s load stage in the fit from scratch; ``stop``: set, the refit raises :class:`Cancelled`
-    between its fits.
+    between its fits; ``searched``: told the fit from scratch's answer, its wall seconds and samples as it ends
+    (None: it failed), even when the refit is then stopped (:meth:`WindowRefit._first_searched`).
     Returns the model, its row, and from the first fit the best model of the other place of
     the play (the rival the later windows refit beside it; None after).
     """
@@ -412,7 +418,14 @@ def _refit(
         # warm refits leave them out), from the first measured one
         idx = np.flatnonzero(keep)
         filled = np.interp(np.arange(u.size), idx, y[idx])
-        choice = fit_loop(u, filled, config.sample_period_s, load=load, light_rivals=False)
+        try:
+            choice = fit_loop(u, filled, config.sample_period_s, load=load, light_rivals=False)
+        except BaseException:
+            if searched is not None:
+                searched(None, time.perf_counter() - t0, int(u.size))
+            raise
+        if searched is not None:
+            searched(choice, time.perf_counter() - t0, int(u.size))
         model, margin = choice.model, float(choice.margin)
         rival = next((c.model for c in choice.candidates if c.structure != choice.structure), None)
     else:
@@ -677,6 +690,7 @@ class WindowRefit:
         self._span_due = 0  # samples of the window the refit in hand fits
         self._early = early
         self._slow_early = slow_early
+        self._offering = False  # the first window's search was started: it offers its model to ``early`` as it ends
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -734,8 +748,10 @@ class WindowRefit:
         work: Callable[..., Any] = _refit
         job: tuple[Any, ...]
         if first or self._later is not None:
+            offer = self._first_searched if first and self.model is None else None  # the first window's search
+            self._offering = self._offering or offer is not None
             job = (*window, self.model if first else self._held, self.config, t_s, self._first_fit if first else self._later,
-                   self._load, self._stop)  # fmt: skip
+                   self._load, self._stop, offer)  # fmt: skip
         else:
             # a second look: a window this much longer than the last search's (none after a given start); the early
             # search's answer once its samples have all come, else a search if it can end before the stream
@@ -749,6 +765,22 @@ class WindowRefit:
             self._store(work, job, t_s)
         else:
             self._future = self._pool.submit(work, *job)
+
+    def _first_searched(self, choice: LoopChoice | None, seconds: float, samples: int) -> None:
+        """The first window's search as it ends (on the worker, before its warm refit; None: it failed): offered to the
+        answer's head search (``early``: a slow machine's head searched warm from its load,
+        :meth:`~servoid.ident.online.early_search.EarlySearch.offer`), and the slow phase's held search started where
+        it names the play outside the loop (as :meth:`_keep_fit` starts it, a warm refit sooner)."""
+        from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
+
+        if self._early is not None:
+            if choice is None:
+                self._early.release()
+            else:
+                self._early.offer(choice.model, seconds, samples)
+        named = choice is not None and choice.structure != PLAY_IN_LOOP and choice.margin >= MIN_STRUCTURE_MARGIN
+        if self._slow_early is not None and named:
+            self._slow_early.begin()
 
     def _too_late(self, n: int) -> bool:
         """Whether a refit due at the ``n``-th sample would still run when the stream ends (a worker on a real clock
@@ -899,6 +931,8 @@ class WindowRefit:
 
         For a session that ended in an error: :meth:`result` does the same on the normal way out.
         """
+        if self._early is not None:
+            self._early.release()
         if self._pool is not None:
             self._stop.set()  # a running refit stops at its next fit
             self._pool.shutdown(wait=True, cancel_futures=True)
@@ -941,6 +975,8 @@ class WindowRefit:
         """
         abandoned = self._abandoned
         self._bounded(wait, wait_s)
+        if self._early is not None and not self._offering:
+            self._early.release()  # no first window's search ran: none will be offered
         n = self._n
         last = self._history[-1].t_s if self._history else -math.inf
         end = n * self.config.sample_period_s

@@ -304,7 +304,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
-        early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples)
+        # (on a real clock searched warm from the first window's load when the machine is too slow for its own: end)
+        early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples,
+                            end=0 if virtual else u.size)  # fmt: skip
         # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
         # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
         slow_search = EarlySearch(config.period_s, slow_samples, hold=True) if slow_samples else None
@@ -410,7 +412,8 @@ def _early_dict(early: EarlySearch, found: SlowSearch | None) -> dict[str, Any]:
     return {"at_samples": early.at, "started": early.started, "samples": None if found is None else found.samples,
             "play": None if found is None else found.choice.play,
             "structure": None if found is None else found.choice.structure,
-            "seconds": None if found is None else found.choice.seconds, "error": early.error}  # fmt: skip
+            "seconds": None if found is None else found.choice.seconds, "error": early.error,
+            "warm": early.warm}  # fmt: skip
 
 
 def _described(designed: str | None, slow: tuple[str, float] | None, slow_samples: int) -> str:
