@@ -104,6 +104,7 @@ def test_the_step_is_taken_only_when_it_ends_by_the_deadline(monkeypatch, late: 
     import time
 
     from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.offline import _threads
     from servoid.ident.offline.loop_fit import LoopCandidate, LoopChoice
     from servoid.ident.online.window import WindowConfig, WindowResult
 
@@ -126,6 +127,7 @@ def test_the_step_is_taken_only_when_it_ends_by_the_deadline(monkeypatch, late: 
         return "answered", horn
 
     monkeypatch.setattr(refinement, "_horn_on_whole", step)
+    monkeypatch.setattr(_threads, "threads", lambda: 2)  # a thread of its own on any machine (one CPU: run here)
     online = WindowResult(model, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
     if not late:
         release.set()

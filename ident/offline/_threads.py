@@ -237,6 +237,17 @@ class Ahead(Generic[R]):
         except BaseException as exc:  # noqa: BLE001 - raised again by result(), in the caller's thread
             self._error = exc
 
+    def wait(self, timeout_s: float) -> bool:
+        """Wait at most ``timeout_s`` seconds for the job to end; whether it has.
+
+        True at once where it never started (one thread): :meth:`result` then runs it whole. A job
+        still running is left to run (a daemon thread; it cannot be stopped).
+        """
+        if self._thread is None:
+            return True
+        self._thread.join(max(timeout_s, 0.0))
+        return not self._thread.is_alive()
+
     def join(self) -> None:
         """Wait until the job has ended (at once when it never started)."""
         if self._thread is not None:

@@ -74,7 +74,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
-import threading
 import time
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -88,6 +87,7 @@ from servoid.ident.diagnosis.friction_stall import stall_band
 from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.offline import _threads
 from servoid.ident.offline.horn_contact import with_horn
 from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN, quantum
 from servoid.ident.offline.loop_fit import (
@@ -349,9 +349,10 @@ def refine_online(
 def _by_deadline(work: Callable[[], _Done], deadline_s: float) -> _Done | None:
     """``work()``, or None when it has not ended by the :func:`time.perf_counter` instant ``deadline_s``.
 
-    Without a deadline (infinite) it runs here. Else on a daemon thread, waited for until the deadline:
-    one left running is not stopped (the fits cannot be) and ends with the process or on its own; an
-    exception it raised is raised here. Its cost is not predicted: on the horn twins' live records the
+    Without a deadline (infinite) it runs here. Else it starts on a thread of its own, in the caller's
+    context (:class:`~servoid.ident.offline._threads.Ahead`; where the thread rule gives one thread, it
+    runs here, whole), waited for until the deadline: one left running is not stopped (the fits cannot
+    be) and ends with the process or on its own; an exception it raised is raised here. Its cost is not predicted: on the horn twins' live records the
     step took 3.4-23.4 s, and neither the fast part's search (0.5-5.5 times it: the predictor this
     replaces, ``benchmarks/horn_cost.py``) nor one free run of the horn's start (156-1456 times it) tells it;
     the horn stage that is not kept is the slowest (40-85 ms a simulation of the record against 8-31 ms where it is
@@ -359,21 +360,8 @@ def _by_deadline(work: Callable[[], _Done], deadline_s: float) -> _Done | None:
     """
     if math.isinf(deadline_s):
         return work()
-    out: list[_Done] = []
-    failed: list[BaseException] = []
-
-    def run() -> None:
-        try:
-            out.append(work())
-        except BaseException as exc:  # noqa: BLE001 - raised on the caller's thread below
-            failed.append(exc)
-
-    thread = threading.Thread(target=run, name="servoid-horn-stage", daemon=True)
-    thread.start()
-    thread.join(max(deadline_s - time.perf_counter(), 0.0))
-    if failed:
-        raise failed[0]
-    return out[0] if out else None
+    job = _threads.Ahead(work)
+    return job.result() if job.wait(deadline_s - time.perf_counter()) else None
 
 
 def _horn_on_whole(
