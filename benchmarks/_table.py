@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from typing import Any
 
 
 def table(title: str, cols: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
@@ -13,3 +15,10 @@ def table(title: str, cols: Sequence[str], rows: Sequence[Sequence[str]]) -> Non
     print("  ".join("-" * w for w in widths))
     for r in rows:
         print("  ".join(v.rjust(w) for v, w in zip(r, widths)))
+
+
+def append_json(path: str | None, row: dict[str, Any]) -> None:
+    """Append ``row`` to the file ``path`` as one JSON line (a benchmark's ``--dump``; nothing when ``path`` is None)."""
+    if path:
+        with open(path, "a") as f:
+            f.write(json.dumps(row) + "\n")

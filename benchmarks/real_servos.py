@@ -99,6 +99,9 @@ def twin_record(
 ) -> dict[str, object]:
     """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments).
 
+    The truth: the play, the record's floor, the place of the play, the output encoder's counts per revolution, and at
+    each host instant the load's angle and the gear's motor side (``theta_m / N``), output rad.
+
     ``seed`` draws the excitation (``seed + 1000``) and, unless ``noise_seed`` is given, the encoders' noise.
     """
     base = preset(name)
@@ -125,6 +128,7 @@ def twin_record(
         "u": np.asarray(rec.u, dtype=np.float64), "y": y, "period": 1.0 / rate, "play": twin.truth.play_rad,
         "floor": q * np.sqrt(1.0 / 12.0 + noise**2) / float(np.std(y)),
         "structure": PLAY_IN_LOOP if twin.truth.loop_encoder == "load" else OUTPUT_BACKLASH,
+        "load_true": rec.true_load_rad, "gear_side_true": rec.true_gear_side_rad, "cpr": twin.params.output_counts_per_rev,
     }  # fmt: skip
 
 

@@ -1,19 +1,22 @@
 """Which of a twin's effects carries identify's play error (issue 12): one effect switched off at a time.
 
 Run: ``.venv/bin/python benchmarks/twin_effects.py --presets odrive --rates 20,50 --seeds 1,2
-[--effects "as is,gear x100 stiffer"] [--fine]``.
+[--effects "as is,gear x100 stiffer"] [--fine] [--output-cpr 16384] [--dump out.jsonl]``.
 
 Each row is :func:`servoid.ident.identify` as ``real_servos.py`` runs it (no structure flags) on
 the same gentle-sines record (``real_servos.twin_record``: same excitation seed, same noise seed)
 from the twin with one of its effects switched off or scaled: the gear contact (compliance,
-damping, losses), the load (inertia, friction), the motor's friction (its break-away hump, all
-of it), the drive (its velocity estimate: filter or encoder PLL; its current loop; its loop
-rate; the loop encoder's resolution) and the output encoder (``--fine`` reads every record with
-a 2**20-count output encoder and no noise, so that the model's own error shows above the floor).
-``--duration-s`` runs each record longer (or shorter) than the table's 40 s. ``--noise-seeds``
+damping, losses), the load (inertia, friction; ``load x0.01``: a hundredth of both), the motor's
+friction (its break-away hump, all of it), the drive (its velocity estimate: filter or encoder PLL;
+its current loop; its loop rate; the loop encoder's resolution) and the output encoder (its noise
+off or doubled, 4 or 16 times its counts; ``--output-cpr`` reads every record with that many counts
+per revolution; ``--fine`` with 2**20 counts and no noise, so that the model's own error shows above
+the floor). ``--duration-s`` runs each record longer (or shorter) than the table's 40 s. ``--noise-seeds``
 draws the encoders' noise from each of those seeds on every record (the same excitation): the spread of the answers over them is what the record's resolution and noise
-alone leave, which no model can remove. The last table gives each effect's play errors over the records and their mean and mean
-absolute value: an effect that carries the error moves all records towards 0, not one.
+alone leave, which no model can remove. Each row gives the play in the output encoder's counts and the 95 %
+interval over the truth. The last table gives each effect's play errors over the records, their mean,
+standard deviation and largest, how many are within 5 % and how many intervals cover the truth: an effect
+that carries the error moves all records towards 0, not one. ``--dump`` appends each row to a JSON-lines file.
 The twins' physics and presets are not changed (only this run's copies, through the preset's
 overrides). The machine may be shared: times are one run each.
 """
@@ -21,11 +24,11 @@ overrides). The machine may be shared: times are one run each.
 from __future__ import annotations
 
 import argparse
-import time
+from typing import Any
 
 import numpy as np
 import real_servos
-from _table import table
+from _table import append_json, table
 from real_servos import run, twin_record
 
 from servoid.drivers.twin import preset
@@ -48,6 +51,14 @@ def effects(name: str) -> dict[str, dict[str, object]]:
         "motor friction x0.01": {"motor_coulomb_nm": 0.01 * b.motor_coulomb_nm, "motor_breakaway_nm": 0.01 * b.motor_breakaway_nm, "motor_viscous_nms": 0.01 * b.motor_viscous_nms},
         "current loop x3 faster": {"cur_kp_v_a": 3 * b.cur_kp_v_a, "cur_ki_v_as": 3 * b.cur_ki_v_as},
         "loop encoder x64 counts": {"motor_encoder_cpr": 64 * b.motor_encoder_cpr},
+        "load inertia x3": {"load_inertia_kgm2": 3 * b.load_inertia_kgm2},
+        "load inertia x0.01": {"load_inertia_kgm2": 0.01 * b.load_inertia_kgm2},
+        "load friction x0.01": {"load_coulomb_nm": 0.01 * b.load_coulomb_nm, "load_breakaway_nm": 0.01 * b.load_breakaway_nm, "load_viscous_nms": 0.01 * b.load_viscous_nms},
+        "load x0.01": {"load_inertia_kgm2": 0.01 * b.load_inertia_kgm2, "load_coulomb_nm": 0.01 * b.load_coulomb_nm, "load_breakaway_nm": 0.01 * b.load_breakaway_nm, "load_viscous_nms": 0.01 * b.load_viscous_nms},
+        "no noise": {"encoder_noise_counts": 0.0},
+        "noise x2": {"encoder_noise_counts": 2 * real_servos.NOISE_COUNTS},
+        "output encoder x4 counts": {"load_encoder_cpr": 4 * 4096},
+        "output encoder x16 counts": {"load_encoder_cpr": 16 * 4096},
     }  # fmt: skip
     if b.pll_bandwidth_rad_s > 0:
         cases["PLL x2 faster"] = {"pll_bandwidth_rad_s": 2 * b.pll_bandwidth_rad_s}
@@ -84,14 +95,24 @@ def main() -> None:
         default=real_servos.DURATION_S,
         help="the record's length, s (default: the table's; the table's sample cap scaled with it)",
     )
+    parser.add_argument(
+        "--output-cpr",
+        type=int,
+        default=0,
+        help="the output encoder's counts per revolution on every record (default: the table's 4096)",
+    )
+    parser.add_argument("--dump", default=None, help="append each record's answer to this file (JSON lines)")
     args = parser.parse_args()
     # a longer record: the table's excitation run on for longer, its sample cap scaled alike
     real_servos.MAX_SAMPLES = round(real_servos.MAX_SAMPLES * args.duration_s / real_servos.DURATION_S)
     real_servos.DURATION_S = args.duration_s
     noise_seeds: list[int | None] = [int(s) for s in args.noise_seeds.split(",") if s.strip()] or [None]
     fine: dict[str, object] = {"load_encoder_cpr": 2**20, "encoder_noise_counts": 0.0} if args.fine else {}
+    if args.output_cpr:
+        fine["load_encoder_cpr"] = args.output_cpr
     rows: list[list[str]] = []
     gaps: dict[tuple[str, str], list[float]] = {}
+    covered: dict[tuple[str, str], int] = {}
     for name in args.presets.split(","):
         cases = effects(name)
         wanted = [e.strip() for e in args.effects.split(",") if e.strip()] or list(cases)
@@ -100,25 +121,43 @@ def main() -> None:
                 raise SystemExit(f"effect (={what!r}) must be one of {', '.join(cases)}")
             for mult in (float(r) for r in args.rates.split(",")):
                 for seed, noise in ((int(s), n) for s in args.seeds.split(",") for n in noise_seeds):
-                    rec = twin_record(name, mult, 1.0, "sines", seed, noise, **{**cases[what], **fine})
-                    t0 = time.perf_counter()
-                    result, _ = run(rec["u"], rec["y"], rec["period"])  # type: ignore[arg-type]
-                    gap = result.play / float(rec["play"]) - 1.0  # type: ignore[arg-type]
-                    gaps.setdefault((name, what), []).append(gap)
-                    fit = float(result.loop.fit_nrmse) if result.loop is not None else result.fit_nrmse
-                    mu = result.loop.model.mu if result.loop is not None and result.loop.model.massive else 0.0
+                    row = answer(name, what, mult, seed, noise, {**cases[what], **fine})
+                    gaps.setdefault((name, what), []).append(row["gap"])
+                    covered[name, what] = covered.get((name, what), 0) + row["covers"]
                     rows.append([
-                        name, what, f"{mult:g}x", str(seed) if noise is None else f"{seed}/{noise}", result.structure, f"{gap:+.1%}",
-                        f"{fit / float(rec['floor']):.2f}", f"{mu:.2f}", f"{time.perf_counter() - t0:.1f}",
+                        name, what, f"{mult:g}x", str(seed) if noise is None else f"{seed}/{noise}", row["structure"],
+                        f"{row['gap']:+.1%}", f"{row['fit']:.2f}", f"{row['mu']:.2f}", f"{row['counts']:.2f}",
+                        f"[{row['lo']:.2f}, {row['hi']:.2f}]" if row["lo"] is not None else "none", f"{row['s']:.1f}",
                     ])  # fmt: skip
                     print(" | ".join(rows[-1]), flush=True)
-    enc = "2**20-count output encoder, no noise" if args.fine else "4096 counts, 0.3 count noise"
-    table(f"identify on each record, one effect switched off ({enc})", ["preset", "twin", "rate", "seed(/noise)", "structure", "gap", "fit/floor", "mu", "s"], rows)  # fmt: skip
+                    append_json(args.dump, row)
+    enc = "2**20-count output encoder, no noise" if args.fine else f"{args.output_cpr or 4096} counts, 0.3 count noise"
+    table(f"identify on each record, one effect switched off ({enc})", ["preset", "twin", "rate", "seed(/noise)", "structure", "gap", "fit/floor", "mu", "play (counts)", "95 % / truth", "s"], rows)  # fmt: skip
     summary = [
-        [name, what, ", ".join(f"{g:+.1%}" for g in v), f"{np.mean(v):+.1%}", f"{np.mean(np.abs(v)):.1%}", str(sum(abs(g) <= 0.05 for g in v))]
+        [name, what, ", ".join(f"{g:+.1%}" for g in v), f"{np.mean(v):+.1%}", f"{np.std(v, ddof=1) if len(v) > 1 else 0.0:.1%}",
+         f"{np.max(np.abs(v)):.1%}", str(sum(abs(g) <= 0.05 for g in v)), f"{covered[name, what]} of {len(v)}"]
         for (name, what), v in gaps.items()
     ]  # fmt: skip
-    table("Per effect over the records", ["preset", "twin", "gaps", "mean", "mean |gap|", "within 5 %"], summary)
+    table("Per effect over the records", ["preset", "twin", "gaps", "mean", "sd", "largest", "within 5 %", "covers"], summary)  # fmt: skip
+
+
+def answer(name: str, what: str, mult: float, seed: int, noise: int | None, over: dict[str, object]) -> dict[str, Any]:
+    """``identify`` on one record of the twin with ``over``: gap, fit over the floor, inertia ratio, the play in the
+    output encoder's counts, the interval over the truth, seconds."""
+    rec = twin_record(name, mult, 1.0, "sines", seed, noise, **over)
+    result, seconds = run(rec["u"], rec["y"], rec["period"])  # type: ignore[arg-type]
+    truth = float(rec["play"])  # type: ignore[arg-type]
+    fit = float(result.loop.fit_nrmse) if result.loop is not None else result.fit_nrmse
+    mu = result.loop.model.mu if result.loop is not None and result.loop.model.massive else 0.0
+    lo, hi = result.play_interval
+    cpr = float(over.get("load_encoder_cpr", 4096))  # type: ignore[arg-type]
+    return {
+        "preset": name, "effect": what, "mult": mult, "seed": seed, "noise_seed": noise, "structure": result.structure,
+        "gap": result.play / truth - 1.0, "fit": fit / float(rec["floor"]), "mu": float(mu),  # type: ignore[arg-type]
+        "counts": truth * cpr / (2.0 * np.pi), "lo": lo / truth if np.isfinite(lo) else None,
+        "hi": hi / truth if np.isfinite(hi) else None, "covers": bool(np.isfinite(lo) and lo <= truth <= hi),
+        "identifiable": bool(result.identifiable), "s": seconds,
+    }  # fmt: skip
 
 
 if __name__ == "__main__":
