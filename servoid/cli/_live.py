@@ -61,6 +61,10 @@ DEFAULT_LIVE_S = 40.0
 WALL_TARGET_S = 60.0
 #: Wall seconds kept after the servo-loop answer for identification and the outputs (0.0-0.2 s on ``sim://``).
 AFTER_ANSWER_S = 2.0
+#: What the wall budget (``--budget``) bounds, said in --help and in the JSON's ``budget``.
+BUDGET_WHY = ("on a real clock every fit after the run (the early searches, the last window, the answer's search, "
+              "refits and horn stage) stops at the budget less {after:g} s kept for identification and the outputs; "
+              "the best answer made by then answers, the cut stages are named and the verdict withheld")  # fmt: skip
 #: Reversals of the set point a design's slow phase holds at least (:func:`slow_phase`): each is a
 #: motor crossing of the play, what the slow phase's search reads a play outside the loop from. 18:
 #: the fewest a third of a 60 s run held on the twins (ODrive, XM430 designs, seeds 0-2), whose
@@ -109,6 +113,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     live.add_argument("--hold", type=int, metavar="N",
                       help="held random levels of N samples instead of the designed gentle sines (whose fastest "
                            "segment is set from the probe's loop bandwidth: docs/online.md)")  # fmt: skip
+    live.add_argument("--budget", type=float, default=WALL_TARGET_S, metavar="S",
+                      help=f"wall seconds for the probe, the run and the answer (default {WALL_TARGET_S:g}, issue 15's "
+                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; a virtual clock (sim:// twins) is "
+                           "not timed")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
@@ -259,6 +267,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.drivers import driver_from_url
     from servoid.drivers.clock import VirtualClock
     from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.offline._threads import Stop
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.early_search import EarlySearch, head_samples
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
@@ -286,6 +295,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         factor, designed, slow = (args.decimate or 1), None, None
         clock = _Stages()
+        # the wall budget on a real clock: one stop for every fit after the run (the early searches', the last
+        # window's, the answer's), at the budget less what identification and the outputs take (module BUDGET_WHY)
+        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
+        wall_s = getattr(args, "budget", WALL_TARGET_S)
+        budget = None if virtual else Stop(clock.started + wall_s - AFTER_ANSWER_S, "the wall budget")
+        live["budget"] = {"wall_s": None if virtual else wall_s, "after_answer_s": AFTER_ANSWER_S,
+                          "bounds": "not timed (a virtual clock)" if virtual else BUDGET_WHY.format(after=AFTER_ANSWER_S)}  # fmt: skip
         if not args.no_probe:
             design = probe_and_design(args, driver, amplitude, config, quiet=quiet)
             clock.mark("probe")
@@ -300,16 +316,15 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
         )
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
-        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
         # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
         # (on a real clock searched warm from the first window's load when the machine is too slow for its own: end)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples,
-                            end=0 if virtual else u.size)  # fmt: skip
+                            end=0 if virtual else u.size, stop=budget)  # fmt: skip
         # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
         # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
-        slow_search = EarlySearch(config.period_s, slow_samples, hold=True) if slow_samples else None
+        slow_search = EarlySearch(config.period_s, slow_samples, hold=True, stop=budget) if slow_samples else None
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
                              grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
@@ -351,8 +366,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     # a refit (the end's too) still running END_GRACE_S after the run is told to stop and the newest finished
     # window is the estimate, its age in the JSON and the verdict (on the CiA 402 twin waiting took up to 14 s)
     ended = result.stopped != "interrupted"
+    grace_s = END_GRACE_S if budget is None else min(END_GRACE_S, max(budget.left_s(), 0.0))
     window_result = window.result(final=ended, fresh_s=window.config.every_s, wait=ended and virtual,
-                                  wait_s=END_GRACE_S if ended else 0.0)  # fmt: skip
+                                  wait_s=grace_s if ended else 0.0)  # fmt: skip
     clock.mark("last_window")
     early_search = early.result(wait=result.stopped != "interrupted")
     clock.mark("early_search")
@@ -369,11 +385,18 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         live["slow_search"] = _early_dict(slow_search, slow_search.result(wait=False))
     slow_found = None if slow_search is None else (lambda: slow_search.searched(wait=True))
     # (on a real clock the answer's horn stage only where it can end within the wall budget, identification after it)
-    deadline = math.inf if virtual else clock.started + WALL_TARGET_S - AFTER_ANSWER_S
     live["online_loop"], loop = loop_online(
-        window_result, result, slow_samples, early_search, slow_found, deadline_s=deadline
-    )
+        window_result, result, slow_samples, early_search, slow_found,
+        deadline_s=math.inf if budget is None else budget.deadline_s,
+    )  # fmt: skip
     clock.mark("loop_answer")
+    live["budget"]["cut"] = cut = _cut(early, slow_search, live["online_loop"])
+    if cut and not quiet:
+        _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)}")
+    if loop is None and any(c.startswith("the answer") for c in cut):
+        raise ConfigError(f"no servo-loop answer within the wall budget of {wall_s:g} s (its search was cut and no "
+                          f"online estimate had ended); the recording is in {path} (identify it offline: servoid "
+                          f"identify --data {path}; or give a larger --budget)")  # fmt: skip
     live["wall_s"] = clock.seconds
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
@@ -384,6 +407,20 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
+
+
+def _cut(early: EarlySearch, slow_search: EarlySearch | None, online_loop: dict[str, Any]) -> list[str]:
+    """The stages the wall budget cut (the JSON's ``budget.cut``), each with what answered instead."""
+    cut = []
+    if early.cut:
+        cut.append("the early search of the fast part's head (the answer searched the fast part itself)")
+    if slow_search is not None and slow_search.cut:
+        cut.append("the slow phase's search")
+    refined = online_loop.get("refined") or {}
+    cut += [f"the answer's {c}" for c in refined.get("cut") or ()]
+    if online_loop.get("cut"):
+        cut.append(f"the answer: {online_loop['cut']}")
+    return cut
 
 
 def _maybe_outside(model: Any) -> bool:
@@ -620,7 +657,8 @@ def loop_online(
     """
     import numpy as np
 
-    from servoid.ident.online.refinement import refine_online
+    from servoid.ident.offline._threads import Stopped
+    from servoid.ident.online.refinement import CUT, refine_online
     from servoid.ident.online.verdict import judge_window
 
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
@@ -637,10 +675,18 @@ def loop_online(
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
+    except Stopped as exc:  # no online model and the search cut: no answer made
+        out["cut"] = f"the search ({exc}), with no online estimate to answer instead"
+        out["verdict"] = {"settled": False, "reasons": [f"{CUT}: {out['cut']}"]}
+        return out, None
     if online.model is None:  # no window refit ended (a loaded real clock): the search answered alone, nothing to judge
         verdict = dataclasses.replace(judge_window(online), refined_gap=choice.play, refined_nrmse=choice.fit_nrmse)
     else:  # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part)
         verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
+    if refined.cut:  # an answer from an earlier stage: the online estimate is not judged settled against it
+        verdict = dataclasses.replace(
+            verdict, settled=False, reasons=(*verdict.reasons, *(f"{CUT}: {c}" for c in refined.cut))
+        )
     out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
@@ -757,6 +803,9 @@ def _check_live_options(args: argparse.Namespace) -> None:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ConfigError(f"--{name} (={value}) must be >= 1")
+    budget = getattr(args, "budget", WALL_TARGET_S)
+    if not budget > AFTER_ANSWER_S:  # (NaN too; inf: no budget)
+        raise ConfigError(f"--budget (={budget:g}) must be a number of wall seconds > {AFTER_ANSWER_S:g}")
     if not (math.isfinite(args.max_lost) and 0.0 <= args.max_lost <= 1.0):
         raise ConfigError(f"--max-lost (={args.max_lost:g}) must lie in [0, 1]")
     if args.no_probe and args.hold is not None:
