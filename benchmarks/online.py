@@ -182,9 +182,9 @@ def _horn(result: dict) -> str:
 
 
 #: The first words of a stage the wall budget cut (``budget.cut``) and its short name in the table.
-_CUT_NAMES = (("the early search", "early"), ("the slow phase", "slow"), ("the answer's the search", "search"),
-              ("the answer's the online candidate", "candidate"), ("the answer's the answer's refit", "extend"),
-              ("the answer's the slow part", "slow part"), ("the answer's the horn", "horn"), ("the answer:", "no answer"))  # fmt: skip
+_CUT_NAMES = (("the early search", "early"), ("the slow phase", "slow"), ("in the answer: the search", "search"),
+              ("in the answer: the online candidate", "candidate"), ("in the answer: the answer's refit", "extend"),
+              ("in the answer: the slow part", "slow part"), ("in the answer: the horn", "horn"), ("the answer:", "no answer"))  # fmt: skip
 
 
 def _cut(result: dict) -> str:

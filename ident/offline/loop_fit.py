@@ -1334,6 +1334,7 @@ def _stage_problem(
         return d, float(sol.cost) if sol is not None else math.inf, prob.evaluations
 
     def simulate(d: dict[str, float]) -> np.ndarray:
+        _threads.check()  # the grid's free runs (a load's sub-steps: 24-40 times a massless one's) stop as fits do
         return _model(base.structure, period, d).simulate(u, y0=float(y[0]))
 
     # the load's friction starts at the massless fit's Coulomb level (a deceleration of the same order)

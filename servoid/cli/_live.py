@@ -115,8 +115,8 @@ def add_options(parser: argparse.ArgumentParser) -> None:
                            "segment is set from the probe's loop bandwidth: docs/online.md)")  # fmt: skip
     live.add_argument("--budget", type=float, default=WALL_TARGET_S, metavar="S",
                       help=f"wall seconds for the probe, the run and the answer (default {WALL_TARGET_S:g}, issue 15's "
-                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; a virtual clock (sim:// twins) is "
-                           "not timed")  # fmt: skip
+                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; a simulated servo on a virtual clock "
+                           "(sim://NAME?clock=virtual) is not timed")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
@@ -255,6 +255,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     line, once: the record carries the online run's result
     (:attr:`Record.online`), which identification refines rather than runs again.
     """
+    began = time.perf_counter()  # the wall budget counts from here: the driver's opening included
     if args.data is not None:
         raise ConfigError("give --driver or --data, not both")
     if args.snr is not None:
@@ -299,7 +300,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # window's, the answer's), at the budget less what identification and the outputs take (module BUDGET_WHY)
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
         wall_s = getattr(args, "budget", WALL_TARGET_S)
-        budget = None if virtual else Stop(clock.started + wall_s - AFTER_ANSWER_S, "the wall budget")
+        budget = None if virtual else Stop(began + wall_s - AFTER_ANSWER_S, "the wall budget")
         live["budget"] = {"wall_s": None if virtual else wall_s, "after_answer_s": AFTER_ANSWER_S,
                           "bounds": "not timed (a virtual clock)" if virtual else BUDGET_WHY.format(after=AFTER_ANSWER_S)}  # fmt: skip
         if not args.no_probe:
@@ -393,7 +394,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     live["budget"]["cut"] = cut = _cut(early, slow_search, live["online_loop"])
     if cut and not quiet:
         _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)}")
-    if loop is None and any(c.startswith("the answer") for c in cut):
+    if loop is None and live["online_loop"].get("cut"):
         raise ConfigError(f"no servo-loop answer within the wall budget of {wall_s:g} s (its search was cut and no "
                           f"online estimate had ended); the recording is in {path} (identify it offline: servoid "
                           f"identify --data {path}; or give a larger --budget)")  # fmt: skip
@@ -417,7 +418,7 @@ def _cut(early: EarlySearch, slow_search: EarlySearch | None, online_loop: dict[
     if slow_search is not None and slow_search.cut:
         cut.append("the slow phase's search")
     refined = online_loop.get("refined") or {}
-    cut += [f"the answer's {c}" for c in refined.get("cut") or ()]
+    cut += [f"in the answer: {c}" for c in refined.get("cut") or ()]
     if online_loop.get("cut"):
         cut.append(f"the answer: {online_loop['cut']}")
     return cut
