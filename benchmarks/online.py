@@ -151,7 +151,12 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
         to5, to_answer, what = seconds_to_within(out, result), float("nan"), "mrgia"
     probe = result["probe"]
     answer = result["answer"]
-    names = {"loop_search": "search", "loop_online": "online", "offline_fit": "offline"}
+    names = {
+        "loop_search": "search",
+        "loop_online": "online",
+        "loop_online_cut": "online (cut)",
+        "offline_fit": "offline",
+    }
     said = names.get(answer["source"], answer["source"])
     answer_play = answer["play"] / scale
     age = window.get("age_s")  # null: no refit, or no end given

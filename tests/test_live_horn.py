@@ -178,3 +178,17 @@ def test_a_cut_search_leaves_the_online_estimate_as_the_answer_and_says_so(monke
     empty = WindowResult(None, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
     with pytest.raises(_threads.Stopped):
         refinement.refine_online(u, y, empty, deadline_s=time.perf_counter() + 0.1)
+
+
+def test_an_answer_whose_search_was_cut_is_said_to_be_the_online_estimate_not_validated() -> None:
+    from servoid.cli._live import answer
+
+    loop = object()
+    refined = {"online_won": True, "cut": ["the search on the fast part (stopped ...): the online estimate answers"]}
+    record = SimpleNamespace(output_unit="rad", loop=loop, live={"online_loop": {"refined": refined}})
+    result = SimpleNamespace(loop=loop, play=0.004, structure=PLAY_IN_LOOP, form="servo_loop")
+    said = answer(record, result, {"online_gap": 0.004, "estimator": "window", "settled": False})
+    assert said["source"] == "loop_online_cut" and "cut by the wall budget" in said["line"]
+    assert "not validated" in said["line"] and "won" not in said["line"]
+    refined["cut"] = []
+    assert answer(record, result, {"online_gap": 0.004, "estimator": "window"})["source"] == "loop_online"

@@ -578,8 +578,9 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     ``source`` is ``loop_online`` when the servo-loop answer is the online estimate, which
     validated better than the offline search on the whole record and was refitted on it
     (:func:`loop_online`; identification took it, ``identify(loop=)``), ``loop_search`` when
-    that search's own answer won, ``offline_fit`` when identification's own fit answers (the
-    black box, or no online servo-loop model); ``online_settled`` says whether the online
+    that search's own answer won, ``loop_online_cut`` when the wall budget cut that search and the
+    online estimate answered as it is (not validated), ``offline_fit`` when identification's own fit
+    answers (the black box, or no online servo-loop model); ``online_settled`` says whether the online
     estimate had converged and ``gap`` is the online play relative to the answer's (the
     convergence check). ``line`` is the sentence ``servoid identify`` prints under its headline.
     """
@@ -590,13 +591,21 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     play = float(result.play)
     gap = online_play / play - 1.0 if math.isfinite(online_play) and play > 0.0 else math.nan
     took_online = record.loop is not None and result.loop is record.loop
-    won = bool((((record.live or {}).get("online_loop") or {}).get("refined") or {}).get("online_won"))
-    source = ("loop_online" if won else "loop_search") if took_online else "offline_fit"
+    refined = ((record.live or {}).get("online_loop") or {}).get("refined") or {}
+    won = bool(refined.get("online_won"))
+    # the search cut by the wall budget: the online estimate answered as it is, not as a validated candidate
+    unsearched = any(c.startswith("the search") for c in refined.get("cut") or ())
+    source = (
+        ("loop_online_cut" if unsearched else "loop_online" if won else "loop_search") if took_online else "offline_fit"
+    )
     est = "the servo loop's window refit" if online.get("estimator") == "window" else "the decimated MRGIA"
     why = "settled" if online.get("settled") else "NOT settled"
     if took_online and not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
         line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
                 f"({est}: no refit ended before the run did)")  # fmt: skip
+    elif took_online and unsearched:
+        line = (f"the answer: the online estimate ({est}, {why}) as it is, its search cut by the wall budget: play "
+                f"{play:.4g} {unit} (not validated against any search)")  # fmt: skip
     elif took_online:
         how = ("the online estimate won the offline search's validation on the whole record" if won
                else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
