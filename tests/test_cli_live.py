@@ -85,13 +85,14 @@ def test_bad_live_options_are_one_line_errors(tmp_path, capsys, argv, fragment):
     assert code == 2 and fragment in err and "Traceback" not in err
 
 
-def test_a_run_whose_answer_the_wall_budget_cut_reports_no_model_and_says_why(tmp_path, capsys):
+def test_a_run_whose_servo_loop_search_the_wall_budget_cut_answers_with_the_black_box_withheld(tmp_path, capsys):
     # a real clock, 1.5 s of servo time, a budget that leaves nothing after the run: the answer's search is stopped
     # at its first evaluation and no window refit had ended to answer instead
-    code, _, err = run_json(capsys, "--driver", "sim://", "--samples", "300", "--no-probe", "--no-plots",
+    code, obj, _ = run_json(capsys, "--driver", "sim://", "--samples", "300", "--no-probe", "--no-plots",
                             "--budget", "2.5", "--out", str(tmp_path))  # fmt: skip
-    assert code == 2 and "no servo-loop answer within the wall budget of 2.5 s" in err
-    assert (tmp_path / "recording.csv").stat().st_size > 0
+    assert code == 0 and obj["form"] != "servo_loop" and not obj["identifiable"]
+    assert obj["reasons"][0].startswith("cut by the wall budget: the servo-loop search")
+    assert obj["budget"]["wall_s"] == 2.5 and obj["budget"]["cut"][-1].startswith("the answer: the search")
 
 
 def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):

@@ -272,6 +272,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.early_search import EarlySearch, head_samples
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.ident.online.refinement import CUT
     from servoid.ident.online.window import END_GRACE_S, WindowConfig, WindowRefit
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
@@ -395,9 +396,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     if cut and not quiet:
         _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)}")
     if loop is None and live["online_loop"].get("cut"):
-        raise ConfigError(f"no servo-loop answer within the wall budget of {wall_s:g} s (its search was cut and no "
-                          f"online estimate had ended); the recording is in {path} (identify it offline: servoid "
-                          f"identify --data {path}; or give a larger --budget)")  # fmt: skip
+        # no servo-loop answer made: identification fits the black box alone (the decimated MRGIA's estimate refined;
+        # its servo-loop search would be the one just cut), its verdict withheld with the reason (unanswered)
+        live["budget"]["unanswered"] = (
+            f"{CUT}: the servo-loop search, with no online servo-loop estimate to answer instead; the answer is "
+            f"the black box's (identify the recording offline for the servo loop: servoid identify --data {path}, "
+            "or give a larger --budget)"
+        )
     live["wall_s"] = clock.seconds
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
