@@ -45,7 +45,10 @@ are, one row per run:
   the probe, the run (the session), the last window's refit after it, the wait for the answer's early
   search (``ident/online/early_search.py``), the servo-loop answer (``refine_online``), identification
   (``identify``), each in wall seconds; ``horn stage``: what became of the answer's horn stage
-  (``refine_online``'s step 5: answered, not kept, skipped by the wall budget, ...; ``-`` where it does not apply).
+  (``refine_online``'s step 5: answered, not kept, skipped by the wall budget, ...; ``-`` where it does not apply);
+  ``cut``: the stages the wall budget stopped (``budget.cut`` in the JSON: ``early`` the head's early search,
+  ``slow`` the slow phase's, and the answer's ``search`` / ``candidate`` / ``extend`` / ``slow part`` / ``horn``;
+  ``-`` none; a virtual clock is not timed).
 
 The monitor's tracking of a growing play on the wearing twin is
 ``benchmarks/monitor_loop.py``. The machine may be shared: wall times depend on its load.
@@ -130,7 +133,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
     with LIVE[transport](name) as url:
         result, error, wall = run(url, samples, out, seed)
     if result is None:
-        return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", "-", outcome(error)]
+        return [name, transport, f"{play:.5f}", *["-"] * 13, f"{wall:.0f}", "-", "-", "-", outcome(error)]
     verdict = result["online"]
     online_gap = (verdict["online_gap"] or float("nan")) / scale  # null: no window refit ended
     refined_gap = (verdict["refined_gap"] or float("nan")) / scale
@@ -148,7 +151,12 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
         to5, to_answer, what = seconds_to_within(out, result), float("nan"), "mrgia"
     probe = result["probe"]
     answer = result["answer"]
-    names = {"loop_search": "search", "loop_online": "online", "offline_fit": "offline"}
+    names = {
+        "loop_search": "search",
+        "loop_online": "online",
+        "loop_online_cut": "online (cut)",
+        "offline_fit": "offline",
+    }
     said = names.get(answer["source"], answer["source"])
     answer_play = answer["play"] / scale
     age = window.get("age_s")  # null: no refit, or no end given
@@ -161,7 +169,7 @@ def row(name: str, transport: str, samples: int | None, out: Path, seed: int = 0
         f"{np.median(costs) if costs else float('nan'):.2f}/{1e3 * window['stall_s']:.0f}/{window['dropped']}"
         f"/{window.get('late', 0)}/{float('nan') if age is None else age:.1f}",
         f"{len(costs)} ({sum(bool(r.get('searched')) for r in window['history'])})",
-        f"{wall:.0f}", _stages(result), _horn(result), why,
+        f"{wall:.0f}", _stages(result), _horn(result), _cut(result), why,
     ]  # fmt: skip
 
 
@@ -176,6 +184,18 @@ def _horn(result: dict) -> str:
     """What became of the answer's horn stage (``refine_online``'s step 5): its first words, ``-`` where it did not apply."""
     said = (result["online_loop"].get("refined") or {}).get("horn")
     return "-" if said is None else re.split(r"[:(]", said, maxsplit=1)[0].strip()[:24]
+
+
+#: The first words of a stage the wall budget cut (``budget.cut``) and its short name in the table.
+_CUT_NAMES = (("the early search", "early"), ("the slow phase", "slow"), ("in the answer: the search", "search"),
+              ("in the answer: the online candidate", "candidate"), ("in the answer: the answer's refit", "extend"),
+              ("in the answer: the slow part", "slow part"), ("in the answer: the horn", "horn"), ("the answer:", "no answer"))  # fmt: skip
+
+
+def _cut(result: dict) -> str:
+    """The stages the wall budget cut, by short name (``-``: none, or not timed)."""
+    cut = (result.get("budget") or {}).get("cut") or []
+    return "+".join(next((short for head, short in _CUT_NAMES if c.startswith(head)), c[:12]) for c in cut) or "-"
 
 
 def _identified(result: dict) -> str:
@@ -225,7 +245,7 @@ def main() -> None:
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
          "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s",
          "refits (searched)", "wall s",
-         "stages s (probe/run/last/early/answer/identify)", "horn stage", "verdict"],
+         "stages s (probe/run/last/early/answer/identify)", "horn stage", "cut", "verdict"],
         rows,
     )  # fmt: skip
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")

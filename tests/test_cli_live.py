@@ -52,6 +52,7 @@ def test_a_live_run_on_the_default_twin_says_what_is_true_of_it(tmp_path, capsys
     twin = obj["twin_truth"]
     assert twin["name"] == "xm430" and twin["play_rad"] == pytest.approx(np.radians(0.25))
     assert (twin["loop_encoder"], twin["output_encoder"]) == ("load", "load")
+    assert obj["budget"]["wall_s"] is None and obj["budget"]["cut"] == []  # a virtual clock is not timed
     main(
         [
             "identify",
@@ -76,11 +77,22 @@ def test_a_live_run_on_the_default_twin_says_what_is_true_of_it(tmp_path, capsys
         (["--driver", "sim://", "--snr", "40"], "put it in the URL"),
         (["--driver", "sim://", "--rate", "0"], "--rate (=0) must lie in"),
         (["--driver", "tcp://host"], "unknown driver scheme 'tcp'"),
+        (["--driver", "sim://", "--budget", "1"], "--budget (=1) must be a number of wall seconds > 2"),
     ],
 )
 def test_bad_live_options_are_one_line_errors(tmp_path, capsys, argv, fragment):
     code, _, err = run_json(capsys, *argv, "--out", str(tmp_path))
     assert code == 2 and fragment in err and "Traceback" not in err
+
+
+def test_a_run_whose_servo_loop_search_the_wall_budget_cut_answers_with_the_black_box_withheld(tmp_path, capsys):
+    # a real clock, 1.5 s of servo time, a budget that leaves nothing after the run: the answer's search is stopped
+    # at its first evaluation and no window refit had ended to answer instead
+    code, obj, _ = run_json(capsys, "--driver", "sim://", "--samples", "300", "--no-probe", "--no-plots",
+                            "--budget", "2.5", "--out", str(tmp_path))  # fmt: skip
+    assert code == 0 and obj["form"] != "servo_loop" and not obj["identifiable"]
+    assert obj["reasons"][0].startswith("cut by the wall budget: the servo-loop search")
+    assert obj["budget"]["wall_s"] == 2.5 and obj["budget"]["cut"][-1].startswith("the answer: the search")
 
 
 def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):

@@ -278,3 +278,17 @@ def test_the_first_windows_search_starts_the_slow_phases_search_where_it_names_t
         SimpleNamespace(structure=OUTPUT_BACKLASH, margin=2 * MIN_STRUCTURE_MARGIN, model=HEAVY), 1.0, 1000
     )
     assert began == [True]
+
+
+def test_a_search_past_its_wall_budget_is_stopped_and_leaves_no_result_and_no_thread() -> None:
+    from servoid.ident.offline import _threads
+
+    u, y = _record(6.0, seed=5)
+    stop = _threads.Stop(time.perf_counter() - 1.0, "the wall budget")  # already past: stopped at its first evaluation
+    est = EarlySearch(1 / RATE, 600, stop=stop)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    assert est.started
+    t0 = time.perf_counter()
+    assert est.result(wait=True) is None and time.perf_counter() - t0 < 5.0
+    assert est.cut and "cut" in (est.error or "") and stop.fired
+    assert est._thread is not None and not est._thread.is_alive()

@@ -100,7 +100,7 @@ def test_the_fast_answer_stands_where_the_stage_does_not_apply(monkeypatch, give
 
 
 @pytest.mark.parametrize("late", [False, True])
-def test_the_step_is_taken_only_when_it_ends_by_the_deadline(monkeypatch, late: bool) -> None:
+def test_the_step_is_stopped_at_the_deadline_and_the_fast_answer_stands(monkeypatch, late: bool) -> None:
     import time
 
     from servoid.ident.models.servo_loop import ServoLoopModel
@@ -118,37 +118,77 @@ def test_the_step_is_taken_only_when_it_ends_by_the_deadline(monkeypatch, late: 
     refined = refinement.Refined(LoopCandidate(PLAY_IN_LOOP, False, model, 0.01, 0.01, 1), fast, False)
     monkeypatch.setattr(refinement, "_refine_fast", lambda *args: (fast, refined))
     horn = dataclasses.replace(fast, play=0.0105)
-    release = threading.Event()
     threads: list[str] = []
 
     def step(*args: Any) -> Any:
+        # a search that evaluates its cost every 10 ms for 0.2 s, on this thread and on the pool's helper
         threads.append(threading.current_thread().name)
-        release.wait(5.0)  # a step that ends only when let go (late: after the deadline)
+        for _ in range(20 if not late else 10**6):
+            _threads.each(lambda i: (time.sleep(0.005), _threads.check()), 2)
         return "answered", horn
 
     monkeypatch.setattr(refinement, "_horn_on_whole", step)
-    monkeypatch.setattr(_threads, "threads", lambda: 2)  # a thread of its own on any machine (one CPU: run here)
+    monkeypatch.setenv(_threads.ENV, "2")
     online = WindowResult(model, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
-    if not late:
-        release.set()
-    choice, out = refinement.refine_online(u, y, online, slow=400, deadline_s=time.perf_counter() + 0.3)
-    release.set()
-    assert threads and threads[0] != threading.main_thread().name  # waited for on a thread of its own
+    before = {t.ident for t in threading.enumerate()}
+    began = time.perf_counter()
+    choice, out = refinement.refine_online(u, y, online, slow=400, deadline_s=began + (5.0 if not late else 0.3))
+    took = time.perf_counter() - began
+    assert threads == [threading.main_thread().name]  # run here: nothing left behind to run on
     assert choice.play == (fast.play if late else 0.0105)
-    assert (out.horn or "").startswith("skipped: not ended") == late
-    # no time left: not started; no deadline (a virtual clock): run here and waited for
+    assert (out.horn or "").startswith("skipped: stopped at the wall budget's deadline") == late
+    assert bool(out.cut) == late and not choice.reasons  # the fast answer stands, as when the step does not apply
+    if late:
+        assert took < 1.0  # stopped at its next evaluation, not at its end
+    assert not _threads._open  # no batch left open
+    assert {t.ident for t in threading.enumerate() if t.name.startswith("servoid-ahead")} <= before
+    # no time left: stopped at once; no deadline (a virtual clock): run here to its end
     threads.clear()
     _, out = refinement.refine_online(u, y, online, slow=400, deadline_s=time.perf_counter() - 1.0)
     assert threads == [] and (out.horn or "").startswith("skipped")
-    choice, out = refinement.refine_online(u, y, online, slow=400)
-    assert threads == [threading.main_thread().name] and choice.play == 0.0105
+    if not late:
+        choice, out = refinement.refine_online(u, y, online, slow=400)
+        assert threads == [threading.main_thread().name] and choice.play == 0.0105 and out.cut == ()
 
 
-def test_a_failure_of_the_step_on_its_thread_is_raised_to_the_caller() -> None:
+def test_a_cut_search_leaves_the_online_estimate_as_the_answer_and_says_so(monkeypatch) -> None:
     import time
 
-    def failing() -> Any:
-        raise ValueError("no fit")
+    from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.offline import _threads
+    from servoid.ident.online.window import WindowConfig, WindowResult
 
-    with pytest.raises(ValueError, match="no fit"):
-        refinement._by_deadline(failing, time.perf_counter() + 5.0)
+    model = ServoLoopModel(OUTPUT_BACKLASH, 1 / RATE, kp=12.0, kv=60.0, c1=0.005, c2=0.005)
+    u = 0.1 * np.sin(2 * math.pi * 0.8 * np.arange(600) / RATE)
+    y = model.simulate(u, y0=0.0)
+
+    def search(*args: Any, **kwargs: Any) -> Any:
+        while True:  # a search that ends only when stopped
+            time.sleep(0.005)
+            _threads.check()
+
+    monkeypatch.setattr(refinement, "fit_loop", search)
+    online = WindowResult(model, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    choice, out = refinement.refine_online(u, y, online, deadline_s=time.perf_counter() + 0.2)
+    assert choice.model is model and choice.play == model.play
+    assert not all(math.isfinite(v) for v in choice.play_interval)  # no interval: not validated against any search
+    assert choice.reasons[0].startswith(refinement.CUT) and "online estimate" in choice.reasons[0]
+    assert out.cut and out.cut[0].startswith("the search on the fast part")
+    # no online model to answer with: the stop reaches the caller
+    empty = WindowResult(None, (), WindowConfig(1 / RATE), dropped=0, stall_s=0.0)
+    with pytest.raises(_threads.Stopped):
+        refinement.refine_online(u, y, empty, deadline_s=time.perf_counter() + 0.1)
+
+
+def test_an_answer_whose_search_was_cut_is_said_to_be_the_online_estimate_not_validated() -> None:
+    from servoid.cli._live import answer
+
+    loop = object()
+    refined = {"online_won": True, "cut": ["the search on the fast part (stopped ...): the online estimate answers"]}
+    record = SimpleNamespace(output_unit="rad", loop=loop, live={"online_loop": {"refined": refined}})
+    result = SimpleNamespace(loop=loop, play=0.004, structure=PLAY_IN_LOOP, form="servo_loop")
+    said = answer(record, result, {"online_gap": 0.004, "estimator": "window", "settled": False})
+    assert said["source"] == "loop_online_cut" and "cut by the wall budget" in said["line"]
+    assert "not validated" in said["line"] and "won" not in said["line"]
+    refined["cut"] = []
+    assert answer(record, result, {"online_gap": 0.004, "estimator": "window"})["source"] == "loop_online"

@@ -637,3 +637,62 @@ def test_a_well_damped_horn_twin_is_not_answered_confidently_wrong() -> None:
         lo, hi = result.play_interval
         assert lo <= play <= hi
         assert result.play == pytest.approx(play, rel=0.15)
+
+
+def test_a_stop_reaches_every_thread_of_an_each_call_and_only_inside_stopping(monkeypatch: pytest.MonkeyPatch) -> None:
+    import threading
+
+    from servoid.ident.offline import _threads
+
+    monkeypatch.setenv(_threads.ENV, "2")
+    barrier = threading.Barrier(2, timeout=20.0)
+    raised: list[str] = []
+
+    def task(i: int) -> None:
+        barrier.wait()  # the two tasks at once: on the caller and on the pool's helper
+        try:
+            _threads.check()
+        except _threads.Stopped:
+            raised.append(threading.current_thread().name)
+            raise
+
+    stop = _threads.Stop(why="the test")
+    stop.now()
+    with _threads.stopping(stop), pytest.raises(_threads.Stopped, match="stopped by the test"):
+        _threads.each(task, 2)
+    assert len(set(raised)) == 2 and stop.fired
+    assert not _threads._open  # the batch closed
+    _threads.each(task, 2)  # outside stopping(): nothing is checked, on either thread
+    with pytest.raises(ConfigError, match="NaN"):
+        _threads.Stop(float("nan"))
+
+
+def test_a_fit_stopped_by_its_deadline_returns_in_time_and_one_never_stopped_is_unchanged(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import threading
+    import time
+
+    from servoid.ident.offline import _threads
+
+    monkeypatch.setenv(_threads.ENV, "2")
+    period = 0.01
+    truth = _loop(PLAY_IN_LOOP, period)
+    u = _gentle(0.1, period, 1000, seed=4)
+    y = truth.simulate(u, y0=0.0)
+    t0 = time.perf_counter()
+    whole = fit_loop(u, y, period, load=False)
+    whole_s = time.perf_counter() - t0
+    # a stop that never comes: the same answer, to the bit (an offline fit runs outside any stop)
+    with _threads.stopping(_threads.Stop()):
+        again = fit_loop(u, y, period, load=False)
+    assert again.play == whole.play and np.array_equal(again.simulated, whole.simulated)
+    # a deadline a tenth into the fit: it unwinds at its next evaluation, long before its end, on every thread
+    before = {t.ident for t in threading.enumerate()}
+    stop = _threads.Stop(time.perf_counter() + 0.1 * whole_s, "the test's budget")
+    t0 = time.perf_counter()
+    with _threads.stopping(stop), pytest.raises(_threads.Stopped, match="the test's budget's deadline"):
+        fit_loop(u, y, period, load=False)
+    assert time.perf_counter() - t0 < 0.6 * whole_s and stop.fired
+    assert not _threads._open
+    assert {t.ident for t in threading.enumerate() if t.name.startswith("servoid-ahead")} <= before

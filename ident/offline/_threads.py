@@ -18,6 +18,14 @@ A whole fit whose inputs are known before the work it waits behind can start ear
 its own (:class:`Ahead`, by the same rule: not where it gives one thread); the call that starts it
 is wrapped in :func:`joins_ahead`, so no such thread outlives it.
 
+A fit can be stopped (:class:`Stop`: a wall-time deadline, or told to): inside :func:`stopping` every
+evaluation of a fit's cost (:func:`check`, from ``loop_fit._Problem.scored``) raises :class:`Stopped`
+once the stop has come, on the calling thread, on an :class:`Ahead` job's thread (which runs in a copy
+of the caller's context) and on the pool's helpers running an :func:`each` call's tasks (each task
+runs under the stop of the call's owner). The search unwinds from there to whoever set the stop, who
+keeps the best answer it already has. Outside :func:`stopping` nothing is checked: an offline fit
+runs as it did, to the bit.
+
 The pool is made at the first use and kept (a Jacobian is computed some
 hundred times per fit); it is remade when the rule's answer changes, dropped in
 a forked child (its threads do not survive ``fork``), and its threads are
@@ -29,16 +37,20 @@ from __future__ import annotations
 import contextlib
 import contextvars
 import functools
+import math
 import os
 import queue
 import threading
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Generic, ParamSpec, TypeVar
 
 from servoid.errors import ConfigError
 
-__all__ = ["ENV", "threads", "one_thread", "pool", "each", "Ahead", "joins_ahead"]
+__all__ = [
+    "ENV", "threads", "one_thread", "pool", "each", "Ahead", "joins_ahead", "Stop", "Stopped", "stopping", "check",
+]  # fmt: skip
 
 P = ParamSpec("P")
 R = TypeVar("R")
@@ -50,6 +62,8 @@ ENV = "SERVOID_THREADS"
 _ONE: contextvars.ContextVar[bool] = contextvars.ContextVar("servoid_one_thread", default=False)
 # the :class:`Ahead` jobs started inside the innermost :func:`joins_ahead` call (None outside one)
 _STARTED: contextvars.ContextVar[list[Ahead[object]] | None] = contextvars.ContextVar("servoid_ahead", default=None)
+# the stop the fits on this thread answer to (None: never stopped; :func:`stopping`)
+_STOP: contextvars.ContextVar[Stop | None] = contextvars.ContextVar("servoid_stop", default=None)
 _lock = threading.Lock()
 _pool: ThreadPoolExecutor | None = None
 _size = 0
@@ -99,6 +113,73 @@ def pool() -> ThreadPoolExecutor | None:
         return _pool
 
 
+class Stopped(Exception):
+    """A fit stopped by its :class:`Stop` where it evaluated its cost; the search unwound (the message says why)."""
+
+
+class Stop:
+    """When the fits run inside :func:`stopping` stop: at a wall-time deadline, or when told to (:meth:`now`).
+
+    One owner makes it and decides (the deadline, :meth:`now`); the fits only read it (:func:`check`,
+    from any thread). It remembers whether it stopped a fit (:attr:`fired`), for the owner's report.
+
+    Parameters
+    ----------
+    deadline_s : float
+        The :func:`time.perf_counter` instant at which the fits stop (default never).
+    why : str
+        What the deadline is, said in :class:`Stopped`'s message (``"the wall budget"``).
+    event : threading.Event, optional
+        Stop when it is set too (a worker's own stop flag), besides :meth:`now`.
+    """
+
+    def __init__(
+        self, deadline_s: float = math.inf, why: str = "the deadline", *, event: threading.Event | None = None
+    ) -> None:
+        if math.isnan(deadline_s):
+            raise ConfigError("deadline_s is NaN (expected a time.perf_counter instant, or inf for none)")
+        self.deadline_s = float(deadline_s)
+        self.why = why
+        self._event = threading.Event() if event is None else event
+        #: Whether a fit was stopped by it (:func:`check` raised).
+        self.fired = False
+
+    def now(self) -> None:
+        """Stop the fits at their next evaluation, whatever the deadline."""
+        self._event.set()
+
+    def left_s(self) -> float:
+        """Wall seconds to the deadline (negative past it; infinite without one)."""
+        return self.deadline_s - time.perf_counter()
+
+    def passed(self) -> bool:
+        """Whether the fits are to stop (the deadline passed, or told to)."""
+        return self._event.is_set() or time.perf_counter() >= self.deadline_s
+
+    def check(self) -> None:
+        """Raise :class:`Stopped` when :meth:`passed`."""
+        if self.passed():
+            self.fired = True
+            raise Stopped(f"stopped by {self.why}" if self._event.is_set() else f"stopped at {self.why}'s deadline")
+
+
+@contextlib.contextmanager
+def stopping(stop: Stop | None) -> Iterator[Stop | None]:
+    """Run the fits inside the block under ``stop`` (None: not stopped; an outer stop is replaced for the block)."""
+    token = _STOP.set(stop)
+    try:
+        yield stop
+    finally:
+        _STOP.reset(token)
+
+
+def check() -> None:
+    """Raise :class:`Stopped` when this thread's fits are to stop (:func:`stopping`); nothing outside one."""
+    stop = _STOP.get()
+    if stop is not None:
+        stop.check()
+
+
 class _Batch:
     """The tasks of one :func:`each` call: the indices not yet taken, the count not yet done, the first error."""
 
@@ -110,6 +191,7 @@ class _Batch:
             self.tasks.put(i)
         self.left = count
         self.error: BaseException | None = None
+        self.stop = _STOP.get()  # every task runs under the owner's stop, on whichever thread takes it
 
     def take(self) -> int | None:
         try:
@@ -119,12 +201,15 @@ class _Batch:
 
     def run(self, i: int) -> None:
         """Task ``i``; its error is kept for the owner, and its end counted (under :data:`_changed`)."""
+        token = _STOP.set(self.stop)
         try:
             self.func(i)
         except BaseException as exc:  # noqa: BLE001 - raised by the owner, once every task has ended
             error: BaseException | None = exc
         else:
             error = None
+        finally:
+            _STOP.reset(token)
         with _changed:
             if error is not None and self.error is None:
                 self.error = error
@@ -236,17 +321,6 @@ class Ahead(Generic[R]):
             self._value = self._func()
         except BaseException as exc:  # noqa: BLE001 - raised again by result(), in the caller's thread
             self._error = exc
-
-    def wait(self, timeout_s: float) -> bool:
-        """Wait at most ``timeout_s`` seconds for the job to end; whether it has.
-
-        True at once where it never started (one thread): :meth:`result` then runs it whole. A job
-        still running is left to run (a daemon thread; it cannot be stopped).
-        """
-        if self._thread is None:
-            return True
-        self._thread.join(max(timeout_s, 0.0))
-        return not self._thread.is_alive()
 
     def join(self) -> None:
         """Wait until the job has ended (at once when it never started)."""

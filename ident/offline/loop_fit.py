@@ -488,7 +488,12 @@ class _Problem:
         simulate_pair_kernel(p, q, self.feedback_load, self.u, float(self.y[0]), self.period, self.m, *buffers)
 
     def scored(self, y_hat: np.ndarray) -> np.ndarray:
-        """The residual of the simulated output ``y_hat`` (:meth:`simulate`'s) on the scored samples."""
+        """The residual of the simulated output ``y_hat`` (:meth:`simulate`'s) on the scored samples.
+
+        Raises :class:`._threads.Stopped` inside :func:`._threads.stopping` once its stop has come: every
+        search, refit and interval evaluates its cost here, on whichever thread, and unwinds from here.
+        """
+        _threads.check()
         r: np.ndarray = y_hat[self.scored_at] - self.y_scored
         # a simulation that ran away (absurd parameters on the way) costs a constant, large penalty
         if not (np.all(np.isfinite(r)) and float(np.max(np.abs(r))) < 100.0 * self.runaway):
@@ -1329,6 +1334,7 @@ def _stage_problem(
         return d, float(sol.cost) if sol is not None else math.inf, prob.evaluations
 
     def simulate(d: dict[str, float]) -> np.ndarray:
+        _threads.check()  # the grid's free runs (a load's sub-steps: 24-40 times a massless one's) stop as fits do
         return _model(base.structure, period, d).simulate(u, y0=float(y[0]))
 
     # the load's friction starts at the massless fit's Coulomb level (a deceleration of the same order)

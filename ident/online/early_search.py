@@ -75,10 +75,12 @@ import numpy as np
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
+from servoid.ident.offline import _threads
 from servoid.ident.online.window import SlowSearch, _yield_cpu
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.models.servo_loop import ServoLoopModel
+    from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
 
 __all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "head_samples", "full_in_time"]
@@ -148,9 +150,21 @@ class EarlySearch:
         Samples the stream will hold in all (a real clock's run): the head may then be searched
         warm from the first window's search (:meth:`offer`, the module's text); 0 (a virtual
         clock): always the full search.
+    stop : Stop, optional
+        The search's fits stop at it (:class:`~servoid.ident.offline._threads.Stop`: a live run's wall
+        budget on a real clock); a search it stopped leaves no result and says so (:attr:`cut`).
     """
 
-    def __init__(self, sample_period_s: float, at: int, *, skip: int = 0, hold: bool = False, end: int = 0) -> None:
+    def __init__(
+        self,
+        sample_period_s: float,
+        at: int,
+        *,
+        skip: int = 0,
+        hold: bool = False,
+        end: int = 0,
+        stop: Stop | None = None,
+    ) -> None:
         self.sample_period_s = validation.positive("sample_period_s", sample_period_s)
         self.at = validation.integer("at", at, minimum=1)
         self._skip = validation.integer("skip", skip, minimum=0)
@@ -170,6 +184,8 @@ class EarlySearch:
         self._first: tuple[ServoLoopModel, float, int] | None = None  # the first window's model, wall s, samples
         self._offered = threading.Event()  # set by offer() or release(): nothing more will be offered
         self.warm = False  # the head was searched warm from the first window's model (the module's text)
+        self._stop = stop
+        self.cut = False  # the search was stopped by ``stop`` (:attr:`error` says so)
 
     @property
     def started(self) -> bool:
@@ -248,9 +264,13 @@ class EarlySearch:
 
         _yield_cpu()
         try:
-            choice = self._warm(u, y, keep)
-            if choice is None:
-                choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
+            with _threads.stopping(self._stop):
+                choice = self._warm(u, y, keep)
+                if choice is None:
+                    choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
+        except _threads.Stopped as exc:
+            self.cut, self.error = True, f"the early search was cut: {exc}"
+            return
         except Exception as exc:  # noqa: BLE001 - the refinement then searches itself, and meets it there
             self.error = f"the early search failed: {exc}"
             return

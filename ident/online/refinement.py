@@ -51,7 +51,18 @@ like the search's own on the same validation blocks (:func:`refine_online`):
    40 / 17.5). A kept horn keeps its doubt
    (:data:`~servoid.ident.offline.horn_contact.REASON`). Cost: one ``fit_loop`` on the whole record
    and the stage (7.7-14.8 s at load 6-8 with the search massless; 17-38 s at load 8-9 with its load stage);
-   not taken when it does not end by ``deadline_s`` (:func:`_by_deadline`).
+   stopped at ``deadline_s`` when it has not ended by then (the fast answer stands).
+
+With a deadline (``deadline_s``: a live run on a real clock, its wall budget) every fit above runs under
+one :class:`~servoid.ident.offline._threads.Stop` and unwinds where it evaluates its cost when the
+deadline comes (:class:`~servoid.ident.offline._threads.Stopped`, on every thread it uses); the answer is
+then the best one already made, and :attr:`Refined.cut` says which stage was cut and what answers instead:
+the horn stage (step 5) cut, the fast answer stands; the slow part's search (step 4) cut, the fast answer
+stands with the reason that the slow part did not size it; the warm refit of the early search's answer on
+the whole fast part cut, the head's answer stands; the online candidate's refit cut, the search answers
+alone; the search itself cut, the online estimate answers as it is (not validated against any search).
+Every cut but the horn stage's joins the answer's ``reasons``, so identification calls it not identifiable:
+a stage cut short never makes a confident answer out of less evidence.
 
 Why a candidate and not a start (issue 15). The refinement this replaces started
 from the first window's place of the play and refitted it massless: on the
@@ -72,11 +83,10 @@ Cost: ``fit_loop`` on the whole record (2-4 warm-started searches; 8-40 s on
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any
 
 import numpy as np
 
@@ -107,10 +117,10 @@ from servoid.ident.offline.loop_fit import (
 )
 from servoid.ident.online.window import SlowSearch, WindowResult
 
-__all__ = ["refine_online", "Refined"]
+__all__ = ["refine_online", "Refined", "CUT"]
 
-#: What :func:`_by_deadline` returns from its work.
-_Done = TypeVar("_Done")
+#: How a reason of the answer that a stage was cut by the wall budget starts (:attr:`Refined.cut`).
+CUT = "cut by the wall budget"
 #: Samples each side of a set point's turn that :func:`_turn_accel` fits its parabola to, at least.
 TURN_HALF = 3
 
@@ -144,6 +154,9 @@ class Refined:
         became of it (answered, not kept, its load friction too weak for the slow phase, ...); None
         where it does not apply. When it answered, :attr:`online_won` is False (the answer is the
         whole record's search with the horn) and :attr:`fast_play` the fast part's play before it.
+    cut : tuple of str
+        The stages the deadline cut (``refine_online(deadline_s=)``), each with what answers instead
+        (the module's text); empty when none was.
     """
 
     online: LoopCandidate | None
@@ -153,6 +166,7 @@ class Refined:
     slow_play: float | None = None
     scored: tuple[int, int] = (0, 0)
     horn: str | None = None
+    cut: tuple[str, ...] = ()
 
     def score(self, model: ServoLoopModel, u: Any, y: Any, keep: Any = None) -> float:
         """Free-run NRMSE of ``model`` on the samples the answer's fit is on, computed as the answer's.
@@ -192,7 +206,7 @@ class Refined:
                 "search": {"structure": s.structure, "play": s.play, "validation_nrmse": s.validation_nrmse[s.structure],
                            "load": s.model.massive, "seconds": s.seconds},
                 "online_won": self.online_won, "fast_play": self.fast_play, "slow_play": self.slow_play,
-                "scored": list(self.scored), "horn": self.horn}  # fmt: skip
+                "scored": list(self.scored), "horn": self.horn, "cut": list(self.cut)}  # fmt: skip
 
 
 def refine_online(
@@ -237,10 +251,9 @@ def refine_online(
         record does, steps 1-3 run on the samples it searched with its answer, and the answer
         is then refitted warm on the whole fast part (:func:`_extended`); else ignored.
     deadline_s : float
-        The :func:`time.perf_counter` instant by which step 5 must end (a live run on a real clock:
-        its wall budget): it then runs on a thread of its own and is waited for until this instant
-        only (:func:`_by_deadline`); when it has not ended by then it is skipped (the thread runs on,
-        a daemon). Default: no deadline (run and waited for here).
+        The :func:`time.perf_counter` instant at which every fit here stops (a live run on a real clock:
+        its wall budget; :class:`~servoid.ident.offline._threads.Stop`): the best answer made by then
+        answers, the cut stages named (:attr:`Refined.cut`, the module's text). Default: no deadline.
     slow_search : callable, optional
         Asked (once, only when step 4 needs the slow part's search and the windows did not run it)
         for the slow phase's search run during the session
@@ -261,7 +274,24 @@ def refine_online(
     ConfigError
         Mismatched signals or fewer than
         :data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES` usable samples.
+    ~servoid.ident.offline._threads.Stopped
+        The deadline came before any answer was made (no online model, and the search was cut).
     """
+    stop = None if math.isinf(deadline_s) else _threads.Stop(deadline_s, "the wall budget")
+    with _threads.stopping(stop):
+        return _refine_online(u, y, online, keep, slow, early, slow_search)
+
+
+def _refine_online(
+    u: Any,
+    y: Any,
+    online: WindowResult,
+    keep: Any,
+    slow: int,
+    early: SlowSearch | None,
+    slow_search: Callable[[], SlowSearch | None] | None,
+) -> tuple[LoopChoice, Refined]:
+    """:func:`refine_online` inside its stop (where a fit raises :class:`~servoid.ident.offline._threads.Stopped`)."""
     t0 = time.perf_counter()
     start = online.model  # None: no window refit ended (a loaded real clock); the search alone answers
     period = online.config.sample_period_s
@@ -278,7 +308,15 @@ def refine_online(
     searched = None
     if early is not None and early.start == head and MIN_SAMPLES <= early.samples < u_arr.size - head:
         searched = early
-    choice, refined = _refine_fast(u_arr[head:], y_arr[head:], kept[head:], start, period, t0, searched)
+    try:
+        choice, refined = _refine_fast(u_arr[head:], y_arr[head:], kept[head:], start, period, t0, searched)
+    except _threads.Stopped as exc:
+        if start is None:
+            raise  # nothing made yet to answer with
+        choice = _online_answer(u_arr[head:], y_arr[head:], kept[head:], start, t0, f"the search ({exc})")
+        refined = Refined(
+            None, choice, True, cut=(f"the search on the fast part ({exc}): the online estimate answers",)
+        )
     if head == 0:
         return choice, dataclasses.replace(refined, scored=(0, u_arr.size))
     scored = (head, u_arr.size)
@@ -295,11 +333,19 @@ def refine_online(
         if (done is None or done.samples not in same) and slow_search is not None:
             done = slow_search()  # the session's own search of the slow phase
             done = done if done is not None and done.start == 0 else None
+        slow_choice: LoopChoice | None = None
         if done is not None and done.samples in same:  # the online estimate's search of the same samples
             slow_choice = done.choice
         else:
-            slow_choice = fit_loop(u_arr[:head], y_arr[:head], period, keep=kept[:head], load=None)
-        if slow_choice.structure == PLAY_IN_LOOP:
+            try:
+                slow_choice = fit_loop(u_arr[:head], y_arr[:head], period, keep=kept[:head], load=None)
+            except _threads.Stopped as exc:
+                why = f"the slow part's search ({exc}): the fast part's play outside the loop answers, not sized by the slow part"
+                choice = dataclasses.replace(choice, reasons=(*choice.reasons, f"{CUT}: {why}"))
+                refined = dataclasses.replace(refined, cut=(*refined.cut, why))
+        if slow_choice is None:
+            pass  # cut: the fast answer stands, with its reason
+        elif slow_choice.structure == PLAY_IN_LOOP:
             pass  # the slow part does not confirm the place: the fast answer stands
         elif not choice.margin >= MIN_STRUCTURE_MARGIN:
             # the fast part's places tie: the place is not named, so the slow part does not size the answer; its
@@ -324,44 +370,24 @@ def refine_online(
     horn: str | None = None
     whole: LoopChoice | None = None
     if choice.structure == PLAY_IN_LOOP:
-        # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting; taken
-        # only when it ends by the deadline (its cost is not predicted: 3.4-23 s on the twins' records, below)
+        # 5. the horn stage on the whole record: the slow part's gentle reversals, the fast part's coasting; stopped
+        # at the deadline when it has not ended (its cost is not predicted: 3.4-23 s on the twins' records, below)
         began = time.perf_counter()
-        left_s = deadline_s - began
-        if left_s <= 0.0:
-            horn = f"skipped: no time left of the wall budget ({-left_s:.1f} s past it)"
-        else:
-            ran = _by_deadline(functools.partial(_horn_on_whole, u_arr, y_arr, kept, head, choice), deadline_s)
-            if ran is None:
-                horn = (f"skipped: not ended within the {left_s:.1f} s left of the wall budget (it runs on beside "
-                        "the rest of the command, its answer not taken)")  # fmt: skip
-            else:
-                horn, whole = ran
-                horn = f"{horn} [{time.perf_counter() - began:.1f} s]"
+        try:
+            _threads.check()
+            horn, whole = _horn_on_whole(u_arr, y_arr, kept, head, choice)
+            horn = f"{horn} [{time.perf_counter() - began:.1f} s]"
+        except _threads.Stopped as exc:
+            horn = f"skipped: {exc} after {time.perf_counter() - began:.1f} s (the fast answer stands)"
+            refined = dataclasses.replace(
+                refined, cut=(*refined.cut, f"the horn stage ({exc}): the fast answer stands")
+            )
     if whole is not None:
         fast_play, scored, refined = choice.play, (0, u_arr.size), dataclasses.replace(refined, online_won=False)
         choice = dataclasses.replace(whole, evaluations=choice.evaluations + whole.evaluations)
     simulated = choice.model.simulate(uc, y0=float(yc[0]))
     choice = dataclasses.replace(choice, simulated=simulated + centre, seconds=time.perf_counter() - t0)
     return choice, dataclasses.replace(refined, fast_play=fast_play, slow_play=slow_play, scored=scored, horn=horn)
-
-
-def _by_deadline(work: Callable[[], _Done], deadline_s: float) -> _Done | None:
-    """``work()``, or None when it has not ended by the :func:`time.perf_counter` instant ``deadline_s``.
-
-    Without a deadline (infinite) it runs here. Else it starts on a thread of its own, in the caller's
-    context (:class:`~servoid.ident.offline._threads.Ahead`; where the thread rule gives one thread, it
-    runs here, whole), waited for until the deadline: one left running is not stopped (the fits cannot
-    be) and ends with the process or on its own; an exception it raised is raised here. Its cost is not predicted: on the horn twins' live records the
-    step took 3.4-23.4 s, and neither the fast part's search (0.5-5.5 times it: the predictor this
-    replaces, ``benchmarks/horn_cost.py``) nor one free run of the horn's start (156-1456 times it) tells it;
-    the horn stage that is not kept is the slowest (40-85 ms a simulation of the record against 8-31 ms where it is
-    kept: its contact stiffens, and the contact's sub-steps follow its stiffness).
-    """
-    if math.isinf(deadline_s):
-        return work()
-    job = _threads.Ahead(work)
-    return job.result() if job.wait(deadline_s - time.perf_counter()) else None
 
 
 def _horn_on_whole(
@@ -458,7 +484,43 @@ def _refine_fast(
         return _refine(u_arr, y_arr, kept, start, period, t0)
     m = early.samples
     choice, refined = _refine(u_arr[:m], y_arr[:m], kept[:m], start, period, t0, early.choice)
-    return _extended(choice, u_arr, y_arr, kept, t0), refined
+    try:
+        return _extended(choice, u_arr, y_arr, kept, t0), refined
+    except _threads.Stopped as exc:  # the head's answer, not refitted on the rest of the fast part
+        why = (f"the answer's refit on the whole fast part ({exc}): the answer is the search's on its first "
+               f"{m} samples")  # fmt: skip
+        choice = dataclasses.replace(choice, reasons=(*choice.reasons, f"{CUT}: {why}"))
+        return choice, dataclasses.replace(refined, cut=(*refined.cut, why))
+
+
+def _online_answer(
+    u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, model: ServoLoopModel, t0: float, cut: str
+) -> LoopChoice:
+    """The online estimate as the answer when the search was ``cut``: its free run, no interval, the cut its reason.
+
+    Not refitted and not validated against any search: the play's interval is not finite, the places'
+    margin unknown (NaN), and the reason (:data:`CUT`) makes identification call it not identifiable.
+    """
+    centre = float(np.mean(u_arr))
+    uc, yc = u_arr - centre, y_arr - centre
+    simulated = model.simulate(uc, y0=float(yc[0]))
+    return LoopChoice(
+        structure=model.structure,
+        play=model.play,
+        play_interval=(math.nan, math.nan),
+        fit_nrmse=nrmse(yc[kept], simulated[kept]),
+        validation_nrmse={model.structure: math.nan},
+        margin=math.nan,
+        params=model.params(),
+        simulated=simulated + centre,
+        reasons=(f"{CUT}: {cut}; the answer is the online estimate (the last window's model), not validated",),
+        dead_time_samples=math.nan,
+        stall_band=stall_band(max(model.fs, model.fc), model.kv, model.kp),
+        model=model,
+        candidates=(),
+        seconds=time.perf_counter() - t0,
+        evaluations=0,
+    )
 
 
 def _extended(choice: LoopChoice, u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, t0: float) -> LoopChoice:
@@ -509,6 +571,20 @@ def _refine(
         search = fit_loop(u_arr, y_arr, period, keep=kept, load=None)
     if start is None:
         return dataclasses.replace(search, seconds=time.perf_counter() - t0), Refined(None, search, False)
+    try:
+        return _judged(u_arr, y_arr, kept, start, t0, search)
+    except _threads.Stopped as exc:  # the candidate's refits cut: the search answers alone
+        why = f"the online candidate's refit ({exc}): the search answers, the online estimate not judged"
+        choice = dataclasses.replace(
+            search, reasons=(*search.reasons, f"{CUT}: {why}"), seconds=time.perf_counter() - t0
+        )
+        return choice, Refined(None, search, False, cut=(why,))
+
+
+def _judged(
+    u_arr: np.ndarray, y_arr: np.ndarray, kept: np.ndarray, start: ServoLoopModel, t0: float, search: LoopChoice
+) -> tuple[LoopChoice, Refined]:
+    """Steps 1-3 once the search has answered: the online model ``start`` judged as one more candidate."""
     # 1. the online model as a candidate: the estimation blocks fitted, the validation blocks scored (fit_loop's split)
     blocks = block_mask(u_arr.size)
     est, val = blocks & kept, ~blocks & kept

@@ -196,6 +196,18 @@ def _check(stop: threading.Event | None) -> None:
         raise Cancelled("the window refit was stopped at the stream's end")
 
 
+def _stoppable(stop: threading.Event, work: Callable[..., Any], *job: Any) -> Any:
+    """``work(*job)`` on the worker, its fits stopped inside (:func:`._threads.stopping`) once ``stop`` is set:
+    a refit told to stop frees the CPU at its next simulation, not at its next fit (raised as :class:`Cancelled`)."""
+    from servoid.ident.offline import _threads
+
+    try:
+        with _threads.stopping(_threads.Stop(why="the stream's end", event=stop)):
+            return work(*job)
+    except _threads.Stopped as exc:
+        raise Cancelled(f"the window refit was {exc}") from exc
+
+
 @dataclass(frozen=True)
 class WindowConfig:
     """Settings of :class:`WindowRefit`.
@@ -764,7 +776,7 @@ class WindowRefit:
         if self._pool is None:
             self._store(work, job, t_s)
         else:
-            self._future = self._pool.submit(work, *job)
+            self._future = self._pool.submit(_stoppable, self._stop, work, *job)
 
     def _first_searched(self, choice: LoopChoice | None, seconds: float, samples: int) -> None:
         """The first window's search as it ends (on the worker, before its warm refit; None: it failed): offered to the

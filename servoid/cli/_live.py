@@ -61,6 +61,10 @@ DEFAULT_LIVE_S = 40.0
 WALL_TARGET_S = 60.0
 #: Wall seconds kept after the servo-loop answer for identification and the outputs (0.0-0.2 s on ``sim://``).
 AFTER_ANSWER_S = 2.0
+#: What the wall budget (``--budget``) bounds, said in --help and in the JSON's ``budget``.
+BUDGET_WHY = ("on a real clock every fit after the run (the early searches, the last window, the answer's search, "
+              "refits and horn stage) stops at the budget less {after:g} s kept for identification and the outputs; "
+              "the best answer made by then answers, the cut stages are named and the verdict withheld")  # fmt: skip
 #: Reversals of the set point a design's slow phase holds at least (:func:`slow_phase`): each is a
 #: motor crossing of the play, what the slow phase's search reads a play outside the loop from. 18:
 #: the fewest a third of a 60 s run held on the twins (ODrive, XM430 designs, seeds 0-2), whose
@@ -109,6 +113,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     live.add_argument("--hold", type=int, metavar="N",
                       help="held random levels of N samples instead of the designed gentle sines (whose fastest "
                            "segment is set from the probe's loop bandwidth: docs/online.md)")  # fmt: skip
+    live.add_argument("--budget", type=float, default=WALL_TARGET_S, metavar="S",
+                      help=f"wall seconds for the probe, the run and the answer (default {WALL_TARGET_S:g}, issue 15's "
+                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; a simulated servo on a virtual clock "
+                           "(sim://NAME?clock=virtual) is not timed")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
@@ -247,6 +255,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     line, once: the record carries the online run's result
     (:attr:`Record.online`), which identification refines rather than runs again.
     """
+    began = time.perf_counter()  # the wall budget counts from here: the driver's opening included
     if args.data is not None:
         raise ConfigError("give --driver or --data, not both")
     if args.snr is not None:
@@ -259,9 +268,11 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     from servoid.drivers import driver_from_url
     from servoid.drivers.clock import VirtualClock
     from servoid.drivers.simulated import SimulatedServo
+    from servoid.ident.offline._threads import Stop
     from servoid.ident.online.decimate import DecimatingEstimator
     from servoid.ident.online.early_search import EarlySearch, head_samples
     from servoid.ident.online.mrgia import MRGIA, noise_epsilon
+    from servoid.ident.online.refinement import CUT
     from servoid.ident.online.window import END_GRACE_S, WindowConfig, WindowRefit
     from servoid.identify_outputs import OUTPUT_FILES
     from servoid.session import SessionConfig, run_session
@@ -286,6 +297,13 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         config = SessionConfig(period_s=1.0 / args.rate, use_late=args.use_late, guard_samples=args.guard)
         factor, designed, slow = (args.decimate or 1), None, None
         clock = _Stages()
+        # the wall budget on a real clock: one stop for every fit after the run (the early searches', the last
+        # window's, the answer's), at the budget less what identification and the outputs take (module BUDGET_WHY)
+        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
+        wall_s = getattr(args, "budget", WALL_TARGET_S)
+        budget = None if virtual else Stop(began + wall_s - AFTER_ANSWER_S, "the wall budget")
+        live["budget"] = {"wall_s": None if virtual else wall_s, "after_answer_s": AFTER_ANSWER_S,
+                          "bounds": "not timed (a virtual clock)" if virtual else BUDGET_WHY.format(after=AFTER_ANSWER_S)}  # fmt: skip
         if not args.no_probe:
             design = probe_and_design(args, driver, amplitude, config, quiet=quiet)
             clock.mark("probe")
@@ -300,16 +318,15 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
             DecimatingEstimator(MRGIA(estimator_config), factor, record_every=history_every(u.size // factor))
         )
         # the servo-loop model's online estimate, on every sample, refitted on a worker thread
-        virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
         # (on a real clock no refit is started that the last refits' wall time says cannot end before the run)
         # the answer's search of the fast part's head, started while the run goes on (fed before the window refit,
         # whose second look on the same samples takes its answer)
         # (on a real clock searched warm from the first window's load when the machine is too slow for its own: end)
         early = EarlySearch(config.period_s, head_samples(u.size, slow_samples), skip=slow_samples,
-                            end=0 if virtual else u.size)  # fmt: skip
+                            end=0 if virtual else u.size, stop=budget)  # fmt: skip
         # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
         # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
-        slow_search = EarlySearch(config.period_s, slow_samples, hold=True) if slow_samples else None
+        slow_search = EarlySearch(config.period_s, slow_samples, hold=True, stop=budget) if slow_samples else None
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
                              grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
@@ -351,8 +368,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     # a refit (the end's too) still running END_GRACE_S after the run is told to stop and the newest finished
     # window is the estimate, its age in the JSON and the verdict (on the CiA 402 twin waiting took up to 14 s)
     ended = result.stopped != "interrupted"
+    grace_s = END_GRACE_S if budget is None else min(END_GRACE_S, max(budget.left_s(), 0.0))
     window_result = window.result(final=ended, fresh_s=window.config.every_s, wait=ended and virtual,
-                                  wait_s=END_GRACE_S if ended else 0.0)  # fmt: skip
+                                  wait_s=grace_s if ended else 0.0)  # fmt: skip
     clock.mark("last_window")
     early_search = early.result(wait=result.stopped != "interrupted")
     clock.mark("early_search")
@@ -369,11 +387,22 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         live["slow_search"] = _early_dict(slow_search, slow_search.result(wait=False))
     slow_found = None if slow_search is None else (lambda: slow_search.searched(wait=True))
     # (on a real clock the answer's horn stage only where it can end within the wall budget, identification after it)
-    deadline = math.inf if virtual else clock.started + WALL_TARGET_S - AFTER_ANSWER_S
     live["online_loop"], loop = loop_online(
-        window_result, result, slow_samples, early_search, slow_found, deadline_s=deadline
-    )
+        window_result, result, slow_samples, early_search, slow_found,
+        deadline_s=math.inf if budget is None else budget.deadline_s,
+    )  # fmt: skip
     clock.mark("loop_answer")
+    live["budget"]["cut"] = cut = _cut(early, slow_search, live["online_loop"])
+    if cut and not quiet:
+        _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)}")
+    if loop is None and live["online_loop"].get("cut"):
+        # no servo-loop answer made: identification fits the black box alone (the decimated MRGIA's estimate refined;
+        # its servo-loop search would be the one just cut), its verdict withheld with the reason (unanswered)
+        live["budget"]["unanswered"] = (
+            f"{CUT}: the servo-loop search, with no online servo-loop estimate to answer instead; the answer is "
+            f"the black box's (identify the recording offline for the servo loop: servoid identify --data {path}, "
+            "or give a larger --budget)"
+        )
     live["wall_s"] = clock.seconds
     est = online.estimator
     if isinstance(est, DecimatingEstimator):
@@ -384,6 +413,20 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
+
+
+def _cut(early: EarlySearch, slow_search: EarlySearch | None, online_loop: dict[str, Any]) -> list[str]:
+    """The stages the wall budget cut (the JSON's ``budget.cut``), each with what answered instead."""
+    cut = []
+    if early.cut:
+        cut.append("the early search of the fast part's head (the answer searched the fast part itself)")
+    if slow_search is not None and slow_search.cut:
+        cut.append("the slow phase's search")
+    refined = online_loop.get("refined") or {}
+    cut += [f"in the answer: {c}" for c in refined.get("cut") or ()]
+    if online_loop.get("cut"):
+        cut.append(f"the answer: {online_loop['cut']}")
+    return cut
 
 
 def _maybe_outside(model: Any) -> bool:
@@ -540,8 +583,9 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     ``source`` is ``loop_online`` when the servo-loop answer is the online estimate, which
     validated better than the offline search on the whole record and was refitted on it
     (:func:`loop_online`; identification took it, ``identify(loop=)``), ``loop_search`` when
-    that search's own answer won, ``offline_fit`` when identification's own fit answers (the
-    black box, or no online servo-loop model); ``online_settled`` says whether the online
+    that search's own answer won, ``loop_online_cut`` when the wall budget cut that search and the
+    online estimate answered as it is (not validated), ``offline_fit`` when identification's own fit
+    answers (the black box, or no online servo-loop model); ``online_settled`` says whether the online
     estimate had converged and ``gap`` is the online play relative to the answer's (the
     convergence check). ``line`` is the sentence ``servoid identify`` prints under its headline.
     """
@@ -552,13 +596,21 @@ def answer(record: Record, result: Identification, online: dict[str, Any]) -> di
     play = float(result.play)
     gap = online_play / play - 1.0 if math.isfinite(online_play) and play > 0.0 else math.nan
     took_online = record.loop is not None and result.loop is record.loop
-    won = bool((((record.live or {}).get("online_loop") or {}).get("refined") or {}).get("online_won"))
-    source = ("loop_online" if won else "loop_search") if took_online else "offline_fit"
+    refined = ((record.live or {}).get("online_loop") or {}).get("refined") or {}
+    won = bool(refined.get("online_won"))
+    # the search cut by the wall budget: the online estimate answered as it is, not as a validated candidate
+    unsearched = any(c.startswith("the search") for c in refined.get("cut") or ())
+    source = (
+        ("loop_online_cut" if unsearched else "loop_online" if won else "loop_search") if took_online else "offline_fit"
+    )
     est = "the servo loop's window refit" if online.get("estimator") == "window" else "the decimated MRGIA"
     why = "settled" if online.get("settled") else "NOT settled"
     if took_online and not math.isfinite(online_play):  # no window refit ended before the run did: the search alone
         line = (f"the answer: the offline search on the whole record: play {play:.4g} {unit}; no online estimate "
                 f"({est}: no refit ended before the run did)")  # fmt: skip
+    elif took_online and unsearched:
+        line = (f"the answer: the online estimate ({est}, {why}) as it is, its search cut by the wall budget: play "
+                f"{play:.4g} {unit} (not validated against any search)")  # fmt: skip
     elif took_online:
         how = ("the online estimate won the offline search's validation on the whole record" if won
                else "the offline search on the whole record (the online estimate a candidate)")  # fmt: skip
@@ -620,7 +672,8 @@ def loop_online(
     """
     import numpy as np
 
-    from servoid.ident.online.refinement import refine_online
+    from servoid.ident.offline._threads import Stopped
+    from servoid.ident.online.refinement import CUT, refine_online
     from servoid.ident.online.verdict import judge_window
 
     out: dict[str, Any] = {"estimate": online.to_dict(), "refined": None, "verdict": None}
@@ -637,10 +690,18 @@ def loop_online(
     except (ConfigError, ValueError) as exc:
         out["verdict"] = {"settled": False, "reasons": [f"the refinement failed: {exc}"]}
         return out, None
+    except Stopped as exc:  # no online model and the search cut: no answer made
+        out["cut"] = f"the search ({exc}), with no online estimate to answer instead"
+        out["verdict"] = {"settled": False, "reasons": [f"{CUT}: {out['cut']}"]}
+        return out, None
     if online.model is None:  # no window refit ended (a loaded real clock): the search answered alone, nothing to judge
         verdict = dataclasses.replace(judge_window(online), refined_gap=choice.play, refined_nrmse=choice.fit_nrmse)
     else:  # like with like: the online model on the samples the answer's fit is on (after a slow phase: one part)
         verdict = judge_window(online, refined.score(online.model, u, y, keep), choice.play, choice.fit_nrmse)
+    if refined.cut:  # an answer from an earlier stage: the online estimate is not judged settled against it
+        verdict = dataclasses.replace(
+            verdict, settled=False, reasons=(*verdict.reasons, *(f"{CUT}: {c}" for c in refined.cut))
+        )
     out["refined"] = {"model": choice.model.to_dict(), "fit_nrmse": choice.fit_nrmse,
                       "seconds": time.perf_counter() - started, "choice": choice.to_dict(), **refined.to_dict()}  # fmt: skip
     out["verdict"] = verdict.to_dict()
@@ -757,6 +818,9 @@ def _check_live_options(args: argparse.Namespace) -> None:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ConfigError(f"--{name} (={value}) must be >= 1")
+    budget = getattr(args, "budget", WALL_TARGET_S)
+    if not budget > AFTER_ANSWER_S:  # (NaN too; inf: no budget)
+        raise ConfigError(f"--budget (={budget:g}) must be a number of wall seconds > {AFTER_ANSWER_S:g}")
     if not (math.isfinite(args.max_lost) and 0.0 <= args.max_lost <= 1.0):
         raise ConfigError(f"--max-lost (={args.max_lost:g}) must lie in [0, 1]")
     if args.no_probe and args.hold is not None:

@@ -244,6 +244,8 @@ def run(args: argparse.Namespace) -> int:
         _refuse_reading_options(args)
         return _live_bus.run(args, lambda epsilon: _config(args, epsilon))
     record, config = get_record(args)
+    # the wall budget cut the live run's servo-loop search with no online estimate: the black box alone, withheld
+    unanswered = ((record.live or {}).get("budget") or {}).get("unanswered")
     started = time.perf_counter()
     with _term.progress(
         "MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None
@@ -252,7 +254,10 @@ def run(args: argparse.Namespace) -> int:
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online, select=_selected(args),
                           sample_period_s=record.sample_period_s, loop=record.loop,
-                          readings=record.readings)  # fmt: skip
+                          readings=record.readings, servo_loop=not unanswered)  # fmt: skip
+    if unanswered:
+        result = dataclasses.replace(result, verdict=dataclasses.replace(
+            result.verdict, identifiable=False, reasons=(unanswered, *result.verdict.reasons)))  # fmt: skip
     elapsed = time.perf_counter() - started
     for w in result.warnings:
         _term.warn(w)
