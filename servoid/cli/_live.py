@@ -394,7 +394,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     clock.mark("loop_answer")
     live["budget"]["cut"] = cut = _cut(early, slow_search, live["online_loop"])
     if cut and not quiet:
-        _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)}")
+        _term.warn(f"the wall budget ({wall_s:g} s) cut {'; '.join(cut)} (a larger --budget S lets them end)")
     if loop is None and live["online_loop"].get("cut"):
         # no servo-loop answer made: identification fits the black box alone (the decimated MRGIA's estimate refined;
         # its servo-loop search would be the one just cut), its verdict withheld with the reason (unanswered)
