@@ -278,3 +278,18 @@ def test_the_first_windows_search_starts_the_slow_phases_search_where_it_names_t
         SimpleNamespace(structure=OUTPUT_BACKLASH, margin=2 * MIN_STRUCTURE_MARGIN, model=HEAVY), 1.0, 1000
     )
     assert began == [True]
+
+
+def test_warm_up_runs_the_search_once_so_its_kernels_are_loaded_before_the_sampler_starts(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from servoid.ident.offline import loop_fit
+
+    calls: list[object] = []
+    real = loop_fit.fit_loop
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(kwargs.get("load", False))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", counted)
+    EarlySearch(0.005, 4000).warm_up()
+    assert calls == [None]  # with the load stage, as the search runs it
