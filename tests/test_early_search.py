@@ -292,3 +292,18 @@ def test_a_search_past_its_wall_budget_is_stopped_and_leaves_no_result_and_no_th
     assert est.result(wait=True) is None and time.perf_counter() - t0 < 5.0
     assert est.cut and "cut" in (est.error or "") and stop.fired
     assert est._thread is not None and not est._thread.is_alive()
+
+
+def test_warm_up_runs_the_search_once_so_its_kernels_are_loaded_before_the_sampler_starts(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    from servoid.ident.offline import loop_fit
+
+    calls: list[object] = []
+    real = loop_fit.fit_loop
+
+    def counted(*args, **kwargs):  # type: ignore[no-untyped-def]
+        calls.append(kwargs.get("load", False))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", counted)
+    EarlySearch(0.005, 4000).warm_up()
+    assert calls == [None]  # with the load stage, as the search runs it

@@ -700,3 +700,25 @@ def test_a_refit_running_at_the_stream_end_is_stopped_not_waited_for_and_the_ver
     # a window as fresh as the refits are apart: nothing to say
     fresh = judge_window(dataclasses.replace(result, end_s=14.0), last=1)
     assert fresh.settled and fresh.judged == ""
+
+
+def test_warm_up_imports_what_the_refits_import_before_the_sampler_starts(monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    # a worker's first refit importing them held the sampler's thread 0.5-1 s on a loaded machine (warm_up's docstring)
+    import builtins
+
+    asked: list[str] = []
+    real = builtins.__import__
+
+    def recording(name: str, *args: Any, **kwargs: Any) -> Any:
+        asked.append(name)
+        return real(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", recording)
+    WindowRefit(WindowConfig(0.005), background=False).warm_up()
+    monkeypatch.undo()
+    for name in (
+        "servoid.ident.offline.loop_fit",
+        "servoid.ident.offline.intervals",
+        "servoid.ident.online.refinement",
+    ):
+        assert name in asked, asked

@@ -110,6 +110,9 @@ class SerialDriver(Driver):
         self._tick: int | None = None
         self._info: dict[str, Any] = {}
         self._stream: deque[Reply] = deque()
+        #: When the latest request was sent (``perf_counter``), and how long after the one before it, s.
+        self._sent_at: float | None = None
+        self._silent_s = 0.0
         self.command_step = 1.0  # set points travel as whole encoder counts
         self.watchdog_s = watchdog or None
 
@@ -128,7 +131,7 @@ class SerialDriver(Driver):
             raise DriverError(f"{self.describe()}: cannot open {self.port_name}: {exc}") from exc
         self._port.reset_input_buffer()
         self._splitter.clear()
-        self._boot, self._tick = None, None
+        self._boot, self._tick, self._sent_at = None, None, None
         try:
             hello = self._config("H", None, "I")
             version, cpr, firmware = int(hello.fields[0]), int(hello.fields[1]), hello.fields[2]
@@ -236,7 +239,10 @@ class SerialDriver(Driver):
             port.write(encode(f"{seq} {verb}" if arg is None else f"{seq} {verb} {arg}"))
         except serial.SerialTimeoutException as exc:
             raise DriverTimeout(f"{self.describe()}: could not send {verb} (seq {seq}): {exc}") from exc
-        deadline = time.perf_counter() + self.timeout
+        sent = time.perf_counter()
+        self._silent_s = 0.0 if self._sent_at is None else sent - self._sent_at
+        self._sent_at = sent
+        deadline = sent + self.timeout
         corrupted = False
         while True:
             for line in self._lines(deadline):
@@ -264,6 +270,10 @@ class SerialDriver(Driver):
         if reply.kind == "X":
             code = reply.ints()[0]
             what = ERROR_CODES.get(code, f"error code {code}")
+            if code == 2 and self.watchdog_s is not None and self._silent_s > self.watchdog_s:
+                # the firmware says only that the torque is off; the host knows it was silent past the watchdog
+                what += (f": the servo's watchdog switched it off, no request for {self._silent_s:.3g} s before this "
+                         f"one (watchdog {self.watchdog_s:g} s: the host stalled)")  # fmt: skip
             if code in (2, 6):
                 raise DeviceFault(f"{self.describe()}: {verb} refused: {what}")
             raise DriverError(f"{self.describe()}: {verb} refused: {what}")

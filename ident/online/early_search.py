@@ -206,7 +206,20 @@ class EarlySearch:
         self._take(float(u), math.nan, False)
 
     def warm_up(self) -> None:
-        """Nothing to compile that the window refit has not (:meth:`~servoid.ident.online.window.WindowRefit.warm_up`)."""
+        """Load the search's compiled kernels now, not on a worker beside the sampler: one :func:`fit_loop` with the
+        load stage on a short simulated record.
+
+        Loaded by the first search on a worker at niceness 10 (numba's cache: its data and the bitcode parsed), they
+        held the sampler's thread: a live identify through the serial firmware, pinned to one core with a busy loop,
+        was silent 1.06 s at the first window's refit, past the firmware's 0.5 s watchdog, with the modules already
+        imported (:meth:`~servoid.ident.online.window.WindowRefit.warm_up`).
+        """
+        from servoid.ident.models.servo_loop import ServoLoopModel
+        from servoid.ident.offline.loop_fit import fit_loop
+
+        u = np.repeat(np.random.default_rng(0).uniform(-0.05, 0.05, 8), 50)
+        model = ServoLoopModel("output_backlash", self.sample_period_s, kp=10.0, kv=50.0)
+        fit_loop(u, model.simulate(u), self.sample_period_s, load=None)
 
     def current(self) -> Mapping[str, float]:
         """No estimate for progress lines (the window refit gives them)."""

@@ -929,7 +929,22 @@ class WindowRefit:
         return self._late
 
     def warm_up(self) -> None:
-        """Compile (or load from numba's cache) the servo-loop simulation now, not inside the sampling loop."""
+        """Compile (or load from numba's cache) the servo-loop simulation and import the refits' modules now, not
+        inside the sampling loop.
+
+        Imported by the first refit on the worker instead, the modules (scipy's
+        extensions among them) loaded under the import lock the sampler's thread
+        also takes (:data:`~servoid.ident.offline.loop_fit.MIN_SAMPLES`), on a
+        thread at :data:`WORKER_NICENESS`: a 200 Hz loop at ``SCHED_FIFO`` beside a
+        worker's first ``fit_loop``, both on one core with a busy process, had a
+        slot 0.52-1.04 s late (6 draws, load 1.7-6; the serial firmware's
+        watchdog is 0.5 s, and it switched a live identify's servo off), 35-44 ms
+        after this warm-up (3 draws interleaved with 2 of those).
+        """
+        import servoid.ident.offline.intervals  # noqa: F401
+        import servoid.ident.offline.loop_fit  # noqa: F401
+        import servoid.ident.online.refinement  # noqa: F401
+
         ServoLoopModel("output_backlash", self.config.sample_period_s, kp=10.0, kv=50.0).simulate(np.zeros(4))
 
     def current(self) -> Mapping[str, float]:

@@ -330,6 +330,8 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
                              grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
         window.warm_up()
+        if not virtual:
+            early.warm_up()  # the searches' kernels loaded before the servo moves (a real sampler cannot wait)
         path = args.out / OUTPUT_FILES["recording"]
         meta = {"amplitude": repr(amplitude), "seed": str(args.seed), "excitation": args.excitation or _described(designed, slow, slow_samples),
                 "servo": _flat(identity), "decimate": str(factor),

@@ -202,3 +202,14 @@ def test_a_killed_host_leaves_its_recording_readable_and_the_watchdog_drops_the_
         time.sleep(0.4)  # > the watchdog
         with driver_from_url(emu.url) as servo:
             assert servo.status()["torque"] == 0
+
+
+def test_a_set_point_after_a_host_stall_past_the_watchdog_is_refused_naming_the_silence():
+    with FirmwareEmulator() as emu, driver_from_url(f"{emu.url}?watchdog=0.1") as servo:
+        servo.set_sample_period(0.01)
+        servo.enable()
+        servo.exchange(0.0)
+        time.sleep(0.3)  # the host stalls: the firmware's watchdog switches the torque off
+        with pytest.raises(DeviceFault, match=r"the torque is off: the servo's watchdog switched it off, no request "
+                                              r"for [\d.]+ s before this one \(watchdog 0\.1 s: the host stalled\)"):  # fmt: skip
+            servo.exchange(0.0)
