@@ -719,6 +719,5 @@ def test_warm_up_imports_what_the_refits_import_before_the_sampler_starts(monkey
     for name in (
         "servoid.ident.offline.loop_fit",
         "servoid.ident.offline.intervals",
-        "servoid.ident.online.refinement",
     ):
         assert name in asked, asked

@@ -941,9 +941,10 @@ class WindowRefit:
         watchdog is 0.5 s, and it switched a live identify's servo off), 35-44 ms
         after this warm-up (3 draws interleaved with 2 of those).
         """
+        # (the refinement, which the early search's worker imports, imports this module: live identify imports it
+        # before the session, servoid.cli._live)
         import servoid.ident.offline.intervals  # noqa: F401
         import servoid.ident.offline.loop_fit  # noqa: F401
-        import servoid.ident.online.refinement  # noqa: F401
 
         ServoLoopModel("output_backlash", self.config.sample_period_s, kp=10.0, kv=50.0).simulate(np.zeros(4))
 
