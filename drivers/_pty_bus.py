@@ -43,7 +43,7 @@ import numpy as np
 
 from servoid import validation
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.drivers.realtime import make_realtime
+from servoid.drivers.realtime import collector_off_heap, make_realtime
 from servoid.drivers.sampled import SampledPlant
 from servoid.drivers.servos import DEFAULT_RATE_HZ, Servo, parse_servo
 from servoid.drivers.twin import Twin, TwinPlant
@@ -521,7 +521,8 @@ def serve_child(make: Callable[..., PtyBusEmulator[Any]]) -> None:
     """
     ids, options = pickle.load(sys.stdin.buffer)
     make_realtime()  # the device's clock first, where permitted (servoid.drivers.realtime); before its threads
-    with make(ids, **options) as emulator:
+    # and the garbage collector off its heap: a full collection holds the device's replies and its watchdog
+    with make(ids, **options) as emulator, collector_off_heap():
         print(emulator.port, flush=True)
         sys.stdin.buffer.read()
 

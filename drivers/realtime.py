@@ -18,15 +18,31 @@ loop sleeps between slots and spins only the last ``MonotonicClock.spin_s``
 (300 us of a 5 ms period), and the SDK ports wait in ``select``: the thread
 leaves the core free most of the time, and the kernel's real-time throttling
 (95 % of a core by default) bounds the rest.
+
+``SCHED_FIFO`` does not reach the interpreter lock. A cyclic garbage collection
+holds it from start to end, whichever thread set it off, and takes time in
+proportion to the whole heap: 50-70 ms at ``SCHED_FIFO`` on the 150 000 objects a
+live identify starts with (load 8), more in a larger process. Set off in a thread
+the scheduler does not favour (rich's progress refresh at niceness 0, a refit's
+worker at 10), it ran about as long as the scheduler gave that thread the core, and
+the sampler waited behind it for the lock: one sleep of the sampler came back 391 ms
+late, every thread's stack showing the collection (a live identify through the
+Dynamixel emulator, pinned to one core with a busy process, load 7.8). Another
+such wait past 0.5 s tripped the Dynamixel's Bus Watchdog (issue 15). So a session
+on the real clock keeps the collector off the heap it started with
+(:func:`collector_off_heap`, ``gc.freeze``): a collection then looks only at the
+objects made since, and the heap is handed back to the collector afterwards.
 """
 
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
+import threading
 from collections.abc import Iterator
 
-__all__ = ["SAMPLER_PRIORITY", "DEVICE_PRIORITY", "realtime_thread", "make_realtime"]
+__all__ = ["SAMPLER_PRIORITY", "DEVICE_PRIORITY", "realtime_thread", "make_realtime", "collector_off_heap"]
 
 #: ``SCHED_FIFO`` priority of the host's sampling thread (1-99; low: above every ordinary thread, below the
 #: kernel's own real-time threads).
@@ -87,3 +103,28 @@ def make_realtime(pid: int = 0, priority: int = DEVICE_PRIORITY) -> bool:
         ``SCHED_FIFO`` priority, 1-99.
     """
     return _set_fifo(pid, priority, reset_on_fork=False)
+
+
+_frozen_lock = threading.Lock()
+_frozen_holders = 0
+
+
+@contextlib.contextmanager
+def collector_off_heap() -> Iterator[None]:
+    """The garbage collector kept off the objects that exist on entry, while inside (the module's text).
+
+    ``gc.freeze`` on the first entry, ``gc.unfreeze`` on the last exit (sessions
+    in several threads share one heap); their garbage is collected after.
+    """
+    global _frozen_holders
+    with _frozen_lock:
+        if _frozen_holders == 0:
+            gc.freeze()
+        _frozen_holders += 1
+    try:
+        yield
+    finally:
+        with _frozen_lock:
+            _frozen_holders -= 1
+            if _frozen_holders == 0:
+                gc.unfreeze()

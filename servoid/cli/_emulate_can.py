@@ -125,7 +125,7 @@ def _print_event(line: str) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoid.drivers.can.simulated import simulated_drive
-    from servoid.drivers.realtime import make_realtime
+    from servoid.drivers.realtime import collector_off_heap, make_realtime
     from servoid.drivers.servos import parse_servo
 
     if args.interface == "virtual":
@@ -163,7 +163,7 @@ def run(args: argparse.Namespace) -> int:
     previous = signal.signal(signal.SIGTERM, _terminate)
     make_realtime()  # the drive's clock first, where permitted (servoid.drivers.realtime); before its threads
     try:
-        with drive:
+        with drive, collector_off_heap():  # a full collection would hold the drive's replies (drivers.realtime)
             print(drive.url(), flush=True)
             if not args.quiet:
                 print(

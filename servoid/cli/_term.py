@@ -74,12 +74,23 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
 
 @contextlib.contextmanager
 def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str], None]]:
-    """A progress bar with a status line on stderr; yields ``update(done, text)``."""
+    """A progress bar with a status line on stderr; yields ``update(done, text)``.
+
+    Not on a terminal (a pipe, a file, a test's capture) rich shows none of a transient bar, but its
+    refresh thread would still build it ten times a second beside a live session's sampling loop, at
+    the default priority and holding the interpreter lock the loop needs (it set off the full
+    garbage collection that held a live identify's loop 391 ms: :mod:`servoid.drivers.realtime`):
+    a no-op callback there.
+    """
+    console = _console_named("stderr")
+    if not console.is_terminal:
+        yield lambda done, text: None
+        return
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
     columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                TextColumn("{task.fields[text]}", markup=False))  # fmt: skip
-    with Progress(*columns, console=_console_named("stderr"), transient=True) as bar:
+    with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(label, total=total, text="")
 
         def update(done: int, text: str) -> None:

@@ -69,7 +69,7 @@ from servoid import validation
 from servoid.drivers.base import Driver, DriverStats, Measurement
 from servoid.drivers.bus import BusDriver
 from servoid.drivers.clock import NS_PER_S, Clock, MonotonicClock
-from servoid.drivers.realtime import realtime_thread
+from servoid.drivers.realtime import collector_off_heap, realtime_thread
 from servoid.drivers.simulated import SimulatedServo
 from servoid.errors import ConfigError, DriverError, DriverTimeout, ProtocolError, ServoidError
 from servoid.ident.online.estimator import Estimator
@@ -451,10 +451,12 @@ def run_session(
     sampler = sampler_class(one, config, use_clock, chain, command_filter, on_progress, excitation, keep_samples)
     sampler.writer = writer
     # the real clock's slots at SCHED_FIFO where permitted (servoid.drivers.realtime: on a loaded host the
-    # scheduler, not the link, spoils them); a virtual clock keeps no time to be late for
-    realtime = realtime_thread() if isinstance(use_clock, MonotonicClock) else contextlib.nullcontext(False)
+    # scheduler, not the link, spoils them), and the garbage collector off the heap the session starts with (a full
+    # collection in any thread holds the interpreter lock the loop needs); a virtual clock keeps no time to be late for
+    real = isinstance(use_clock, MonotonicClock)
+    realtime = realtime_thread() if real else contextlib.nullcontext(False)
     try:
-        with realtime as sampler.realtime:
+        with realtime as sampler.realtime, collector_off_heap() if real else contextlib.nullcontext():
             sampler.run(excitation)
     except KeyboardInterrupt:
         sampler.stopped = "interrupted"

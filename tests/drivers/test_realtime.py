@@ -1,5 +1,10 @@
 """Real-time scheduling of the sampling loop and of the emulated devices (``servoid.drivers.realtime``).
 
+A session on the real clock also keeps the garbage collector off the heap it
+started with (a full collection in any thread holds the interpreter lock the
+loop needs), hands it back afterwards, and no progress thread builds a bar
+that nobody sees beside the loop.
+
 A live session's loop runs at ``SCHED_FIFO`` where the system permits it
 (and says so in ``acquisition.realtime``), gives the policy back afterwards,
 does not pass it to the threads it starts, and does not take it on a
@@ -12,6 +17,7 @@ it, and a test of the other case says so when it cannot run here.
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import socket
@@ -28,7 +34,7 @@ import pytest
 
 from servoid.cli._live import check_lost
 from servoid.drivers import driver_from_url
-from servoid.drivers.realtime import DEVICE_PRIORITY, SAMPLER_PRIORITY, realtime_thread
+from servoid.drivers.realtime import DEVICE_PRIORITY, SAMPLER_PRIORITY, collector_off_heap, realtime_thread
 from servoid.errors import ConfigError
 from servoid.session import SessionConfig, run_session
 
@@ -99,6 +105,34 @@ def test_virtual_clock_session_does_not_take_fifo() -> None:
     acquisition = result.to_dict()
     assert acquisition["realtime"] is False
     assert os.SCHED_FIFO not in seen
+
+
+def test_a_real_clock_session_keeps_the_collector_off_the_heap_it_started_with() -> None:
+    before = gc.get_freeze_count()
+    frozen: dict[str, list[int]] = {"sim://model": [], "sim://model?clock=virtual": []}
+    for url, seen in frozen.items():
+        with driver_from_url(url) as servo:
+            run_session(servo, np.zeros(20), SessionConfig(period_s=1 / RATE_HZ),
+                        on_sample=lambda _, seen=seen: seen.append(gc.get_freeze_count()))  # fmt: skip
+    assert min(frozen["sim://model"]) > before  # the objects of before the session: never scanned during it
+    assert frozen["sim://model?clock=virtual"] == [before] * 20  # no time to keep: as before
+    assert gc.get_freeze_count() == before  # handed back
+    with collector_off_heap():  # sessions in two threads: the heap is handed back when the last one ends
+        held = gc.get_freeze_count()
+        with collector_off_heap():
+            pass
+        assert gc.get_freeze_count() == held > before
+    assert gc.get_freeze_count() == before
+
+
+def test_no_progress_thread_beside_the_loop_when_stderr_is_not_a_terminal(capsys: pytest.CaptureFixture[str]) -> None:
+    from servoid.cli import _term
+
+    threads = set(threading.enumerate())
+    with _term.live_progress("live", 10) as update:
+        update(5, "half")
+        assert set(threading.enumerate()) == threads
+    assert capsys.readouterr().err == ""
 
 
 def test_not_permitted_runs_as_before(monkeypatch: pytest.MonkeyPatch, firmware_url: tuple[str, int]) -> None:
