@@ -21,14 +21,16 @@ leaves the core free most of the time, and the kernel's real-time throttling
 
 ``SCHED_FIFO`` does not reach the interpreter lock. A cyclic garbage collection
 holds it from start to end, whichever thread set it off, and takes time in
-proportion to the whole heap: 50-70 ms at ``SCHED_FIFO`` on the 150 000 objects a
+proportion to the whole heap: 48-67 ms at ``SCHED_FIFO`` on the 153 000 objects a
 live identify starts with (load 8), more in a larger process. Set off in a thread
 the scheduler does not favour (rich's progress refresh at niceness 0, a refit's
 worker at 10), it ran about as long as the scheduler gave that thread the core, and
 the sampler waited behind it for the lock: one sleep of the sampler came back 391 ms
 late, every thread's stack showing the collection (a live identify through the
-Dynamixel emulator, pinned to one core with a busy process, load 7.8). Another
-such wait past 0.5 s tripped the Dynamixel's Bus Watchdog (issue 15). So a session
+Dynamixel emulator, pinned to one core with a busy process, load 7.8). Such a
+wait past 0.5 s trips the Dynamixel's Bus Watchdog (issue 15): a collection set
+off 1 s into that run on a 755 000-object heap tripped it 3 of 3 times, and 0 of
+3 with the heap kept off (docs/drivers.md, "The garbage collector"). So a session
 on the real clock keeps the collector off the heap it started with
 (:func:`collector_off_heap`, ``gc.freeze``): a collection then looks only at the
 objects made since, and the heap is handed back to the collector afterwards.
