@@ -1,7 +1,7 @@
 """Where a motor-side twin's play error comes from (issue 12): the encoder, the load's motion or the loop.
 
 Run: ``.venv/bin/python benchmarks/motor_bias.py --presets cia402 --rates 10,50 --seeds 1,2,3
-[--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85]
+[--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85[,WC,ZETA,ALS,VLS]]
 [--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
 
 On each record (``real_servos.twin_record``: the table's gentle sines and 0.3 count of noise; the output encoder's
@@ -20,7 +20,12 @@ the true load by least squares (the play the load's own motion shows against the
 ``--held-load MU,AL,E``: also ``fit_loop``'s answer on the twin's reading (as ``identify`` runs it) refitted on
 every sample with the model's load (:mod:`~servoid.ident.offline.load_stage`: inertia ratio, friction as a
 deceleration, restitution) held at those values (the CiA 402 twin's: ``0.89,10,0.85``): whether the model's own load
-term, given the truth, takes the bias off. ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
+term, given the truth, takes the bias off. ``--held-load MU,AL,E,WC,ZETA[,ALS,VLS]`` holds the model's compliant
+contact too (``wc`` its frequency on the load's inertia, rad/s, 0: rigid; ``zeta`` its damping ratio) and the load's
+break-away (``als`` its static friction as a deceleration, ``vls`` its Stribeck speed; the CiA 402 twin's:
+``0.89,10,0.85,1944.6,0.036,12.5,0.01``, from its gear's 75 630 N m/rad and 2.8 N m s on 0.02 kg m^2, and the load's
+0.25 N m break-away over 0.01 rad/s; the ODrive's ``2.84,2.5,0.92,200,0.025,3,0.01``). Several loads separated by
+``;`` are each refitted from the same answer. ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
 scaled; a load of a hundredth, ``load x0.01``, leaves the motor side without the load it picks up at a flank).
 Per effect and reading: within 5 %, mean, standard deviation, largest. The twins' presets are not changed (the
 overrides make this run's copies). The machine may be shared: times are one run each.
@@ -47,6 +52,8 @@ from servoid.ident.offline.operating_point import operating_point
 
 #: The readings identify answers on (see the module's docstring).
 READINGS = ("twin", "load now", "play operator")
+#: What ``--held-load`` holds, in its order: the model's load, its contact (``wc`` 0: rigid) and its break-away.
+HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls")
 
 
 def play_operator(x: np.ndarray, play: float, y0: float) -> np.ndarray:
@@ -78,27 +85,31 @@ def load_vs_gear(gear: np.ndarray, load: np.ndarray, play: float) -> float:
 
 
 def held_load(
-    u: np.ndarray, y: np.ndarray, period: float, truth: float, load: tuple[float, float, float]
-) -> dict[str, float]:
-    """``fit_loop``'s answer (as ``identify`` runs it, the record centred alike) refitted on every sample with the load
-    ``(mu, al, e)`` held: the final refit's free parameters and budget, the per-inertia values started ``1 + mu``
-    times the massless ones. Returns the answer's play error and inertia ratio, the held fit's play error and its cost
-    in residual variances against the answer's."""
+    u: np.ndarray, y: np.ndarray, period: float, truth: float, loads: list[tuple[float, ...]]
+) -> dict[str, Any]:
+    """``fit_loop``'s answer (as ``identify`` runs it, the record centred alike) refitted on every sample with each load
+    ``(mu, al, e[, wc, zeta[, als, vls]])`` of ``loads`` held (:data:`HELD_NAMES`: the contact's frequency and damping,
+    0: rigid, and the load's break-away): the final refit's free parameters and budget, the per-inertia values started
+    ``1 + mu`` times the massless ones. Returns the answer's play error and inertia ratio, and per load the held fit's
+    play error and its cost in residual variances against the answer's."""
     uc, yc = (np.asarray(a) for a in operating_point(u, y).centre(u, y))
     model = lf.fit_loop(uc, yc, period, load=None).model
     uc, yc, a_scale, _, answer = refit_setup(uc, yc, period, model)
     every = np.ones(yc.size, dtype=bool)
     base = lf._cost(uc, yc, period, model.structure, answer, every)
-    mu, al, e = load
-    start = dict(answer, mu=mu, al=al, e=e)
-    for name in _PER_INERTIA:
-        start[name] = answer[name] * (1.0 + mu) / (1.0 + answer.get("mu", 0.0))
-    d, _, _ = lf._fit(uc, yc, period, model.structure, start, every, a_scale, integrator=model.ki > 0.0,
-                      max_nfev=lf.FINAL_NFEV, free=lf._free(model.structure, model.ki > 0.0), ftol=lf.FTOL,
-                      stall=lf.FINAL_STALL)  # fmt: skip
-    cost = lf._cost(uc, yc, period, model.structure, d, every)
-    return {"answer": model.play / truth - 1.0, "mu": float(model.mu), "held": d["play"] / truth - 1.0,
-            "variances": (cost - base) / (base / yc.size)}  # fmt: skip
+    plays, variances = [], []
+    for load in loads:
+        start = dict(answer, **dict(zip(HELD_NAMES, load, strict=False)))
+        for name in _PER_INERTIA:
+            start[name] = answer[name] * (1.0 + load[0]) / (1.0 + answer.get("mu", 0.0))
+        d, _, _ = lf._fit(uc, yc, period, model.structure, start, every, a_scale, integrator=model.ki > 0.0,
+                          max_nfev=lf.FINAL_NFEV, free=lf._free(model.structure, model.ki > 0.0), ftol=lf.FTOL,
+                          stall=lf.FINAL_STALL)  # fmt: skip
+        cost = lf._cost(uc, yc, period, model.structure, d, every)
+        plays.append(d["play"] / truth - 1.0)
+        variances.append((cost - base) / (base / yc.size))
+    return {"answer": model.play / truth - 1.0, "mu": float(model.mu), "held": plays, "variances": variances,
+            "loads": [list(load) for load in loads]}  # fmt: skip
 
 
 def record(
@@ -108,7 +119,7 @@ def record(
     mult: float,
     seed: int,
     wanted: tuple[str, ...] = READINGS,
-    held: tuple[float, float, float] | None = None,
+    held: list[tuple[float, ...]] | None = None,
 ) -> dict[str, Any]:
     """One record's play errors on the ``wanted`` readings, and the load's against the gear's motor side."""
     rec = twin_record(name, mult, 1.0, "sines", seed, **over)
@@ -135,9 +146,15 @@ def record(
         row[label] = {"gap": result.play / truth - 1.0, "mu": float(result.loop.model.mu) if result.loop else 0.0,
                       "s": seconds}  # fmt: skip
     row["load vs gear"] = load_vs_gear(gear, load, truth)
-    if held is not None:
+    if held:
         row["held load"] = held_load(np.asarray(rec["u"]), readings["twin"], period, truth, held)
     return row
+
+
+def _held(row: dict[str, Any]) -> tuple[list[float], list[float]]:
+    """A row's held fits' play errors and costs (one load in dumps written before ``--held-load`` took several)."""
+    held = row["held load"]
+    return list(np.atleast_1d(held["held"])), list(np.atleast_1d(held["variances"]))
 
 
 def print_tables(rows: list[dict[str, Any]]) -> None:
@@ -148,8 +165,9 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
         [[r["preset"], r["effect"], f"{r['mult']:g}x", str(r["seed"]), f"{r['counts']:.2f}",
           *(f"{100 * r[k]['gap']:+.1f} % ({r[k]['mu']:.2f})" if k in r else "" for k in READINGS),
           f"{100 * r['load vs gear']:+.2f} %",
-          f"{100 * r['held load']['answer']:+.1f} -> {100 * r['held load']['held']:+.1f} % ({r['held load']['variances']:+.0f})"
-          if "held load" in r else ""] for r in rows],
+          f"{100 * r['held load']['answer']:+.1f} -> " + " / ".join(
+              f"{100 * g:+.1f} % ({v:+.0f})" for g, v in zip(*_held(r), strict=True)) if "held load" in r else ""]
+         for r in rows],
     )  # fmt: skip
     out = []
     for key in dict.fromkeys((r["preset"], r["effect"]) for r in rows):
@@ -158,7 +176,8 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
         columns["load vs gear"] = [r["load vs gear"] for r in group]
         if "held load" in group[0]:
             columns["held load: answer"] = [r["held load"]["answer"] for r in group]
-            columns["held load"] = [r["held load"]["held"] for r in group]
+            for i, load in enumerate(group[0]["held load"].get("loads", [[]])):
+                columns[f"held load {','.join(f'{v:g}' for v in load)}"] = [_held(r)[0][i] for r in group]
         for reading, gaps in columns.items():
             g = np.array(gaps)
             out.append([*key, reading, str(g.size), str(int(np.sum(np.abs(g) <= 0.05))), f"{100 * g.mean():+.1f} %",
@@ -179,7 +198,8 @@ def main() -> None:
     parser.add_argument(
         "--held-load",
         default="",
-        help="MU,AL,E: also refit the twin reading's answer with this load held (see held_load)",
+        help="MU,AL,E[,WC,ZETA[,ALS,VLS]], several separated by ';': also refit the twin reading's answer with each load "
+        "held (see held_load)",
     )
     parser.add_argument("--dump", default=None)
     parser.add_argument("--load", default=None)
@@ -188,7 +208,7 @@ def main() -> None:
         with open(args.load) as f:
             print_tables([json.loads(line) for line in f])
         return
-    held = tuple(float(v) for v in args.held_load.split(",")) if args.held_load else None
+    held = [tuple(float(v) for v in load.split(",")) for load in args.held_load.split(";") if load.strip()]
     rows = []
     for name in args.presets.split(","):
         cases = effects(name)

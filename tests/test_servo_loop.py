@@ -227,3 +227,50 @@ def test_the_profile_over_the_play_of_a_horn_on_a_contact_has_its_minimum_at_its
     assert min(rms) < 1.05 * floor and max(rms[0], rms[-1]) > 1.5 * floor
     massless = dataclasses.replace(truth, mu=0.0, wc=0.0)
     assert np.sqrt(np.mean((massless.simulate(u) - y) ** 2)) / q > 1.25 * floor
+
+
+@pytest.mark.parametrize("wc", [0.0, 2000.0])
+def test_a_load_that_breaks_away_holds_below_its_static_friction_and_slips_above(wc: float) -> None:
+    # no loop force (kp, kv tiny), no motor friction: a constant force a0 pushes the motor side into a load at rest on
+    # the up flank (rigid or compliant); the load's friction is mu al sliding, mu als at rest
+    mu, al, als = 0.5, 4.0, 8.0
+    common = {"kp": 1e-9, "kv": 1e-9, "fc": 0.0, "fs": 0.0, "veps": 1e-4, "mu": mu, "e": 0.0, "al": al, "s0": 1.0}
+    common.update(c1=0.01, c2=0.01, wc=wc, zeta=0.5)
+
+    def moved(a0: float, **kw: float) -> float:
+        model = _light(OUTPUT_BACKLASH, **{**common, "a0": a0, **kw})
+        return float(model.simulate(np.zeros(50), y0=0.0)[-1])  # 0.5 s
+
+    between = 0.5 * mu * (al + als)  # above the sliding friction, below the static one
+    # without a break-away the load slides off under the force; with it, it holds (creeps at about veps)
+    assert moved(between) > 0.2 * 0.5 * (between - mu * al) / (1.0 + mu) * 0.5**2
+    assert abs(moved(between, als=als, vls=0.1)) < 1e-3
+    # above the static friction it slips; the break-away costs it a little of the way the load without one runs
+    above = 1.5 * mu * als
+    slipped, sliding = moved(above, als=als, vls=0.1), moved(above)
+    assert slipped > 0.2 * 0.5 * (above - mu * als) / (1.0 + mu) * 0.5**2
+    assert 0.8 * sliding < slipped < sliding
+
+
+def test_a_load_that_breaks_away_is_in_the_kernels_and_round_trips() -> None:
+    u = 0.1 * np.sin(np.arange(300) * 0.05)
+    for wc in (0.0, 900.0):
+        model = _model(OUTPUT_BACKLASH, mu=0.6, e=0.3, al=3.0, wc=wc, zeta=0.1, als=5.0, vls=0.02)
+        assert model.breaks_away and tuple(model.params())[-2:] == ("als", "vls")
+        assert ServoLoopModel.from_vector(OUTPUT_BACKLASH, 0.01, model.vector()) == model
+        fast, slow = np.empty(u.size), np.empty(u.size)
+        args = (model.vector(), False, u, 0.0, 0.01, model.substeps)
+        simulate_kernel(*args, fast)
+        python_version(simulate_kernel)(*args, slow)
+        np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+        # it changes the free run, and the pair kernel gives it to the bit beside a load without it
+        plain = dataclasses.replace(model, als=0.0, vls=0.0)
+        assert np.max(np.abs(fast - plain.simulate(u))) > 1e-4 * model.play
+        both = [np.empty(u.size), np.empty(u.size)]
+        simulate_pair_kernel(model.vector(), plain.vector(), False, u, 0.0, 0.01, model.substeps, *both)
+        assert np.array_equal(both[0], fast) and np.array_equal(both[1], plain.simulate(u))
+    # at or below the sliding level it is off, bit for bit, and its fields are not written
+    rigid = _model(OUTPUT_BACKLASH, mu=0.6, e=0.3, al=3.0)
+    off = dataclasses.replace(rigid, als=2.0, vls=0.02)
+    assert not off.breaks_away and tuple(off.params())[-1] == "al"
+    np.testing.assert_array_equal(off.simulate(u), rigid.simulate(u))

@@ -13,6 +13,8 @@ simulator serves both places of the play (:mod:`~servoid.ident.models.structure_
                  impacts of restitution e (:func:`_advance_load`)
                  or (opt-in, mu > 0 and wc > 0) the same load on a compliant contact: a spring of natural
                  frequency wc and damping ratio zeta outside the play (:func:`_advance_contact`)
+                 either with (opt-in, als > al) a break-away: the load's friction als at rest, falling to al
+                 over the speed vls (:func:`_load_level`)
     reading:     y_hat(k) = y(t_k), read at the host instant before the command u(k) is applied
 
 Why this form (physics, see the issue-12 study): a drive that closes its loop
@@ -59,6 +61,7 @@ __all__ = [
     "PARAM_NAMES",
     "LOAD_NAMES",
     "CONTACT_NAMES",
+    "BREAKAWAY_NAMES",
     "KERNEL_NAMES",
     "STATE_SIZE",
     "ServoLoopModel",
@@ -81,8 +84,13 @@ LOAD_NAMES: tuple[str, ...] = ("mu", "e", "al")
 #: natural frequency ``wc`` on the load's inertia, rad/s, and its damping ratio ``zeta``. ``wc = 0`` (and a
 #: vector without them) is the rigid flank of :func:`_advance_load`.
 CONTACT_NAMES: tuple[str, ...] = ("wc", "zeta")
-#: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, then :data:`CONTACT_NAMES`.
-KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES
+#: The load's break-away (:func:`_load_level`), after :data:`CONTACT_NAMES`: its static friction ``als`` as a
+#: deceleration (``als > al``; 0, or a vector without them: none, the load's friction is ``al`` at every speed) and
+#: the speed ``vls`` over which it falls to ``al`` (Stribeck's law, as the motor's ``fs``, ``vs``).
+BREAKAWAY_NAMES: tuple[str, ...] = ("als", "vls")
+#: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, :data:`CONTACT_NAMES`, then
+#: :data:`BREAKAWAY_NAMES`.
+KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES
 #: A rebound slower than this share of the speed the load's friction takes off in one sub-step ends in
 #: contact (:func:`_advance_load`): small, so that a small restitution still bounces (the fit needs its slope).
 REBOUND_SHARE = 0.01
@@ -287,6 +295,27 @@ def _sat(v: float, veps: float) -> tuple[float, float]:
 
 
 @jit
+def _load_level(w: float, al: float, als: float, vls: float) -> tuple[float, float]:
+    """The load's friction level at speed ``w`` and its slope: ``al + (als - al) exp(-(w / vls)^2)`` (``als <= al``: ``al``).
+
+    The load's break-away (Stribeck's law, as the motor's :func:`_friction`): a load at rest takes ``als`` to move,
+    one sliding faster than ``vls`` ``al``. It multiplies the shape ``sat(w / veps)`` (:func:`_sat`).
+    """
+    if als <= al:
+        return al, 0.0
+    hump = (als - al) * math.exp(-(w / vls) * (w / vls))
+    return al + hump, -2.0 * w / (vls * vls) * hump
+
+
+@jit
+def _breakaway(p: np.ndarray) -> tuple[float, float]:
+    """``(als, vls)`` of ``p`` (:data:`BREAKAWAY_NAMES`; ``(0, 1)``, no break-away, for a shorter vector)."""
+    if p.shape[0] > 18 and p[17] > p[14] and p[18] > 0.0:
+        return p[17], p[18]
+    return 0.0, 1.0
+
+
+@jit
 def _advance_load(
     p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, period: float, m: int, veps: float
 ) -> float:
@@ -316,12 +345,14 @@ def _advance_load(
     fc, fs, vs = p[4], p[5], p[6]
     a0, c1, c2 = p[8], p[9], p[10]
     mu, e, al = p[12], p[13], p[14]
+    als, vls = _breakaway(p)
     h = period / m
     x, yl, v, z, w, side = state[0], state[1], state[2], state[3], state[4], state[5]
     for _ in range(m):
         x, yl, v, z, w, side = _load_substep(
-            x, yl, v, z, w, side, r, feedback_load, kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2, mu, e, al, h
-        )
+            x, yl, v, z, w, side, r, feedback_load, kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2, mu, e, al, h,
+            als, vls,
+        )  # fmt: skip
     state[0], state[1], state[2], state[3], state[4], state[5] = x, yl, v, z, w, side
     return float(yl)
 
@@ -351,8 +382,11 @@ def _load_substep(
     e: float,
     al: float,
     h: float,
+    als: float = 0.0,
+    vls: float = 1.0,
 ) -> tuple[float, float, float, float, float, float]:
-    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact)``."""
+    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact)`` (``als``, ``vls``: the load's
+    break-away, :func:`_load_level`)."""
     vcmd = _velocity_command(kp, r - (yl if feedback_load else x), vmax)
     if side != 0.0:
         # one body: the implicit step of the pair, two Newton steps on both frictions
@@ -361,11 +395,13 @@ def _load_substep(
         for _ in range(2):
             f, df = _friction(vc, fc, fs, vs, veps)
             sl, dsl = _sat(vc, veps)
-            g = vc * (1.0 + mu + h * kv) + h * f + h * mu * al * sl - base
-            vc -= g / (1.0 + mu + h * kv + h * df + h * mu * al * dsl)
+            lv, dlv = _load_level(vc, al, als, vls)
+            g = vc * (1.0 + mu + h * kv) + h * f + h * mu * lv * sl - base
+            vc -= g / (1.0 + mu + h * kv + h * df + h * mu * (lv * dsl + dlv * sl))
         sl, _ = _sat(vc, veps)
+        lv, _ = _load_level(vc, al, als, vls)
         # the flank's force on the load, mu (dv/dt + al sat): it pushes, it never pulls
-        if side * ((vc - v) / h + al * sl) >= 0.0:
+        if side * ((vc - v) / h + lv * sl) >= 0.0:
             if ki > 0.0:
                 z += h * ki * (vcmd - vc)
             x += h * vc
@@ -374,7 +410,7 @@ def _load_substep(
     vn = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h)
     if ki > 0.0:
         z += h * ki * (vcmd - vn)
-    wn = _load_step(w, al, veps, h)
+    wn = _load_step(w, _load_level(w, al, als, vls)[0], veps, h)
     d0 = x - yl
     xn = x + h * vn
     yn = yl + h * wn
@@ -460,7 +496,7 @@ def _advance_contact(
     c = 2.0 * zeta * wc
     x, yl, v, z, w = state[0], state[1], state[2], state[3], state[4]
     loop = (kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)
-    contact = (mu, al, k2, c)
+    contact = (mu, al, k2, c) + _breakaway(p)
     for _ in range(mc):
         x, yl, v, z, w = _contact_substep(x, yl, v, z, w, r, feedback_load, loop, contact, h)
     state[0], state[1], state[2], state[3], state[4] = x, yl, v, z, w
@@ -492,11 +528,14 @@ def _contact_moved(
     al: float,
     veps: float,
     h: float,
+    als: float = 0.0,
+    vls: float = 1.0,
 ) -> tuple[float, float, float, float]:
-    """A compliant sub-step's end from the motor's new speed ``vn``: the integrator, the load's speed, the positions."""
+    """A compliant sub-step's end from the motor's new speed ``vn``: the integrator, the load's speed, the positions
+    (the load's friction at its level at the step's start, :func:`_load_level`)."""
     if ki > 0.0:
         z += h * ki * (vcmd - vn)
-    w = _load_step(w + h * f, al, veps, h)
+    w = _load_step(w + h * f, _load_level(w, al, als, vls)[0], veps, h)
     x += h * vn
     yl += h * w
     return x, yl, z, w
@@ -512,22 +551,22 @@ def _contact_substep(
     r: float,
     feedback_load: bool,
     loop: tuple[float, float, float, float, float, float, float, float, float, float, float],
-    contact: tuple[float, float, float, float],
+    contact: tuple[float, float, float, float, float, float],
     h: float,
 ) -> tuple[float, float, float, float, float]:
     """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w)`` after it.
 
     ``loop`` is :func:`_loop_params`'s ``(kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)``, ``contact`` is
-    ``(mu, al, wc^2, 2 zeta wc)``.
+    ``(mu, al, wc^2, 2 zeta wc, als, vls)``.
     """
     kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2 = loop
-    mu, al, k2, c = contact
+    mu, al, k2, c, als, vls = contact
     f = _contact_force(x, yl, v, w, c1, c2, k2, c)
     vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0 - mu * f, h)
     vn = v
     for _ in range(2):
         vn = _newton(vn, base, kv, fc, fs, vs, veps, h)
-    x, yl, z, w = _contact_moved(x, yl, z, w, f, vcmd, vn, ki, al, veps, h)
+    x, yl, z, w = _contact_moved(x, yl, z, w, f, vcmd, vn, ki, al, veps, h, als, vls)
     return x, yl, vn, z, w
 
 
@@ -620,7 +659,8 @@ def simulate_pair_kernel(
         k21, k22 = wc1 * wc1, wc2 * wc2
         cd1, cd2 = 2.0 * zeta1 * wc1, 2.0 * zeta2 * wc2
         both = min(mc1, mc2)
-        contact1, contact2 = (mu1, al1, k21, cd1), (mu2, al2, k22, cd2)
+        (als1, vls1), (als2, vls2) = _breakaway(p), _breakaway(q)
+        contact1, contact2 = (mu1, al1, k21, cd1, als1, vls1), (mu2, al2, k22, cd2, als2, vls2)
         for k in range(y_p.shape[0]):
             y_p[k] = yl1
             y_q[k] = yl2
@@ -634,8 +674,8 @@ def simulate_pair_kernel(
                 for _ in range(2):
                     vn1 = _newton(vn1, base1, kv1, fc1, fs1, vs1, veps1, h1)
                     vn2 = _newton(vn2, base2, kv2, fc2, fs2, vs2, veps2, h2)
-                x1, yl1, z1, w1 = _contact_moved(x1, yl1, z1, w1, f1, vcmd1, vn1, ki1, al1, veps1, h1)
-                x2, yl2, z2, w2 = _contact_moved(x2, yl2, z2, w2, f2, vcmd2, vn2, ki2, al2, veps2, h2)
+                x1, yl1, z1, w1 = _contact_moved(x1, yl1, z1, w1, f1, vcmd1, vn1, ki1, al1, veps1, h1, als1, vls1)
+                x2, yl2, z2, w2 = _contact_moved(x2, yl2, z2, w2, f2, vcmd2, vn2, ki2, al2, veps2, h2, als2, vls2)
                 v1, v2 = vn1, vn2
             for _ in range(mc1 - both):
                 x1, yl1, v1, z1, w1 = _contact_substep(x1, yl1, v1, z1, w1, r, feedback_load, loop1, contact1, h1)
@@ -652,6 +692,7 @@ def simulate_pair_kernel(
     kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11, c21 = _loop_params(p)
     kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12, c22 = _loop_params(q)
     mu1, e1, al1, mu2, e2, al2 = (p[12], p[13], p[14], q[12], q[13], q[14]) if massive_p else (0.0,) * 6
+    (als1, vls1), (als2, vls2) = _breakaway(p), _breakaway(q)
     h = period / m
     for k in range(y_p.shape[0]):
         y_p[k] = yl1
@@ -662,11 +703,11 @@ def simulate_pair_kernel(
                 # two massive loads: :func:`_advance_load`'s sub-steps side by side
                 x1, yl1, v1, z1, w1, side1 = _load_substep(
                     x1, yl1, v1, z1, w1, side1, r, feedback_load, kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11,
-                    c21, mu1, e1, al1, h,
+                    c21, mu1, e1, al1, h, als1, vls1,
                 )  # fmt: skip
                 x2, yl2, v2, z2, w2, side2 = _load_substep(
                     x2, yl2, v2, z2, w2, side2, r, feedback_load, kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12,
-                    c22, mu2, e2, al2, h,
+                    c22, mu2, e2, al2, h, als2, vls2,
                 )  # fmt: skip
                 continue
             # the two chains step by step side by side (their Newton steps too: that is what overlaps)
@@ -722,6 +763,10 @@ class ServoLoopModel:
         flank, the impacts of :func:`_advance_load`; > 0: the compliant contact of :func:`_advance_contact`).
     zeta : float
         The compliant contact's damping ratio (with ``wc > 0``).
+    als : float
+        The load's break-away friction as a deceleration, unit/s^2 (with ``mu > 0``; at or below ``al``: none).
+    vls : float
+        The speed over which the load's friction falls from ``als`` to ``al``, unit/s (with ``als > al``).
     """
 
     structure: str
@@ -743,6 +788,8 @@ class ServoLoopModel:
     al: float = 0.0
     wc: float = 0.0
     zeta: float = 0.0
+    als: float = 0.0
+    vls: float = 0.0
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -750,7 +797,7 @@ class ServoLoopModel:
         validation.positive("sample_period_s", self.sample_period_s)
         for name in ("kp", "kv", "vs", "veps"):
             validation.positive(name, getattr(self, name))
-        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta"):
+        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta", "als", "vls"):
             validation.non_negative(name, getattr(self, name))
         validation.in_unit_interval("e", self.e, open_low=False, open_high=False)
         validation.real("a0", self.a0)
@@ -781,12 +828,20 @@ class ServoLoopModel:
         """Whether a massive load meets the flanks on a compliant contact (``wc > 0``) rather than in rigid impacts."""
         return self.massive and self.wc > 0.0
 
+    @property
+    def breaks_away(self) -> bool:
+        """Whether a massive load's friction has a break-away (``als > al``, ``vls > 0``: :func:`_load_level`)."""
+        return self.massive and self.als > self.al and self.vls > 0.0
+
     def names(self) -> tuple[str, ...]:
-        """The model's parameter names: :data:`PARAM_NAMES`, :data:`LOAD_NAMES` for a massive load, and
-        :data:`CONTACT_NAMES` for a compliant contact."""
+        """The model's parameter names: :data:`PARAM_NAMES`, :data:`LOAD_NAMES` for a massive load,
+        :data:`CONTACT_NAMES` for a compliant contact (or one that breaks away), and :data:`BREAKAWAY_NAMES` for a
+        load that breaks away."""
         if not self.massive:
             return PARAM_NAMES
-        return KERNEL_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
+        if self.breaks_away:
+            return KERNEL_NAMES
+        return PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
 
     def vector(self) -> np.ndarray:
         """The parameters in the order of :data:`KERNEL_NAMES` (what :func:`simulate_kernel` takes)."""
@@ -810,7 +865,8 @@ class ServoLoopModel:
         ServoLoopModel
         """
         p = np.asarray(p, dtype=np.float64)
-        names = next((n for n in (PARAM_NAMES + LOAD_NAMES, KERNEL_NAMES) if p.size == len(n)), PARAM_NAMES)
+        sizes = (PARAM_NAMES + LOAD_NAMES, PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES, KERNEL_NAMES)
+        names = next((n for n in sizes if p.size == len(n)), PARAM_NAMES)
         values = {name: float(v) for name, v in zip(names, p, strict=True)}
         return cls(structure=structure, sample_period_s=float(sample_period_s), **values)
 
