@@ -50,14 +50,19 @@ def _timed(spent: dict[str, list[float]], name: str, fn: Callable[..., Any]) -> 
     return wrapper
 
 
-def profile(run: Path, load: bool | None) -> None:
+def live_record(run: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, dict, int]:
+    """A kept run's record as the live answer reads it: ``u, y, keep`` from its first usable sample (the unusable
+    readings masked, ``y`` held there), the period (s), its ``model.json`` and that first sample's index."""
     rec = read_recording(run / "recording.csv")
     meta = json.loads((run / "model.json").read_text())
     valid = recording_valid(rec)
     first = int(np.argmax(valid))
     u, y, keep = np.asarray(rec.u)[first:], np.asarray(rec.y)[first:], valid[first:]
-    y = np.where(keep, y, y[0])
-    period = float(rec.metadata["period_s"])
+    return u, np.where(keep, y, y[0]), keep, float(rec.metadata["period_s"]), meta, first
+
+
+def profile(run: Path, load: bool | None) -> None:
+    u, y, keep, period, meta, _ = live_record(run)
     refined = (meta.get("online_loop") or {}).get("refined") or {}
     fast_s = (refined.get("search") or {}).get("seconds")
     print(f"\n{run.name}: {u.size} samples ({int((~keep).sum())} unusable), slow phase {meta.get('slow_samples')}, "
