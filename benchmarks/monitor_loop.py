@@ -11,7 +11,8 @@ recording of 20 s (40 s where that file holds a horn sized on too short a record
 monitor`` reads it: the loop, the play's interval, the identifiable flag; one
 file per preset, from the tracking run's twin, used by all three runs, as a user
 identifies once and monitors many times), fed every sample at the host's default
-rate (200 Hz): the whole loop refitted on the first 10 s, then the play alone
+rate (200 Hz): the file's loop, its gains held, its play refitted on the first 10 s (``--free-loop``: the whole
+loop, the code before), then the play alone
 on 1.6 s windows every 0.25 s, their scatter over the next 20 s, then the
 CUSUM against the bounds ``--dead-zone 10%`` sets (+/- 10 % of the model
 file's play, moved to the median estimate). The twin is the physical one
@@ -67,6 +68,11 @@ docs/online.md, "The horn stage on live records"; on the STS3215 -23.4 % on 20 s
 play outside the loop (CiA 402, ODrive) or a massless loop (the XM430's 20 s file) keeps 20 s: 40 s moved
 the ODrive's raw tracking 0.3 -> 7.2 % and the XM430's file to a horn whose window plays cost 235-540 ms
 an estimate, near or past the 250 ms between them. The table's reference column says which was used.
+
+``--file-seed``: the twin seed of the unworn run the data file is identified on (default 1, the tables before).
+On the horn twins the file's loop sets the level of every window play: with the seed-2 files (XM430 -7.5 %, STS3215
+-1.0 % on 40 s) raw tracking read 21-25 % and 14-15 % where the seed-1 files read 8-16 % and 0.4-11 %
+(docs/monitor.md, "the first fit with the file's loop held").
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
@@ -131,7 +137,7 @@ from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor_loop import HORN_RECORD_S, short_horn
+from servoid.monitor_loop import HOLD_LOOP, HORN_RECORD_S, short_horn
 from servoid.recording import write_recording
 
 RATE = 200.0
@@ -200,7 +206,8 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
-         share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S):  # fmt: skip
+         share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
+         hold_loop: bool = HOLD_LOOP):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
@@ -224,7 +231,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     low, high = (math.nan if v is None else float(v) for v in file.play_interval)
     tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
                               identifiable=file.identifiable, fresh=fresh, min_reversals=min_reversals,
-                              steady_s=steady_s)  # fmt: skip
+                              steady_s=steady_s, hold_loop=hold_loop)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -296,22 +303,29 @@ def main() -> None:
         action="store_true",
         help="windows that begin before the steady sine count (as before: no steady_s)",
     )
+    parser.add_argument(
+        "--free-loop",
+        action="store_true",
+        help="the first fit refits the whole loop (free, or the play held where that fits better: the code before "
+        "servoid monitor's HOLD_LOOP) instead of the play alone on the file's loop",
+    )
+    parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     args = parser.parse_args()
     quiet = 1_000_000 if args.full else args.quiet
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
-            "share": args.accel_share, "count_switch": args.count_switch}  # fmt: skip
+            "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop}  # fmt: skip
     for name in args.presets:
         started = time.perf_counter()
         reference_s = REFERENCE_S if args.reference_s is None else args.reference_s
         if args.file == "live":
-            file = _live_file(name, 1)
+            file = _live_file(name, args.file_seed)
         elif args.reference_s is None:
-            file, reference_s = _file_by_place(name, 1)
+            file, reference_s = _file_by_place(name, args.file_seed)
         else:
-            file = _model_file(name, 1, reference_s)
+            file = _model_file(name, args.file_seed, reference_s)
         opts["reference_s"] = reference_s
         raws, biases = [], []  # per tracking seed; the other tracking columns are the first seed's
         for track_seed in reversed(args.track_seeds):

@@ -4,8 +4,9 @@ The wear estimator of :mod:`servoid.monitor_run` is the MRGIA: it tracks the
 pseudo-Wiener model only. A model file whose answer is the servo-loop model
 (``structure.form`` ``servo_loop``: the play inside the position loop, or the
 loop model with the play at the output) is followed instead by
-:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`: the whole loop
-refitted once from the file's (the first 10 s), then the play alone on short
+:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`: the file's loop
+refitted once with its gains held (the play and the constant force on the first
+10 s, ``hold_loop``; a horn held as identified), then the play alone on short
 windows (1.6 s every 0.25 s), a CUSUM on it once their scatter is known (20 s
 later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``:
 
@@ -61,6 +62,7 @@ __all__ = [
     "design_sines",
     "short_horn",
     "HORN_RECORD_S",
+    "HOLD_LOOP",
     "LoopMonitorResult",
     "run_loop_monitor",
     "LOOP_COLUMNS",
@@ -74,6 +76,10 @@ METHOD = "window-tracking"
 LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
                 "reversals", "refit_s", "alarms")  # fmt: skip
 
+
+#: The monitor's first fit holds the model file's loop gains and refits the play alone
+#: (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``hold_loop``; docs/monitor.md).
+HOLD_LOOP = True
 
 #: Servo seconds of gentle sines identification's horn stage needs to size a play in the loop on a compliant
 #: contact (``benchmarks/horn_live.py``: the STS3215 twin's play -23.4 % on 20 s, -1.6 % on 40 s; docs/online.md).
@@ -333,7 +339,8 @@ class _LoopRun:
         self.true_play, self.on_event = true_play, on_event
         interval = tuple(math.nan if v is None else float(v) for v in model_file.play_interval)
         self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase, interval=(interval[0], interval[1]),
-                                       identifiable=model_file.identifiable, steady_s=steady_s)  # fmt: skip
+                                       identifiable=model_file.identifiable, steady_s=steady_s,
+                                       hold_loop=HOLD_LOOP)  # fmt: skip
         self.rebase = rebase
         self.based = self.doubted = self.refused = False
         self.rows_seen = self.events_seen = 0

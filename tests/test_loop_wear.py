@@ -243,3 +243,20 @@ def test_the_first_refit_keeps_the_play_held_only_where_the_free_search_ended_hi
     monkeypatch.setattr(loop_fit, "refit_loop", stub)
     model, q = first_refit(np.zeros(10), np.zeros(10), np.ones(10, dtype=bool), LOOP)
     assert (model.play, q) == ((LOOP.play, 0.009) if held_nrmse < 0.010 else (0.5 * LOOP.play, 0.010))
+
+
+def test_the_first_refit_with_the_loop_held_keeps_the_files_gains_and_moves_the_play_alone() -> None:
+    # hold_loop: the file's gains held (the valley they form with the play is not refitted), the play refitted
+    from servoid.ident.monitoring.loop_wear import LOOP_GAINS, first_refit
+
+    u = sample(GentleSpec(amplitude=0.1, accel=8.0 / RATE**2, spread=8.0), int(6.0 * RATE), seed=8)
+    score = np.ones(u.size, dtype=bool)
+    score[:80] = False
+    noise = 1e-4 * np.random.default_rng(9).standard_normal(u.size)
+    worn = 1.3
+    y = dataclasses.replace(LOOP, c1=LOOP.c1 * worn, c2=LOOP.c2 * worn).simulate(u) + noise
+    model, q = first_refit(u, y, score, LOOP, max_nfev=10, hold_loop=True)
+    assert all(getattr(model, name) == getattr(LOOP, name) for name in LOOP_GAINS)
+    assert model.play == pytest.approx(worn * LOOP.play, rel=0.03)
+    free, _ = first_refit(u, y, score, dataclasses.replace(LOOP, kv=54.0), max_nfev=10)
+    assert free.kv != 54.0  # without it the gains move

@@ -53,12 +53,13 @@ An alarm prints a line starting with ALARM on stderr; with --fail-on-alarm the
 run stops there and servoid exits with status {EXIT_ALARM}.
 
 A model file whose answer is the servo-loop model (the play inside the loop,
-structure.form servo_loop) is followed instead by its play alone: the whole
-loop is refitted on the first 10 s of servo time, then the play alone on 1.6 s
-windows every 0.25 s; their scatter over the next 20 s sets a CUSUM's threshold
-for one false alarm in 10^8 samples on average. --dead-zone bounds the play (a
-share P% is taken of the median play those windows see); --persist, --z, --m2
-and --fit do not apply (benchmarks/monitor_loop.py). Its input, without
+structure.form servo_loop) is followed instead by its play alone: the file's
+loop, its gains held, gets its play refitted on the first 10 s of servo time,
+then the play alone on 1.6 s windows every 0.25 s; their scatter over the next
+20 s sets a CUSUM's threshold for one false alarm in 10^8 samples on average.
+--dead-zone bounds the play (a share P% is taken of the median play those
+windows see); --persist, --z, --m2 and --fit do not apply
+(benchmarks/monitor_loop.py). Its input, without
 --operating and --excitation, is what that benchmark measured: the gentle
 sines of the file's design (`servoid identify --driver` writes it) for the
 first 10 s, then one steady sine at their largest amplitude and highest
