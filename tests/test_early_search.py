@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import threading
 import time
 from types import SimpleNamespace
@@ -307,3 +308,29 @@ def test_warm_up_runs_the_search_once_so_its_kernels_are_loaded_before_the_sampl
     monkeypatch.setattr(loop_fit, "fit_loop", counted)
     EarlySearch(0.005, 4000).warm_up()
     assert calls == [None]  # with the load stage, as the search runs it
+
+
+@pytest.mark.skipif(not hasattr(os, "getpriority") or os.geteuid() != 0, reason="raising a priority needs root")
+def test_a_searchs_thread_yields_to_the_sampler_until_the_run_ends() -> None:
+    from servoid.ident.online.window import WORKER_NICENESS
+
+    gate, seen = threading.Event(), []
+    est = EarlySearch(1 / RATE, 600)
+
+    def held(*a: object) -> None:
+        tid = threading.get_native_id()
+        seen.append(os.getpriority(os.PRIO_PROCESS, tid))
+        gate.wait(10.0)
+        seen.append(os.getpriority(os.PRIO_PROCESS, tid))
+        raise RuntimeError("done")  # no search: only the thread's priority matters here
+
+    est._warm = held  # noqa: SLF001
+    before = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
+    u, y = _record(6.0, seed=5)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    while not seen:
+        time.sleep(0.01)
+    est.full_speed()  # the run has ended
+    gate.set()
+    assert est.result(wait=True) is None and "failed" in (est.error or "")
+    assert seen == [min(19, before + WORKER_NICENESS), before]

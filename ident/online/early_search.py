@@ -37,6 +37,8 @@ meanwhile. Held, not started at the slow phase's end: a search from there ran be
 sampler through the fast part's first 10 s, which had been quiet, and the CAN emulators
 over UDP lost more samples (unusable 0.17-0.44 of them on 8 runs at load 6.7-9.5, 7 refused
 above 0.2; 0.10-0.19 on 5 runs without it at load 5.2-9.6, none refused; the loads differ).
+Measured again with the kernels loaded before the run (docs/online.md, fourteenth pass): 4 of 8
+UDP runs refused (21-26 % unusable) against 1 of 8 held, at a lower load.
 
 On a slow machine the head's search is warm (``end``, a real clock's run; :meth:`EarlySearch.offer`):
 ``fit_loop(load=None)``'s load stage (its grid of inertia ratios and restitutions, refitted at each point)
@@ -76,7 +78,7 @@ from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline import _threads
-from servoid.ident.online.window import SlowSearch, _yield_cpu
+from servoid.ident.online.window import SlowSearch, _unyield, _yield_cpu
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.models.servo_loop import ServoLoopModel
@@ -186,6 +188,8 @@ class EarlySearch:
         self.warm = False  # the head was searched warm from the first window's model (the module's text)
         self._stop = stop
         self.cut = False  # the search was stopped by ``stop`` (:attr:`error` says so)
+        self._yielding = True  # the search's thread runs below the sampler's priority (until :meth:`full_speed`)
+        self._niced: tuple[int, int] | None = None  # that thread's id and niceness before, once lowered
 
     @property
     def started(self) -> bool:
@@ -272,10 +276,25 @@ class EarlySearch:
                 self._thread = threading.Thread(target=self._search, args=job, name="servoid-early-search", daemon=True)
                 self._thread.start()
 
+    def full_speed(self) -> None:
+        """The sampler has ended: the search's thread, running or to come, back at its own scheduling priority.
+
+        Below the sampler's (:data:`~servoid.ident.online.window.WORKER_NICENESS`) while the run goes on; after it,
+        that priority only lends the cores to the machine's other processes: on the CiA 402 twin at load 7-9 the
+        slow phase's search, started at the run's end, had 1.3 s of CPU in the 9.6 s left to it (docs/online.md,
+        fourteenth pass). Where raising a priority is not permitted the thread keeps the lower one.
+        """
+        with self._lock:
+            self._yielding = False
+            niced, self._niced = self._niced, None
+        _unyield(niced)
+
     def _search(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray, lo: int) -> None:
         from servoid.ident.offline.loop_fit import fit_loop
 
-        _yield_cpu()
+        with self._lock:
+            if self._yielding:
+                self._niced = _yield_cpu()
         try:
             with _threads.stopping(self._stop):
                 choice = self._warm(u, y, keep)

@@ -576,12 +576,26 @@ def _refit_later(
     return model, row, other, search, won
 
 
-def _yield_cpu() -> None:
-    """Lower the worker thread's scheduling priority (Linux sets it per thread): on a busy machine the sampler goes first."""
+def _yield_cpu() -> tuple[int, int] | None:
+    """Lower the worker thread's scheduling priority (Linux sets it per thread): on a busy machine the sampler goes
+    first. Returns the thread's native id and its niceness before (:func:`_unyield` gives it back), None: unchanged."""
     try:
         tid = threading.get_native_id()
-        os.setpriority(os.PRIO_PROCESS, tid, min(19, os.getpriority(os.PRIO_PROCESS, tid) + WORKER_NICENESS))
+        before = os.getpriority(os.PRIO_PROCESS, tid)
+        os.setpriority(os.PRIO_PROCESS, tid, min(19, before + WORKER_NICENESS))
     except (AttributeError, OSError):  # not Linux, or not permitted: the thread keeps its priority
+        return None
+    return tid, before
+
+
+def _unyield(niced: tuple[int, int] | None) -> None:
+    """Give a thread of this process the niceness :func:`_yield_cpu` took from it, where permitted (a process may
+    raise a thread's priority only with ``CAP_SYS_NICE`` or an ``RLIMIT_NICE``, as it may take ``SCHED_FIFO``)."""
+    if niced is None or not os.path.exists(f"/proc/self/task/{niced[0]}"):  # none, or the thread has ended
+        return
+    try:
+        os.setpriority(os.PRIO_PROCESS, niced[0], niced[1])
+    except OSError:  # not permitted: it keeps the lower priority
         pass
 
 

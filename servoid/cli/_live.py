@@ -357,6 +357,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
                 window.close()  # the worker stopped and the switch interval restored on an error's way out too
                 raise
     clock.mark("run")
+    for search in (early, slow_search):  # no sampler to yield to any more: the searches at the machine's priority
+        if search is not None:
+            search.full_speed()
     if slow_search is not None and result.stopped != "interrupted" and _maybe_outside(window.model):
         # no sampler to share the machine with any more: the slow phase's search, if no window has started it, now
         # runs beside the waits below (the answer's step 4 takes it when the place is outside the loop; the CiA 402
