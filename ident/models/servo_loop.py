@@ -397,7 +397,7 @@ def _load_substep(
             sl, dsl = _sat(vc, veps)
             lv, dlv = _load_level(vc, al, als, vls)
             g = vc * (1.0 + mu + h * kv) + h * f + h * mu * lv * sl - base
-            vc -= g / (1.0 + mu + h * kv + h * df + h * mu * (lv * dsl + dlv * sl))
+            vc -= g / (1.0 + mu + h * kv + h * df + h * mu * lv * dsl + h * mu * dlv * sl)
         sl, _ = _sat(vc, veps)
         lv, _ = _load_level(vc, al, als, vls)
         # the flank's force on the load, mu (dv/dt + al sat): it pushes, it never pulls
