@@ -49,11 +49,10 @@ def _held_fit(
     u: np.ndarray, y: np.ndarray, period: float, d: dict[str, float], free: tuple[str, ...], kept: np.ndarray,
     a_scale: float, integrator: bool, play: float,
 ) -> tuple[dict[str, float], float]:  # fmt: skip
-    """``d`` refitted with its play held at ``play`` (everything in ``free`` but the play), and its cost on ``kept``."""
-    held = tuple(n for n in free if n != "play")
-    fitted, _, _ = lf._fit(u, y, period, PLAY_IN_LOOP, dict(d, play=play), kept, a_scale, integrator=integrator,
-                           max_nfev=lf.FINAL_NFEV + lf.CANDIDATE_NFEV, free=held, ftol=lf.FTOL, stall=lf.STALL)  # fmt: skip
-    return fitted, lf._cost(u, y, period, PLAY_IN_LOOP, fitted, kept)
+    """``d`` refitted with its play held at ``play`` (horn_contact.held_play_fit, a longer fit), and its cost on ``kept``."""
+    fitted, cost, _ = hc.held_play_fit(u, y, period, d, play, kept, a_scale, integrator, free,
+                                       max_nfev=lf.FINAL_NFEV + lf.CANDIDATE_NFEV)  # fmt: skip
+    return fitted, cost
 
 
 def profile(

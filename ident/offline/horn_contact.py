@@ -40,7 +40,7 @@ from servoid.ident.metrics import free_run_nrmse, nrmse
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline import loop_fit as lf
 
-__all__ = ["HORN_CONTACT", "MU", "REASON", "with_horn"]
+__all__ = ["HORN_CONTACT", "MU", "REASON", "with_horn", "held_play_fit"]
 
 #: Whether :func:`~servoid.ident.offline.second_structure.second_structure` runs the stage.
 HORN_CONTACT = True
@@ -189,17 +189,15 @@ def _profiled(
     and the simulations spent."""
     if not PLAY_PROFILE:
         return d, 0
-    held = tuple(n for n in free if n != "play")
     base = lf._cost(u, y, period, PLAY_IN_LOOP, d, score)
     spent = 1
     best = (base, d)
     for side in (sorted(f for f in PLAY_PROFILE if f < 1.0)[::-1], sorted(f for f in PLAY_PROFILE if f > 1.0)):
         start, rises = d, 0
         for factor in side:
-            fitted, prob, _ = lf._fit(u, y, period, PLAY_IN_LOOP, dict(start, play=factor * d["play"]), score, a_scale,
-                                      integrator=integrator, max_nfev=NFEV, free=held, ftol=lf.FTOL, stall=lf.STALL)  # fmt: skip
-            cost = lf._cost(u, y, period, PLAY_IN_LOOP, fitted, score)
-            spent += prob.evaluations + 1
+            fitted, cost, used = held_play_fit(u, y, period, start, factor * d["play"], score, a_scale, integrator,
+                                               free, max_nfev=NFEV)  # fmt: skip
+            spent += used
             start = fitted
             if cost < best[0]:
                 best, rises = (cost, fitted), 0
@@ -208,3 +206,25 @@ def _profiled(
                 if rises >= PROFILE_RISES:
                     break
     return best[1], spent
+
+
+def held_play_fit(
+    u: np.ndarray,
+    y: np.ndarray,
+    period: float,
+    d: dict[str, float],
+    play: float,
+    score: np.ndarray,
+    a_scale: float,
+    integrator: bool,
+    free: tuple[str, ...],
+    *,
+    max_nfev: int,
+) -> tuple[dict[str, float], float, int]:
+    """``d`` refitted with its play held at ``play`` (every other name of ``free`` refitted): one point of a profile
+    over the play (:func:`_profiled`, ``benchmarks/horn_profile.py``). Returns the fit, its cost on ``score`` and the
+    simulations spent."""
+    held = tuple(n for n in free if n != "play")
+    fitted, prob, _ = lf._fit(u, y, period, PLAY_IN_LOOP, dict(d, play=play), score, a_scale, integrator=integrator,
+                              max_nfev=max_nfev, free=held, ftol=lf.FTOL, stall=lf.STALL)  # fmt: skip
+    return fitted, lf._cost(u, y, period, PLAY_IN_LOOP, fitted, score), prob.evaluations + 1
