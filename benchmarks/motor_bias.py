@@ -2,7 +2,7 @@
 
 Run: ``.venv/bin/python benchmarks/motor_bias.py --presets cia402 --rates 10,50 --seeds 1,2,3
 [--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85[,WC,ZETA,ALS,VLS]]
-[--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
+[--contact-profile 566,400,283,200,141,100 [--contact-zeta 0.025]] [--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
 
 On each record (``real_servos.twin_record``: the table's gentle sines and 0.3 count of noise; the output encoder's
 counts per revolution ``--output-cpr``, default the table's 4096), ``identify`` with no flags on three readings of
@@ -25,7 +25,11 @@ contact too (``wc`` its frequency on the load's inertia, rad/s, 0: rigid; ``zeta
 break-away (``als`` its static friction as a deceleration, ``vls`` its Stribeck speed; the CiA 402 twin's:
 ``0.89,10,0.85,1944.6,0.036,12.5,0.01``, from its gear's 75 630 N m/rad and 2.8 N m s on 0.02 kg m^2, and the load's
 0.25 N m break-away over 0.01 rad/s; the ODrive's ``2.84,2.5,0.92,200,0.025,3,0.01``). Several loads separated by
-``;`` are each refitted from the same answer. ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
+``;`` are each refitted from the same answer. ``--contact-profile WC,WC,...``: the answer refitted alike on the model's
+compliant contact held at each frequency in turn (rad/s on the load's inertia, each from the fit before; damping ratio
+``--contact-zeta``), with the load's inertia and friction held at the answer's and refitted too: the cost over the
+contact's frequency as a fit of it would see it, and the play at its least (the twin's frequency is not given: a
+user's gear has its own; :func:`contact_profile`). ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
 scaled; a load of a hundredth, ``load x0.01``, leaves the motor side without the load it picks up at a flank).
 Per effect and reading: within 5 %, mean, standard deviation, largest. The twins' presets are not changed (the
 overrides make this run's copies). The machine may be shared: times are one run each.
@@ -35,6 +39,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import warnings
 from typing import Any
 
@@ -54,6 +59,8 @@ from servoid.ident.offline.operating_point import operating_point
 READINGS = ("twin", "load now", "play operator")
 #: What ``--held-load`` holds, in its order: the model's load, its contact (``wc`` 0: rigid) and its break-away.
 HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls")
+#: ``--contact-profile``: the load's inertia and friction held at the answer's at every point, or refitted there.
+PROFILE_MODES = ("load held", "load free")
 
 
 def play_operator(x: np.ndarray, play: float, y0: float) -> np.ndarray:
@@ -84,6 +91,37 @@ def load_vs_gear(gear: np.ndarray, load: np.ndarray, play: float) -> float:
     return float(found.x[0]) - 1.0
 
 
+def _answer(
+    u: np.ndarray, y: np.ndarray, period: float
+) -> tuple[Any, tuple[np.ndarray, np.ndarray, float], dict[str, float], float]:
+    """``fit_loop``'s answer as ``identify`` runs it (the record centred alike), what its refits need (the record as the
+    final refit centres it, the scale of ``a0``), its values and its cost on every sample."""
+    uc, yc = (np.asarray(a) for a in operating_point(u, y).centre(u, y))
+    model = lf.fit_loop(uc, yc, period, load=None).model
+    uc, yc, a_scale, _, answer = refit_setup(uc, yc, period, model)
+    return model, (uc, yc, a_scale), answer, _cost(uc, yc, period, model, answer)
+
+
+def _cost(uc: np.ndarray, yc: np.ndarray, period: float, model: Any, d: dict[str, float]) -> float:
+    """The values ``d`` in ``model``'s structure: their sum of squared residuals on every sample."""
+    return lf._cost(uc, yc, period, model.structure, d, np.ones(yc.size, dtype=bool))
+
+
+def _refit(
+    record: tuple[np.ndarray, np.ndarray, float],
+    period: float,
+    model: Any,
+    start: dict[str, float],
+    free: tuple[str, ...],
+) -> tuple[dict[str, float], float]:
+    """``start`` refitted on every sample with ``free`` free (the final refit's budget and stop): its values and cost."""
+    uc, yc, a_scale = record
+    d, _, _ = lf._fit(uc, yc, period, model.structure, start, np.ones(yc.size, dtype=bool), a_scale,
+                      integrator=model.ki > 0.0, max_nfev=lf.FINAL_NFEV, free=free, ftol=lf.FTOL,
+                      stall=lf.FINAL_STALL)  # fmt: skip
+    return d, _cost(record[0], record[1], period, model, d)
+
+
 def held_load(
     u: np.ndarray, y: np.ndarray, period: float, truth: float, loads: list[tuple[float, ...]]
 ) -> dict[str, Any]:
@@ -92,24 +130,53 @@ def held_load(
     0: rigid, and the load's break-away): the final refit's free parameters and budget, the per-inertia values started
     ``1 + mu`` times the massless ones. Returns the answer's play error and inertia ratio, and per load the held fit's
     play error and its cost in residual variances against the answer's."""
-    uc, yc = (np.asarray(a) for a in operating_point(u, y).centre(u, y))
-    model = lf.fit_loop(uc, yc, period, load=None).model
-    uc, yc, a_scale, _, answer = refit_setup(uc, yc, period, model)
-    every = np.ones(yc.size, dtype=bool)
-    base = lf._cost(uc, yc, period, model.structure, answer, every)
+    model, rec, answer, base = _answer(u, y, period)
     plays, variances = [], []
     for load in loads:
         start = dict(answer, **dict(zip(HELD_NAMES, load, strict=False)))
         for name in _PER_INERTIA:
             start[name] = answer[name] * (1.0 + load[0]) / (1.0 + answer.get("mu", 0.0))
-        d, _, _ = lf._fit(uc, yc, period, model.structure, start, every, a_scale, integrator=model.ki > 0.0,
-                          max_nfev=lf.FINAL_NFEV, free=lf._free(model.structure, model.ki > 0.0), ftol=lf.FTOL,
-                          stall=lf.FINAL_STALL)  # fmt: skip
-        cost = lf._cost(uc, yc, period, model.structure, d, every)
+        d, cost = _refit(rec, period, model, start, lf._free(model.structure, model.ki > 0.0))
         plays.append(d["play"] / truth - 1.0)
-        variances.append((cost - base) / (base / yc.size))
+        variances.append((cost - base) / (base / rec[1].size))
     return {"answer": model.play / truth - 1.0, "mu": float(model.mu), "held": plays, "variances": variances,
             "loads": [list(load) for load in loads]}  # fmt: skip
+
+
+def contact_profile(
+    u: np.ndarray, y: np.ndarray, period: float, truth: float, wcs: list[float], zeta: float
+) -> dict[str, Any]:
+    """``fit_loop``'s answer (as ``identify`` runs it) refitted on every sample on the model's compliant contact held at
+    each frequency of ``wcs`` (rad/s on the load's inertia, in the order given, each point started from the one before)
+    with the damping ratio ``zeta``; the final refit's free parameters and budget, with the load's inertia and friction
+    held at the answer's (:data:`PROFILE_MODES` "load held") or refitted too ("load free"). Returns the answer's play
+    error and inertia ratio and per mode each point's ``[play error, cost in residual variances against the answer's,
+    inertia ratio]``; nothing for a massless answer (the contact is a massive load's)."""
+    model, rec, answer, base = _answer(u, y, period)
+    row: dict[str, Any] = {"answer": model.play / truth - 1.0, "mu": float(model.mu), "wcs": wcs, "zeta": zeta,
+                           "samples": int(rec[1].size)}  # fmt: skip
+    if not model.massive:
+        return row
+    loop = lf._free(model.structure, model.ki > 0.0)
+    for mode, free in zip(PROFILE_MODES, (loop, loop + ("mu", "al")), strict=True):
+        d, points = answer, []
+        for wc in wcs:
+            d, cost = _refit(rec, period, model, dict(d, wc=wc, zeta=zeta), free)
+            points.append([d["play"] / truth - 1.0, (cost - base) / (base / rec[1].size), d["mu"]])
+        row[mode] = points
+    return row
+
+
+def least(row: dict[str, Any], mode: str, pays: bool = False) -> tuple[float, float]:
+    """A contact profile's point of least cost (:func:`contact_profile`): its frequency and play error; with ``pays``,
+    only where it costs more than ``ln n`` residual variances less than the answer (BIC, the one parameter ``wc``).
+    Elsewhere (and for a massless answer) the answer's play error, at the frequency 0 (rigid)."""
+    if mode not in row:
+        return 0.0, row["answer"]
+    at = int(np.argmin([p[1] for p in row[mode]]))
+    if pays and not row[mode][at][1] < -math.log(row["samples"]):
+        return 0.0, row["answer"]
+    return row["wcs"][at], row[mode][at][0]
 
 
 def record(
@@ -120,6 +187,7 @@ def record(
     seed: int,
     wanted: tuple[str, ...] = READINGS,
     held: list[tuple[float, ...]] | None = None,
+    profile: tuple[list[float], float] | None = None,
 ) -> dict[str, Any]:
     """One record's play errors on the ``wanted`` readings, and the load's against the gear's motor side."""
     rec = twin_record(name, mult, 1.0, "sines", seed, **over)
@@ -148,6 +216,8 @@ def record(
     row["load vs gear"] = load_vs_gear(gear, load, truth)
     if held:
         row["held load"] = held_load(np.asarray(rec["u"]), readings["twin"], period, truth, held)
+    if profile:
+        row["contact profile"] = contact_profile(np.asarray(rec["u"]), readings["twin"], period, truth, *profile)
     return row
 
 
@@ -157,16 +227,29 @@ def _held(row: dict[str, Any]) -> tuple[list[float], list[float]]:
     return list(np.atleast_1d(held["held"])), list(np.atleast_1d(held["variances"]))
 
 
+def _profiled(row: dict[str, Any], mode: str) -> str:
+    """A row's contact profile in ``mode``: the answer's play error, each point's, and the least cost's frequency."""
+    if "contact profile" not in row:
+        return ""
+    prof = row["contact profile"]
+    if mode not in prof:
+        return f"{100 * prof['answer']:+.1f} % (massless)"
+    points = " / ".join(f"{100 * p[0]:+.1f} ({p[1]:+.0f})" for p in prof[mode])
+    return f"{100 * prof['answer']:+.1f} -> {points}: {least(prof, mode)[0]:g}"
+
+
 def print_tables(rows: list[dict[str, Any]]) -> None:
     """The per-record table and the summary per effect and reading."""
     table(
         "identify's play error on each reading (mu: the load stage's inertia ratio, 0 massless)",
-        ["preset", "effect", "rate", "seed", "play (counts)", *READINGS, "load vs gear", "held load (variances)"],
+        ["preset", "effect", "rate", "seed", "play (counts)", *READINGS, "load vs gear", "held load (variances)",
+         *(f"contact, {mode}: least (rad/s)" for mode in PROFILE_MODES)],
         [[r["preset"], r["effect"], f"{r['mult']:g}x", str(r["seed"]), f"{r['counts']:.2f}",
           *(f"{100 * r[k]['gap']:+.1f} % ({r[k]['mu']:.2f})" if k in r else "" for k in READINGS),
           f"{100 * r['load vs gear']:+.2f} %",
           f"{100 * r['held load']['answer']:+.1f} -> " + " / ".join(
-              f"{100 * g:+.1f} % ({v:+.0f})" for g, v in zip(*_held(r), strict=True)) if "held load" in r else ""]
+              f"{100 * g:+.1f} % ({v:+.0f})" for g, v in zip(*_held(r), strict=True)) if "held load" in r else "",
+          *(_profiled(r, mode) for mode in PROFILE_MODES)]
          for r in rows],
     )  # fmt: skip
     out = []
@@ -178,6 +261,13 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
             columns["held load: answer"] = [r["held load"]["answer"] for r in group]
             for i, load in enumerate(group[0]["held load"].get("loads", [[]])):
                 columns[f"held load {','.join(f'{v:g}' for v in load)}"] = [_held(r)[0][i] for r in group]
+        if "contact profile" in group[0]:
+            columns["contact profile: answer"] = [r["contact profile"]["answer"] for r in group]
+            for mode in PROFILE_MODES:
+                columns[f"contact profile, {mode}: least"] = [least(r["contact profile"], mode)[1] for r in group]
+                columns[f"contact profile, {mode}: where it pays"] = [
+                    least(r["contact profile"], mode, pays=True)[1] for r in group
+                ]
         for reading, gaps in columns.items():
             g = np.array(gaps)
             out.append([*key, reading, str(g.size), str(int(np.sum(np.abs(g) <= 0.05))), f"{100 * g.mean():+.1f} %",
@@ -201,6 +291,9 @@ def main() -> None:
         help="MU,AL,E[,WC,ZETA[,ALS,VLS]], several separated by ';': also refit the twin reading's answer with each load "
         "held (see held_load)",
     )
+    profile_help = "WC,WC,... rad/s, in this order: also refit the answer on the contact held at each (contact_profile)"
+    parser.add_argument("--contact-profile", default="", help=profile_help)
+    parser.add_argument("--contact-zeta", type=float, default=0.025, help="the profile's contact damping ratio")
     parser.add_argument("--dump", default=None)
     parser.add_argument("--load", default=None)
     args = parser.parse_args()
@@ -209,6 +302,8 @@ def main() -> None:
             print_tables([json.loads(line) for line in f])
         return
     held = [tuple(float(v) for v in load.split(",")) for load in args.held_load.split(";") if load.strip()]
+    wcs = [float(v) for v in args.contact_profile.split(",") if v.strip()]
+    profile = (wcs, args.contact_zeta) if wcs else None
     rows = []
     for name in args.presets.split(","):
         cases = effects(name)
@@ -219,7 +314,7 @@ def main() -> None:
             for mult in (float(m) for m in args.rates.split(",")):
                 for seed in (int(s) for s in args.seeds.split(",")):
                     wanted = tuple(r for r in args.readings.split(",") if r)
-                    rows.append(record(name, what, over, mult, seed, wanted, held))
+                    rows.append(record(name, what, over, mult, seed, wanted, held, profile))
                     print(json.dumps(rows[-1]), flush=True)
                     append_json(args.dump, rows[-1])
     print_tables(rows)
