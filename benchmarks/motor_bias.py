@@ -1,7 +1,7 @@
 """Where a motor-side twin's play error comes from (issue 12): the encoder, the load's motion or the loop.
 
 Run: ``.venv/bin/python benchmarks/motor_bias.py --presets cia402 --rates 10,50 --seeds 1,2,3
-[--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85[,WC,ZETA,ALS,VLS]]
+[--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85[,WC,ZETA,ALS,VLS[,TV]]]
 [--contact-profile 566,400,283,200,141,100 [--contact-zeta 0.025]] [--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
 
 On each record (``real_servos.twin_record``: the table's gentle sines and 0.3 count of noise; the output encoder's
@@ -24,7 +24,9 @@ term, given the truth, takes the bias off. ``--held-load MU,AL,E,WC,ZETA[,ALS,VL
 contact too (``wc`` its frequency on the load's inertia, rad/s, 0: rigid; ``zeta`` its damping ratio) and the load's
 break-away (``als`` its static friction as a deceleration, ``vls`` its Stribeck speed; the CiA 402 twin's:
 ``0.89,10,0.85,1944.6,0.036,12.5,0.01``, from its gear's 75 630 N m/rad and 2.8 N m s on 0.02 kg m^2, and the load's
-0.25 N m break-away over 0.01 rad/s; the ODrive's ``2.84,2.5,0.92,200,0.025,3,0.01``). Several loads separated by
+0.25 N m break-away over 0.01 rad/s; the ODrive's ``2.84,2.5,0.92,200,0.025,3,0.01``), and an eighth value holds
+the model's velocity filter (``tv``, s: the time constant on the speed its velocity loop feeds back; the CiA 402
+drive's 0.001; ``0,0,0,0,0,0,0,0.001`` is the massless answer with the filter alone). Several loads separated by
 ``;`` are each refitted from the same answer. ``--contact-profile WC,WC,...``: the answer refitted alike on the model's
 compliant contact held at each frequency in turn (rad/s on the load's inertia, each from the fit before; damping ratio
 ``--contact-zeta``), with the load's inertia and friction held at the answer's and refitted too: the cost over the
@@ -57,8 +59,9 @@ from servoid.ident.offline.operating_point import operating_point
 
 #: The readings identify answers on (see the module's docstring).
 READINGS = ("twin", "load now", "play operator")
-#: What ``--held-load`` holds, in its order: the model's load, its contact (``wc`` 0: rigid) and its break-away.
-HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls")
+#: What ``--held-load`` holds, in its order: the model's load, its contact (``wc`` 0: rigid), its break-away and its
+#: velocity filter.
+HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls", "tv")
 #: ``--contact-profile``: the load's inertia and friction held at the answer's at every point, or refitted there.
 PROFILE_MODES = ("load held", "load free")
 
@@ -126,8 +129,8 @@ def held_load(
     u: np.ndarray, y: np.ndarray, period: float, truth: float, loads: list[tuple[float, ...]]
 ) -> dict[str, Any]:
     """``fit_loop``'s answer (as ``identify`` runs it, the record centred alike) refitted on every sample with each load
-    ``(mu, al, e[, wc, zeta[, als, vls]])`` of ``loads`` held (:data:`HELD_NAMES`: the contact's frequency and damping,
-    0: rigid, and the load's break-away): the final refit's free parameters and budget, the per-inertia values started
+    ``(mu, al, e[, wc, zeta[, als, vls[, tv]]])`` of ``loads`` held (:data:`HELD_NAMES`: the contact's frequency and
+    damping, 0: rigid, the load's break-away and the velocity filter's time constant): the final refit's free parameters and budget, the per-inertia values started
     ``1 + mu`` times the massless ones. Returns the answer's play error and inertia ratio, and per load the held fit's
     play error and its cost in residual variances against the answer's."""
     model, rec, answer, base = _answer(u, y, period)
@@ -288,7 +291,7 @@ def main() -> None:
     parser.add_argument(
         "--held-load",
         default="",
-        help="MU,AL,E[,WC,ZETA[,ALS,VLS]], several separated by ';': also refit the twin reading's answer with each load "
+        help="MU,AL,E[,WC,ZETA[,ALS,VLS[,TV]]], several separated by ';': also refit the twin reading's answer with each load "
         "held (see held_load)",
     )
     profile_help = "WC,WC,... rad/s, in this order: also refit the answer on the contact held at each (contact_profile)"

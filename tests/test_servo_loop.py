@@ -274,3 +274,74 @@ def test_a_load_that_breaks_away_is_in_the_kernels_and_round_trips() -> None:
     off = dataclasses.replace(rigid, als=2.0, vls=0.02)
     assert not off.breaks_away and tuple(off.params())[-1] == "al"
     np.testing.assert_array_equal(off.simulate(u), rigid.simulate(u))
+
+
+def test_a_velocity_filter_lags_the_loop_as_a_first_order_filter_should() -> None:
+    # no friction, no play, no integrator: a set point far away clips the velocity command at vmax, a step of it.
+    # The loop is then dv/dt = kv (vmax - vf), dvf/dt = (v - vf) / tv (vf = v without the filter): the motor speed
+    # and the filtered one against that system's exact step response, each within the sub-step's error
+    from scipy.linalg import expm
+
+    kv, vmax, period = 400.0, 2.0, 0.00025
+    t = period * np.arange(1, 161)
+
+    def exact(tv: float) -> np.ndarray:
+        m = np.zeros((3, 3))
+        if tv > 0.0:
+            m[:2, :2], m[0, 2] = [[0.0, -kv], [1.0 / tv, -1.0 / tv]], kv * vmax
+        else:  # the speed fed back is the speed itself
+            m[:2, :2], m[:2, 2] = [[-kv, 0.0], [0.0, -kv]], kv * vmax
+        step = expm(m * period)
+        at, out = np.eye(3), []
+        for _ in t:
+            at = step @ at
+            out.append(at[:2, 2])
+        return np.array(out)
+
+    for tv in (0.0, 0.002, 0.01):
+        model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tv=tv)
+        p = model.vector()
+        state = np.empty(STATE_SIZE)
+        initial_state(p, 0.0, state)
+        got = []
+        for _ in t:
+            advance(p, False, state, 10.0, period, model.substeps)
+            got.append((state[2], state[6]))
+        assert np.max(np.abs(np.array(got) - exact(tv))) < 0.05 * vmax
+    # the lag is far beyond that error: the loop with a 10 ms filter overshoots to twice the command, the plain one not
+    assert np.max(exact(0.01)[:, 0]) > 2.0 * vmax and np.max(exact(0.0)[:, 0]) <= vmax
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_a_velocity_filter_is_in_every_kernel_and_off_changes_nothing(structure: str) -> None:
+    u = 0.1 * np.sin(np.arange(300) * 0.05)
+    loads = (
+        {},
+        {"mu": 0.6, "e": 0.3, "al": 3.0},
+        {"mu": 0.6, "al": 3.0, "wc": 900.0, "zeta": 0.1, "als": 5.0, "vls": 0.02},
+    )
+    for load in loads:
+        plain = _model(structure, **load)
+        filtered = dataclasses.replace(plain, tv=0.02)
+        assert filtered.names()[-1] == "tv" and "tv" not in plain.names()
+        assert ServoLoopModel.from_vector(structure, 0.01, filtered.vector()) == filtered
+        assert ServoLoopModel.from_dict(filtered.to_dict()) == filtered
+        # off: a vector without the filter (an older model's) simulates to the bit as one with tv = 0
+        short = np.empty(u.size)
+        simulate_kernel(plain.vector()[:-1], plain.feedback_load, u, 0.0, 0.01, plain.substeps, short)
+        np.testing.assert_array_equal(plain.simulate(u, y0=0.0), short)
+        # on: it changes the free run, compiled as in Python, and the pair kernel gives both to the bit
+        fast, slow = np.empty(u.size), np.empty(u.size)
+        args = (filtered.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps)
+        simulate_kernel(*args, fast)
+        python_version(simulate_kernel)(*args, slow)
+        np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+        assert np.max(np.abs(fast - short)) > 1e-2 * plain.play
+        both = [np.empty(u.size), np.empty(u.size)]
+        simulate_pair_kernel(
+            filtered.vector(), plain.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
+        )
+        assert np.array_equal(both[0], fast) and np.array_equal(both[1], short)
+    # a vanishing time constant is the loop without the filter
+    plain = _model(structure)
+    np.testing.assert_allclose(dataclasses.replace(plain, tv=1e-12).simulate(u), plain.simulate(u), rtol=0, atol=1e-9)

@@ -15,6 +15,9 @@ simulator serves both places of the play (:mod:`~servoid.ident.models.structure_
                  frequency wc and damping ratio zeta outside the play (:func:`_advance_contact`)
                  either with (opt-in, als > al) a break-away: the load's friction als at rest, falling to al
                  over the speed vls (:func:`_load_level`)
+    velocity filter (opt-in, tv > 0): the velocity loop feeds back vf, the motor side's speed through a first-order
+                 filter, vf' = (v - vf) / tv, in place of v (kv (v_cmd - vf), z' = ki (v_cmd - vf)): a cascade
+                 drive's velocity estimate, the encoder's differences filtered (:func:`_filtered`)
     reading:     y_hat(k) = y(t_k), read at the host instant before the command u(k) is applied
 
 Why this form (physics, see the issue-12 study): a drive that closes its loop
@@ -62,6 +65,7 @@ __all__ = [
     "LOAD_NAMES",
     "CONTACT_NAMES",
     "BREAKAWAY_NAMES",
+    "FILTER_NAMES",
     "KERNEL_NAMES",
     "STATE_SIZE",
     "ServoLoopModel",
@@ -88,9 +92,13 @@ CONTACT_NAMES: tuple[str, ...] = ("wc", "zeta")
 #: deceleration (``als > al``; 0, or a vector without them: none, the load's friction is ``al`` at every speed) and
 #: the speed ``vls`` over which it falls to ``al`` (Stribeck's law, as the motor's ``fs``, ``vs``).
 BREAKAWAY_NAMES: tuple[str, ...] = ("als", "vls")
-#: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, :data:`CONTACT_NAMES`, then
-#: :data:`BREAKAWAY_NAMES`.
-KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES
+#: The velocity loop's filter (:func:`_filtered`), after :data:`BREAKAWAY_NAMES`: the time constant ``tv`` of the
+#: first-order filter on the speed the velocity loop feeds back, s (0, or a vector without it: none, the loop feeds
+#: back the motor side's speed itself). Any model, massless or not.
+FILTER_NAMES: tuple[str, ...] = ("tv",)
+#: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, :data:`CONTACT_NAMES`,
+#: :data:`BREAKAWAY_NAMES`, then :data:`FILTER_NAMES`.
+KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES + FILTER_NAMES
 #: A rebound slower than this share of the speed the load's friction takes off in one sub-step ends in
 #: contact (:func:`_advance_load`): small, so that a small restitution still bounces (the fit needs its slope).
 REBOUND_SHARE = 0.01
@@ -98,8 +106,8 @@ REBOUND_SHARE = 0.01
 #: sub-steps per period of the contact's ringing, so that the explicit contact force neither damps nor
 #: excites it (the fit's own sub-step, :data:`H_KV_MAX`, is up to ten times longer than the contact's period).
 H_WC_MAX = 0.1
-#: Floats in the simulation's state: ``[x, y, v, z, w, contact]`` (:func:`initial_state`).
-STATE_SIZE = 6
+#: Floats in the simulation's state: ``[x, y, v, z, w, contact, vf]`` (:func:`initial_state`).
+STATE_SIZE = 7
 
 #: Largest ``h kv`` of a sub-step: the implicit velocity step stays accurate (the study measured
 #: 0.7 count rms of model error on the XM430 at ``h kv = 0.8``, 0.35 at 0.1).
@@ -148,8 +156,9 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     y0 : float
         The load's position.
     state : ndarray
-        ``[x, y, v, z, w, contact]``, overwritten: motor side, load, motor speed, integrator, load speed
-        and the flank in contact (0 free, +1 the motor pushes up, -1 down; a massive load only).
+        ``[x, y, v, z, w, contact, vf]``, overwritten: motor side, load, motor speed, integrator, load speed,
+        the flank in contact (0 free, +1 the motor pushes up, -1 down; a massive load only) and the filtered
+        speed the velocity loop feeds back (with ``tv > 0``; else it follows the motor speed).
     """
     c1, c2, s0 = p[9], p[10], p[11]
     state[0] = y0 - c2 + s0 * (c1 + c2)
@@ -160,6 +169,7 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     # a massive load starts at rest, free inside the play (a flank it rests on is met at zero speed: contact)
     state[4] = 0.0
     state[5] = 0.0
+    state[6] = 0.0
 
 
 @jit
@@ -191,16 +201,53 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
             return _advance_contact(p, feedback_load, state, r, period, m, veps)
         return _advance_load(p, feedback_load, state, r, period, m, veps)
     h = period / m
-    x, yl, v, z = state[0], state[1], state[2], state[3]
+    g = _filter_gain(p, h)
+    x, yl, v, z, vf = state[0], state[1], state[2], state[3], state[6]
     for _ in range(m):
         vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0, h)
+        base, kvf = _filtered(base, kv, vf, g, h)
         vn = v
         for _ in range(2):
-            vn = _newton(vn, base, kv, fc, fs, vs, veps, h)
-        x, yl, z = _moved(x, yl, z, vcmd, vn, ki, c1, c2, h)
+            vn = _newton(vn, base, kvf, fc, fs, vs, veps, h)
+        vf = _filter_moved(vf, vn, g)
+        x, yl, z = _moved(x, yl, z, vcmd, vn, vf, ki, c1, c2, h)
         v = vn
-    state[0], state[1], state[2], state[3] = x, yl, v, z
+    state[0], state[1], state[2], state[3], state[6] = x, yl, v, z, vf
     return float(yl)
+
+
+@jit
+def _filter_gain(p: np.ndarray, h: float) -> float:
+    """The velocity filter's weight of the new speed in one implicit sub-step ``h``: ``h / (tv + h)`` (1: no filter).
+
+    ``tv`` is ``p``'s :data:`FILTER_NAMES` (0, or a vector without it: none).
+    """
+    if p.shape[0] > 19 and p[19] > 0.0:
+        return h / (float(p[19]) + h)
+    return 1.0
+
+
+@jit_inline
+def _filtered(base: float, kv: float, vf: float, g: float, h: float) -> tuple[float, float]:
+    """The implicit velocity step's known part and rate when the loop feeds back the filtered speed (``g < 1``).
+
+    The drive's velocity estimate, the encoder's differences through a first-order filter of time constant ``tv``
+    (``vf' = (v - vf) / tv``), feeds its velocity loop: ``dv/dt = kv (v_cmd - vf) + z + a0 - F(v)``. Implicit in
+    ``v`` and ``vf`` together, ``vf_new = vf + g (v_new - vf)`` with ``g = h / (tv + h)``, the step is
+    :func:`_newton`'s with the rate ``kv g`` and ``h kv (1 - g) vf`` off its known part; ``g = 1`` (no filter)
+    returns both unchanged.
+    """
+    if g < 1.0:
+        return base - h * kv * (1.0 - g) * vf, kv * g
+    return base, kv
+
+
+@jit_inline
+def _filter_moved(vf: float, vn: float, g: float) -> float:
+    """The filtered speed after a sub-step whose motor speed is ``vn`` (:func:`_filtered`; ``g = 1``: ``vn`` itself)."""
+    if g < 1.0:
+        return vf + g * (vn - vf)
+    return vn
 
 
 @jit_inline
@@ -232,11 +279,12 @@ def _newton(vn: float, base: float, kv: float, fc: float, fs: float, vs: float, 
 
 @jit_inline
 def _moved(
-    x: float, yl: float, z: float, vcmd: float, vn: float, ki: float, c1: float, c2: float, h: float
+    x: float, yl: float, z: float, vcmd: float, vn: float, vf: float, ki: float, c1: float, c2: float, h: float
 ) -> tuple[float, float, float]:
-    """The sub-step's end from the new speed ``vn``: the integrator, the motor side and the massless load."""
+    """The sub-step's end from the new speed ``vn``: the integrator (of ``vcmd - vf``, the speed fed back,
+    :func:`_filter_moved`), the motor side and the massless load."""
     if ki > 0.0:
-        z += h * ki * (vcmd - vn)
+        z += h * ki * (vcmd - vf)
     x += h * vn
     # the massless load: the play operator of the motor side
     if x - yl > c1:
@@ -248,10 +296,12 @@ def _moved(
 
 @jit
 def _motor_step(
-    v: float, vcmd: float, z: float, a0: float, kv: float, fc: float, fs: float, vs: float, veps: float, h: float
-) -> float:
-    """The motor side's implicit velocity step alone (the massless load's, :func:`advance`)."""
-    base = v + h * (kv * vcmd + z + a0)
+    v: float, vcmd: float, z: float, a0: float, kv: float, fc: float, fs: float, vs: float, veps: float, h: float,
+    vf: float = 0.0, g: float = 1.0,
+) -> float:  # fmt: skip
+    """The motor side's implicit velocity step alone (the massless load's, :func:`advance`; ``vf``, ``g``: the
+    velocity filter's, :func:`_filtered`)."""
+    base, kv = _filtered(v + h * (kv * vcmd + z + a0), kv, vf, g, h)
     vn = v
     for _ in range(2):
         f, df = _friction(vn, fc, fs, vs, veps)
@@ -347,13 +397,14 @@ def _advance_load(
     mu, e, al = p[12], p[13], p[14]
     als, vls = _breakaway(p)
     h = period / m
-    x, yl, v, z, w, side = state[0], state[1], state[2], state[3], state[4], state[5]
+    g = _filter_gain(p, h)
+    x, yl, v, z, w, side, vf = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     for _ in range(m):
-        x, yl, v, z, w, side = _load_substep(
+        x, yl, v, z, w, side, vf = _load_substep(
             x, yl, v, z, w, side, r, feedback_load, kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2, mu, e, al, h,
-            als, vls,
+            als, vls, vf, g,
         )  # fmt: skip
-    state[0], state[1], state[2], state[3], state[4], state[5] = x, yl, v, z, w, side
+    state[0], state[1], state[2], state[3], state[4], state[5], state[6] = x, yl, v, z, w, side, vf
     return float(yl)
 
 
@@ -384,32 +435,36 @@ def _load_substep(
     h: float,
     als: float = 0.0,
     vls: float = 1.0,
-) -> tuple[float, float, float, float, float, float]:
-    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact)`` (``als``, ``vls``: the load's
-    break-away, :func:`_load_level`)."""
+    vf: float = 0.0,
+    g: float = 1.0,
+) -> tuple[float, float, float, float, float, float, float]:
+    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact, vf)`` (``als``, ``vls``: the
+    load's break-away, :func:`_load_level`; ``vf``, ``g``: the velocity filter's, :func:`_filtered`)."""
     vcmd = _velocity_command(kp, r - (yl if feedback_load else x), vmax)
     if side != 0.0:
         # one body: the implicit step of the pair, two Newton steps on both frictions
-        base = (1.0 + mu) * v + h * (kv * vcmd + z + a0)
+        base, kvf = _filtered((1.0 + mu) * v + h * (kv * vcmd + z + a0), kv, vf, g, h)
         vc = v
         for _ in range(2):
             f, df = _friction(vc, fc, fs, vs, veps)
             sl, dsl = _sat(vc, veps)
             lv, dlv = _load_level(vc, al, als, vls)
-            g = vc * (1.0 + mu + h * kv) + h * f + h * mu * lv * sl - base
-            vc -= g / (1.0 + mu + h * kv + h * df + h * mu * lv * dsl + h * mu * dlv * sl)
+            gap = vc * (1.0 + mu + h * kvf) + h * f + h * mu * lv * sl - base
+            vc -= gap / (1.0 + mu + h * kvf + h * df + h * mu * lv * dsl + h * mu * dlv * sl)
         sl, _ = _sat(vc, veps)
         lv, _ = _load_level(vc, al, als, vls)
         # the flank's force on the load, mu (dv/dt + al sat): it pushes, it never pulls
         if side * ((vc - v) / h + lv * sl) >= 0.0:
+            vf = _filter_moved(vf, vc, g)
             if ki > 0.0:
-                z += h * ki * (vcmd - vc)
+                z += h * ki * (vcmd - vf)
             x += h * vc
-            return x, x - c1 if side > 0.0 else x + c2, vc, z, vc, side
+            return x, x - c1 if side > 0.0 else x + c2, vc, z, vc, side, vf
         side = 0.0
-    vn = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h)
+    vn = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h, vf, g)
+    vf = _filter_moved(vf, vn, g)
     if ki > 0.0:
-        z += h * ki * (vcmd - vn)
+        z += h * ki * (vcmd - vf)
     wn = _load_step(w, _load_level(w, al, als, vls)[0], veps, h)
     d0 = x - yl
     xn = x + h * vn
@@ -440,7 +495,7 @@ def _load_substep(
         yn = (xi - c1 if hit > 0.0 else xi + c2) + (1.0 - tau) * h * wn
         if side != 0.0:
             yn = xn - c1 if side > 0.0 else xn + c2
-    return xn, yn, vn, z, wn, side  # fmt: skip
+    return xn, yn, vn, z, wn, side, vf  # fmt: skip
 
 
 @jit
@@ -494,12 +549,13 @@ def _advance_contact(
     h = period / mc
     k2 = wc * wc
     c = 2.0 * zeta * wc
-    x, yl, v, z, w = state[0], state[1], state[2], state[3], state[4]
+    g = _filter_gain(p, h)
+    x, yl, v, z, w, vf = state[0], state[1], state[2], state[3], state[4], state[6]
     loop = (kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)
     contact = (mu, al, k2, c) + _breakaway(p)
     for _ in range(mc):
-        x, yl, v, z, w = _contact_substep(x, yl, v, z, w, r, feedback_load, loop, contact, h)
-    state[0], state[1], state[2], state[3], state[4] = x, yl, v, z, w
+        x, yl, v, z, w, vf = _contact_substep(x, yl, v, z, w, vf, r, feedback_load, loop, contact, h, g)
+    state[0], state[1], state[2], state[3], state[4], state[6] = x, yl, v, z, w, vf
     return float(yl)
 
 
@@ -524,6 +580,7 @@ def _contact_moved(
     f: float,
     vcmd: float,
     vn: float,
+    vf: float,
     ki: float,
     al: float,
     veps: float,
@@ -531,10 +588,11 @@ def _contact_moved(
     als: float = 0.0,
     vls: float = 1.0,
 ) -> tuple[float, float, float, float]:
-    """A compliant sub-step's end from the motor's new speed ``vn``: the integrator, the load's speed, the positions
-    (the load's friction at its level at the step's start, :func:`_load_level`)."""
+    """A compliant sub-step's end from the motor's new speed ``vn``: the integrator (of ``vcmd - vf``, the speed fed
+    back, :func:`_filter_moved`), the load's speed, the positions (the load's friction at its level at the step's
+    start, :func:`_load_level`)."""
     if ki > 0.0:
-        z += h * ki * (vcmd - vn)
+        z += h * ki * (vcmd - vf)
     w = _load_step(w + h * f, _load_level(w, al, als, vls)[0], veps, h)
     x += h * vn
     yl += h * w
@@ -548,26 +606,30 @@ def _contact_substep(
     v: float,
     z: float,
     w: float,
+    vf: float,
     r: float,
     feedback_load: bool,
     loop: tuple[float, float, float, float, float, float, float, float, float, float, float],
     contact: tuple[float, float, float, float, float, float],
     h: float,
-) -> tuple[float, float, float, float, float]:
-    """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w)`` after it.
+    g: float,
+) -> tuple[float, float, float, float, float, float]:
+    """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w, vf)`` after it.
 
     ``loop`` is :func:`_loop_params`'s ``(kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)``, ``contact`` is
-    ``(mu, al, wc^2, 2 zeta wc, als, vls)``.
+    ``(mu, al, wc^2, 2 zeta wc, als, vls)``, ``g`` the velocity filter's weight (:func:`_filter_gain`).
     """
     kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2 = loop
     mu, al, k2, c, als, vls = contact
     f = _contact_force(x, yl, v, w, c1, c2, k2, c)
     vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0 - mu * f, h)
+    base, kvf = _filtered(base, kv, vf, g, h)
     vn = v
     for _ in range(2):
-        vn = _newton(vn, base, kv, fc, fs, vs, veps, h)
-    x, yl, z, w = _contact_moved(x, yl, z, w, f, vcmd, vn, ki, al, veps, h, als, vls)
-    return x, yl, vn, z, w
+        vn = _newton(vn, base, kvf, fc, fs, vs, veps, h)
+    vf = _filter_moved(vf, vn, g)
+    x, yl, z, w = _contact_moved(x, yl, z, w, f, vcmd, vn, vf, ki, al, veps, h, als, vls)
+    return x, yl, vn, z, w, vf
 
 
 @jit
@@ -601,11 +663,11 @@ def simulate_kernel(
 
 
 @jit_inline
-def _at_rest(p: np.ndarray, y0: float) -> tuple[float, float, float, float, float, float]:
-    """:func:`initial_state` as a tuple ``(x, y, v, z, w, contact)``."""
+def _at_rest(p: np.ndarray, y0: float) -> tuple[float, float, float, float, float, float, float]:
+    """:func:`initial_state` as a tuple ``(x, y, v, z, w, contact, vf)``."""
     state = np.empty(STATE_SIZE)
     initial_state(p, y0, state)
-    return state[0], state[1], state[2], state[3], state[4], state[5]
+    return state[0], state[1], state[2], state[3], state[4], state[5], state[6]
 
 
 @jit_inline
@@ -647,8 +709,8 @@ def simulate_pair_kernel(
     if compliant_p and compliant_q:
         # two compliant contacts, each on its own sub-step (:func:`contact_substeps`): while both have sub-steps left
         # in a host period their forces, commands and Newton steps alternate, then the one with more finishes alone
-        x1, yl1, v1, z1, w1, _ = _at_rest(p, y0)
-        x2, yl2, v2, z2, w2, _ = _at_rest(q, y0)
+        x1, yl1, v1, z1, w1, _, vf1 = _at_rest(p, y0)
+        x2, yl2, v2, z2, w2, _, vf2 = _at_rest(q, y0)
         loop1, loop2 = _loop_params(p), _loop_params(q)
         kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11, c21 = loop1
         kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12, c22 = loop2
@@ -656,6 +718,7 @@ def simulate_pair_kernel(
         mu2, al2, wc2, zeta2 = q[12], q[14], q[15], q[16]
         mc1, mc2 = contact_substeps(period, m, mu1, wc1), contact_substeps(period, m, mu2, wc2)
         h1, h2 = period / mc1, period / mc2
+        g1, g2 = _filter_gain(p, h1), _filter_gain(q, h2)
         k21, k22 = wc1 * wc1, wc2 * wc2
         cd1, cd2 = 2.0 * zeta1 * wc1, 2.0 * zeta2 * wc2
         both = min(mc1, mc2)
@@ -670,30 +733,38 @@ def simulate_pair_kernel(
                 f2 = _contact_force(x2, yl2, v2, w2, c12, c22, k22, cd2)
                 vcmd1, base1 = _command(x1, yl1, v1, z1, r, feedback_load, kp1, kv1, vmax1, a01 - mu1 * f1, h1)
                 vcmd2, base2 = _command(x2, yl2, v2, z2, r, feedback_load, kp2, kv2, vmax2, a02 - mu2 * f2, h2)
+                base1, kvf1 = _filtered(base1, kv1, vf1, g1, h1)
+                base2, kvf2 = _filtered(base2, kv2, vf2, g2, h2)
                 vn1, vn2 = v1, v2
                 for _ in range(2):
-                    vn1 = _newton(vn1, base1, kv1, fc1, fs1, vs1, veps1, h1)
-                    vn2 = _newton(vn2, base2, kv2, fc2, fs2, vs2, veps2, h2)
-                x1, yl1, z1, w1 = _contact_moved(x1, yl1, z1, w1, f1, vcmd1, vn1, ki1, al1, veps1, h1, als1, vls1)
-                x2, yl2, z2, w2 = _contact_moved(x2, yl2, z2, w2, f2, vcmd2, vn2, ki2, al2, veps2, h2, als2, vls2)
+                    vn1 = _newton(vn1, base1, kvf1, fc1, fs1, vs1, veps1, h1)
+                    vn2 = _newton(vn2, base2, kvf2, fc2, fs2, vs2, veps2, h2)
+                vf1, vf2 = _filter_moved(vf1, vn1, g1), _filter_moved(vf2, vn2, g2)
+                x1, yl1, z1, w1 = _contact_moved(x1, yl1, z1, w1, f1, vcmd1, vn1, vf1, ki1, al1, veps1, h1, als1, vls1)
+                x2, yl2, z2, w2 = _contact_moved(x2, yl2, z2, w2, f2, vcmd2, vn2, vf2, ki2, al2, veps2, h2, als2, vls2)
                 v1, v2 = vn1, vn2
             for _ in range(mc1 - both):
-                x1, yl1, v1, z1, w1 = _contact_substep(x1, yl1, v1, z1, w1, r, feedback_load, loop1, contact1, h1)
+                x1, yl1, v1, z1, w1, vf1 = _contact_substep(
+                    x1, yl1, v1, z1, w1, vf1, r, feedback_load, loop1, contact1, h1, g1
+                )
             for _ in range(mc2 - both):
-                x2, yl2, v2, z2, w2 = _contact_substep(x2, yl2, v2, z2, w2, r, feedback_load, loop2, contact2, h2)
+                x2, yl2, v2, z2, w2, vf2 = _contact_substep(
+                    x2, yl2, v2, z2, w2, vf2, r, feedback_load, loop2, contact2, h2, g2
+                )
         return
     if massive_p != massive_q or compliant_p or compliant_q:
         simulate_kernel(p, feedback_load, u, y0, period, m, y_p)
         simulate_kernel(q, feedback_load, u, y0, period, m, y_q)
         return
-    x1, yl1, v1, z1, w1, side1 = _at_rest(p, y0)
-    x2, yl2, v2, z2, w2, side2 = _at_rest(q, y0)
+    x1, yl1, v1, z1, w1, side1, vf1 = _at_rest(p, y0)
+    x2, yl2, v2, z2, w2, side2, vf2 = _at_rest(q, y0)
     # the parameters in locals: the outputs are written in the loop, and the compiler cannot tell they do not alias p, q
     kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11, c21 = _loop_params(p)
     kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12, c22 = _loop_params(q)
     mu1, e1, al1, mu2, e2, al2 = (p[12], p[13], p[14], q[12], q[13], q[14]) if massive_p else (0.0,) * 6
     (als1, vls1), (als2, vls2) = _breakaway(p), _breakaway(q)
     h = period / m
+    g1, g2 = _filter_gain(p, h), _filter_gain(q, h)
     for k in range(y_p.shape[0]):
         y_p[k] = yl1
         y_q[k] = yl2
@@ -701,24 +772,27 @@ def simulate_pair_kernel(
         for _ in range(m):
             if massive_p:
                 # two massive loads: :func:`_advance_load`'s sub-steps side by side
-                x1, yl1, v1, z1, w1, side1 = _load_substep(
+                x1, yl1, v1, z1, w1, side1, vf1 = _load_substep(
                     x1, yl1, v1, z1, w1, side1, r, feedback_load, kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11,
-                    c21, mu1, e1, al1, h, als1, vls1,
+                    c21, mu1, e1, al1, h, als1, vls1, vf1, g1,
                 )  # fmt: skip
-                x2, yl2, v2, z2, w2, side2 = _load_substep(
+                x2, yl2, v2, z2, w2, side2, vf2 = _load_substep(
                     x2, yl2, v2, z2, w2, side2, r, feedback_load, kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12,
-                    c22, mu2, e2, al2, h, als2, vls2,
+                    c22, mu2, e2, al2, h, als2, vls2, vf2, g2,
                 )  # fmt: skip
                 continue
             # the two chains step by step side by side (their Newton steps too: that is what overlaps)
             vcmd1, base1 = _command(x1, yl1, v1, z1, r, feedback_load, kp1, kv1, vmax1, a01, h)
             vcmd2, base2 = _command(x2, yl2, v2, z2, r, feedback_load, kp2, kv2, vmax2, a02, h)
+            base1, kvf1 = _filtered(base1, kv1, vf1, g1, h)
+            base2, kvf2 = _filtered(base2, kv2, vf2, g2, h)
             vn1, vn2 = v1, v2
             for _ in range(2):
-                vn1 = _newton(vn1, base1, kv1, fc1, fs1, vs1, veps1, h)
-                vn2 = _newton(vn2, base2, kv2, fc2, fs2, vs2, veps2, h)
-            x1, yl1, z1 = _moved(x1, yl1, z1, vcmd1, vn1, ki1, c11, c21, h)
-            x2, yl2, z2 = _moved(x2, yl2, z2, vcmd2, vn2, ki2, c12, c22, h)
+                vn1 = _newton(vn1, base1, kvf1, fc1, fs1, vs1, veps1, h)
+                vn2 = _newton(vn2, base2, kvf2, fc2, fs2, vs2, veps2, h)
+            vf1, vf2 = _filter_moved(vf1, vn1, g1), _filter_moved(vf2, vn2, g2)
+            x1, yl1, z1 = _moved(x1, yl1, z1, vcmd1, vn1, vf1, ki1, c11, c21, h)
+            x2, yl2, z2 = _moved(x2, yl2, z2, vcmd2, vn2, vf2, ki2, c12, c22, h)
             v1, v2 = vn1, vn2
 
 
@@ -767,6 +841,9 @@ class ServoLoopModel:
         The load's break-away friction as a deceleration, unit/s^2 (with ``mu > 0``; at or below ``al``: none).
     vls : float
         The speed over which the load's friction falls from ``als`` to ``al``, unit/s (with ``als > al``).
+    tv : float
+        The time constant of the first-order filter on the speed the velocity loop feeds back, s (0: none; a
+        cascade drive's velocity estimate, :func:`_filtered`).
     """
 
     structure: str
@@ -790,6 +867,7 @@ class ServoLoopModel:
     zeta: float = 0.0
     als: float = 0.0
     vls: float = 0.0
+    tv: float = 0.0
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -797,7 +875,7 @@ class ServoLoopModel:
         validation.positive("sample_period_s", self.sample_period_s)
         for name in ("kp", "kv", "vs", "veps"):
             validation.positive(name, getattr(self, name))
-        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta", "als", "vls"):
+        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta", "als", "vls", "tv"):
             validation.non_negative(name, getattr(self, name))
         validation.in_unit_interval("e", self.e, open_low=False, open_high=False)
         validation.real("a0", self.a0)
@@ -833,15 +911,22 @@ class ServoLoopModel:
         """Whether a massive load's friction has a break-away (``als > al``, ``vls > 0``: :func:`_load_level`)."""
         return self.massive and self.als > self.al and self.vls > 0.0
 
+    @property
+    def filtered(self) -> bool:
+        """Whether the velocity loop feeds back a filtered speed (``tv > 0``: :func:`_filtered`)."""
+        return self.tv > 0.0
+
     def names(self) -> tuple[str, ...]:
         """The model's parameter names: :data:`PARAM_NAMES`, :data:`LOAD_NAMES` for a massive load,
-        :data:`CONTACT_NAMES` for a compliant contact (or one that breaks away), and :data:`BREAKAWAY_NAMES` for a
-        load that breaks away."""
+        :data:`CONTACT_NAMES` for a compliant contact (or one that breaks away), :data:`BREAKAWAY_NAMES` for a
+        load that breaks away, and :data:`FILTER_NAMES` for a filtered velocity loop."""
         if not self.massive:
-            return PARAM_NAMES
-        if self.breaks_away:
-            return KERNEL_NAMES
-        return PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
+            names = PARAM_NAMES
+        elif self.breaks_away:
+            names = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES
+        else:
+            names = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
+        return names + FILTER_NAMES if self.filtered else names
 
     def vector(self) -> np.ndarray:
         """The parameters in the order of :data:`KERNEL_NAMES` (what :func:`simulate_kernel` takes)."""
@@ -849,7 +934,8 @@ class ServoLoopModel:
 
     @classmethod
     def from_vector(cls, structure: str, sample_period_s: float, p: np.ndarray) -> ServoLoopModel:
-        """The model of a parameter vector in the order of :data:`KERNEL_NAMES` (:data:`PARAM_NAMES` alone, or with :data:`LOAD_NAMES`, also).
+        """The model of a parameter vector in the order of :data:`KERNEL_NAMES` (or a leading part of it: :data:`PARAM_NAMES`
+        alone, with :data:`LOAD_NAMES`, with :data:`CONTACT_NAMES`, with :data:`BREAKAWAY_NAMES`).
 
         Parameters
         ----------
@@ -865,8 +951,8 @@ class ServoLoopModel:
         ServoLoopModel
         """
         p = np.asarray(p, dtype=np.float64)
-        sizes = (PARAM_NAMES + LOAD_NAMES, PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES, KERNEL_NAMES)
-        names = next((n for n in sizes if p.size == len(n)), PARAM_NAMES)
+        parts = (PARAM_NAMES, LOAD_NAMES, CONTACT_NAMES, BREAKAWAY_NAMES, FILTER_NAMES)
+        names = KERNEL_NAMES[: p.size] if p.size in np.cumsum([len(part) for part in parts]) else PARAM_NAMES
         values = {name: float(v) for name, v in zip(names, p, strict=True)}
         return cls(structure=structure, sample_period_s=float(sample_period_s), **values)
 
