@@ -497,6 +497,7 @@ def identify(
     floor = floor_nrmse(y_arr, keep)
     refinement: Refinement | None = None
     refined_from: str | None = None
+    refine_cut: str | None = None
     start_nrmse: dict[str, float] = {}
     if refine_model:
         online_start = mrgia_model if mrgia_model is not None else _feasible_start(online.theta, config)
@@ -512,7 +513,13 @@ def identify(
             except (ConfigError, ModelError):
                 pass
         for name, (start, d0) in starts.items():
-            candidate = refine(u_c, y_c, start, y0=y0 - centre.y, valid=keep, initial_state=True, delta0=d0)
+            try:
+                candidate = refine(u_c, y_c, start, y0=y0 - centre.y, valid=keep, initial_state=True, delta0=d0)
+            except _threads.Stopped as exc:  # a live run's wall budget (only inside _threads.stopping): the best so far
+                refine_cut = f"the black box's refinement from the {name} start {exc}"
+                warnings.append(f"{refine_cut}: {'the MRGIA estimate' if refinement is None else 'the best start'}"
+                                " answers for the black box")  # fmt: skip
+                break
             start_nrmse[name] = candidate.nrmse
             if refinement is None or candidate.nrmse < refinement.nrmse:
                 refinement, refined_from = candidate, name
@@ -605,8 +612,9 @@ def identify(
     given_loop, loop = loop, None
     rejected: LoopResult | None = None
     timed = sample_period_s is not None
-    if servo_loop and refinement is not None and (timed or needed(at_floor, white)):
-        black_box = _BlackBox(refinement.model, fit)
+    # (a black box cut by a live run's wall budget still meets the servo-loop answer that run made: the MRGIA's then)
+    if servo_loop and (refinement is not None or refine_cut is not None) and (timed or needed(at_floor, white)):
+        black_box = _BlackBox(model if refinement is None else refinement.model, fit)
         try:
             if given_loop is not None:
                 loop = given_loop
@@ -616,6 +624,10 @@ def identify(
                 loop = second_structure(u_c, y_c, period, keep=keep)
         except ModelError as exc:  # a record that barely moves: the black box answers, and the verdict judges it
             warnings.append(f"the servo-loop model was not fitted: {exc}")
+            loop = None
+        except _threads.Stopped as exc:  # a live run's wall budget: the black box answers, not judged
+            refine_cut = f"the servo-loop search {exc}"
+            warnings.append(f"{refine_cut}: the black box answers")
             loop = None
         if loop is not None and black_box_better(loop, black_box):
             rejected, loop = loop, None  # the black box fits clearly better than the play in either place of a loop
@@ -651,6 +663,8 @@ def identify(
     judged = verdict(evidence)
     if loop is not None and loop.reasons:
         doubts = (*doubts, *loop.reasons)
+    if refine_cut is not None:  # the black box not at its best: neither it nor the comparison with the loop is judged
+        doubts = (*doubts, refine_cut)
     if loop is not None and loop.structure == PLAY_IN_LOOP and np.shape(loop.simulated) == y_c.shape:
         # the horn's bounce off the flank biases the massless play (a loop result of this record only)
         bounce = rebound(y_c, np.asarray(loop.simulated), float(loop.play), sample_period_s, valid=keep)

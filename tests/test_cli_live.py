@@ -87,12 +87,15 @@ def test_bad_live_options_are_one_line_errors(tmp_path, capsys, argv, fragment):
 
 def test_a_run_whose_servo_loop_search_the_wall_budget_cut_answers_with_the_black_box_withheld(tmp_path, capsys):
     # a real clock, 1.5 s of servo time, a budget that leaves nothing after the run: the answer's search is stopped
-    # at its first evaluation and no window refit had ended to answer instead
+    # at its first evaluation and no window refit had ended to answer instead; identification's refinement of the
+    # black box too (its stop 1 s before the budget's end): the MRGIA's estimate answers, withheld
     code, obj, _ = run_json(capsys, "--driver", "sim://", "--samples", "300", "--no-probe", "--no-plots",
                             "--budget", "2.5", "--out", str(tmp_path))  # fmt: skip
-    assert code == 0 and obj["form"] != "servo_loop" and not obj["identifiable"]
+    assert code == 0 and obj["form"] != "servo_loop" and not obj["identifiable"] and obj["method"] == "mrgia"
     assert obj["reasons"][0].startswith("cut by the wall budget: the servo-loop search")
-    assert obj["budget"]["wall_s"] == 2.5 and obj["budget"]["cut"][-1].startswith("the answer: the search")
+    assert any("refinement from the mrgia start stopped at the wall budget's deadline" in r for r in obj["reasons"])
+    assert obj["budget"]["wall_s"] == 2.5 and obj["budget"]["cut"][-2].startswith("the answer: the search")
+    assert obj["budget"]["cut"][-1].startswith("identification's own fits")
 
 
 def test_a_port_that_does_not_exist_is_a_driver_error(tmp_path, capsys):

@@ -120,3 +120,28 @@ def test_the_streamed_arx_start_is_the_whole_least_squares_problem():
     cols += [u[k0 - d - j : n - d - j] for j in range(nb + 1)] + [np.ones(n - k0)]
     whole = np.linalg.lstsq(np.column_stack(cols)[usable], yy[k0:][usable], rcond=None)[0]
     np.testing.assert_allclose(np.r_[start.a, start.b], whole[: na + nb + 1], rtol=1e-9, atol=1e-12)
+
+
+def test_identification_inside_a_stop_keeps_what_it_made_and_says_so(paper_noisy, monkeypatch):
+    """A live run's wall budget (identify inside ``_threads.stopping``): the black box's refinement stops at its first
+    evaluation, in memory or streamed; the MRGIA's estimate answers, withheld with the reason; a stop that never
+    comes changes nothing."""
+    from servoid.ident.offline import _oefit, _threads
+
+    cfg = MRGIAConfig(rho_exponent=0.75, epsilon=noise_epsilon(paper_noisy.noise_std))
+    u, y = paper_noisy.u[:2000], paper_noisy.y[:2000]
+    whole = identify(u, y, cfg)
+    with _threads.stopping(_threads.Stop()):
+        same = identify(u, y, cfg)
+    assert same.method == whole.method == "mrgia+oe" and np.array_equal(same.model.values(), whole.model.values())
+    stop = _threads.Stop(why="the test")
+    stop.now()
+    with _threads.stopping(stop):
+        cut = identify(u, y, cfg)
+    assert stop.fired and cut.refinement is None and cut.method == "mrgia"
+    assert np.array_equal(cut.model.values(), whole.mrgia_model.values())
+    assert not cut.identifiable and any("stopped by the test" in r for r in cut.verdict.reasons)
+    assert any("refinement from the mrgia start stopped by the test" in w for w in cut.warnings)
+    monkeypatch.setattr(_oefit, "STREAM_FROM_ROWS", 100)  # the long record's path checks the stop too
+    with _threads.stopping(stop), pytest.raises(_threads.Stopped):
+        refine(u, y, whole.mrgia_model)

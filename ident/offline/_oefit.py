@@ -22,6 +22,7 @@ from scipy.optimize import least_squares
 from servoid import validation
 from servoid.errors import ConfigError
 from servoid.ident.models.kernels import normal_equations_kernel, schur_stable
+from servoid.ident.offline import _threads
 
 try:  # pragma: no cover - a dependency of servoid; without it fits are merely slower on a busy machine
     from threadpoolctl import ThreadpoolController
@@ -287,6 +288,7 @@ class _Streamed:
 
     def cost(self, p: np.ndarray) -> float:
         """``sum r^2`` at ``p`` (inf where the linear block is unstable or the simulation is not finite)."""
+        _threads.check()  # a live run's wall budget, as the residual's evaluation checks it (refine's _OutputError)
         a = np.ascontiguousarray(self.problem.split(p)[0], dtype=np.float64)
         if not schur_stable(a):
             return math.inf
@@ -296,6 +298,7 @@ class _Streamed:
 
     def normal(self, p: np.ndarray) -> float:
         """``sum r^2`` at ``p``, and :attr:`jtj`, :attr:`jtr` by forward differences (scipy's steps for ``diff_step=1e-7``)."""
+        _threads.check()
         h = 1e-7 * np.where(p >= 0.0, 1.0, -1.0) * np.maximum(1.0, np.abs(p))
         h = (p + h) - p
         ps = [p]

@@ -22,6 +22,7 @@ from servoid.errors import ConfigError
 from servoid.ident.metrics import residual_nrmse
 from servoid.ident.models.kernels import rest_kernel, simulate_kernel
 from servoid.ident.models.pseudo_wiener import BacklashModel, ThetaLayout, within_stability_margin
+from servoid.ident.offline import _threads
 from servoid.ident.offline._oefit import covariance_from_jacobian, failure_level, fit_output_error, fit_record
 
 __all__ = ["Refinement", "refine", "output_error_jacobian", "arx_start"]
@@ -180,6 +181,7 @@ class _OutputError:
         return True
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
+        _threads.check()  # inside a live run's wall budget the search stops here (nothing is checked outside one)
         if not self.simulate(p):
             return np.full(self.y_used.shape, self.failure)
         out: np.ndarray = self.y_hat - self.y

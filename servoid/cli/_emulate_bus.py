@@ -14,7 +14,9 @@ from servoid.cli._live import DEFAULT_RATE_HZ
 from servoid.errors import ConfigError
 from servoid.output_paths import new_link, remove_own_link
 
-__all__ = ["ids_option", "print_event", "add_link_option", "add_rate_and_servo_options", "period_s", "serve"]
+__all__ = [
+    "ids_option", "print_event", "add_link_option", "add_rate_and_servo_options", "period_s", "priority_line", "serve",
+]  # fmt: skip
 
 
 def ids_option(max_id: int) -> Callable[[str], list[int]]:
@@ -98,8 +100,27 @@ def period_s(rate_hz: float) -> float | None:
     return 1.0 / rate_hz if rate_hz else None
 
 
+def priority_line(granted: bool) -> str:
+    """The line an emulator from the command line prints about its real-time priority (:mod:`servoid.drivers.realtime`).
+
+    Parameters
+    ----------
+    granted : bool
+        Whether the system granted ``SCHED_FIFO`` (:func:`~servoid.drivers.realtime.make_realtime`).
+    """
+    from servoid.drivers.realtime import DEVICE_PRIORITY
+
+    if granted:
+        return f"real-time priority: SCHED_FIFO {DEVICE_PRIORITY} (the servos' clock ahead of the host's loop)"
+    return ("real-time priority: not permitted here (root, CAP_SYS_NICE or an RLIMIT_RTPRIO of "
+            f"{DEVICE_PRIORITY} grants it); running at normal priority, slots may be late on a busy host")  # fmt: skip
+
+
 def serve(make: Callable[[], Any], link: Path | None, lines: Callable[[str], Sequence[str]]) -> int:
     """Build the emulator, print ``lines(port)``, serve until Ctrl-C or SIGTERM, then close it and remove the link.
+
+    The process takes real-time priority first, where the system permits it, and keeps the garbage collector off
+    the heap it serves with, as the emulators a live session starts do (:mod:`servoid.drivers.realtime`).
 
     Parameters
     ----------
@@ -110,19 +131,24 @@ def serve(make: Callable[[], Any], link: Path | None, lines: Callable[[str], Seq
     lines : callable
         The lines to print, given the port name to show (the link when there is one).
     """
+    from servoid.drivers.realtime import collector_off_heap, make_realtime
+
     if link is not None:
         new_link(link, option="--link")
+    granted = make_realtime()  # the servos' clock first, where permitted; before the emulator's threads
     emulator = make()
     try:
         if link is not None:
             os.symlink(emulator.port, link)
         for line in lines(str(link) if link is not None else emulator.port):
             print(line, flush=True)
+        print(priority_line(granted), flush=True)
         print("serving until Ctrl-C", flush=True)
         # `kill` stops it as cleanly as Ctrl-C (a shell starts background jobs with Ctrl-C ignored)
         signal.signal(signal.SIGTERM, _interrupt)
         try:
-            emulator.serve_forever()
+            with collector_off_heap():  # a full collection would hold the servos' replies and their watchdog
+                emulator.serve_forever()
         except KeyboardInterrupt:
             pass
         print(f"stopped: {emulator.stats.received} packets received, {emulator.stats.replies} answered", flush=True)

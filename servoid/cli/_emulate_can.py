@@ -124,6 +124,7 @@ def _print_event(line: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from servoid.cli._emulate_bus import priority_line
     from servoid.drivers.can.simulated import simulated_drive
     from servoid.drivers.realtime import collector_off_heap, make_realtime
     from servoid.drivers.servos import parse_servo
@@ -161,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
         stop.set()
 
     previous = signal.signal(signal.SIGTERM, _terminate)
-    make_realtime()  # the drive's clock first, where permitted (servoid.drivers.realtime); before its threads
+    granted = make_realtime()  # the drive's clock first, where permitted (servoid.drivers.realtime); before its threads
     try:
         with drive, collector_off_heap():  # a full collection would hold the drive's replies (drivers.realtime)
             print(drive.url(), flush=True)
@@ -170,6 +171,7 @@ def run(args: argparse.Namespace) -> int:
                     f"simulated {args.protocol} drive on {bus.describe()}, servo {servo.describe()}; Ctrl-C to stop",
                     file=sys.stderr, flush=True,
                 )  # fmt: skip
+                print(priority_line(granted), file=sys.stderr, flush=True)
             last = ""
             while not stop.wait(STATUS_EVERY_S):
                 line = drive.status()

@@ -34,6 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.excitation import GentleSpec
     from servoid.ident.identify import Identification
     from servoid.ident.models.pseudo_wiener import BacklashModel
+    from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
     from servoid.ident.online.early_search import EarlySearch
     from servoid.ident.online.mrgia import MRGIAConfig, MRGIAResult
@@ -61,9 +62,13 @@ DEFAULT_LIVE_S = 40.0
 WALL_TARGET_S = 60.0
 #: Wall seconds kept after the servo-loop answer for identification and the outputs (0.0-0.2 s on ``sim://``).
 AFTER_ANSWER_S = 2.0
+#: Of :data:`AFTER_ANSWER_S`, the wall seconds kept for the outputs (files, plots): identification's own fits (the
+#: black box's refinement) stop at the budget less this (:func:`identify_stop`).
+OUTPUTS_S = 1.0
 #: What the wall budget (``--budget``) bounds, said in --help and in the JSON's ``budget``.
 BUDGET_WHY = ("on a real clock every fit after the run (the early searches, the last window, the answer's search, "
-              "refits and horn stage) stops at the budget less {after:g} s kept for identification and the outputs; "
+              "refits and horn stage) stops at the budget less {after:g} s kept for identification and the outputs, "
+              f"identification's own fits at the budget less {OUTPUTS_S:g} s kept for the outputs; "
               "the best answer made by then answers, the cut stages are named and the verdict withheld")  # fmt: skip
 #: Reversals of the set point a design's slow phase holds at least (:func:`slow_phase`): each is a
 #: motor crossing of the play, what the slow phase's search reads a play outside the loop from. 18:
@@ -418,6 +423,18 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
     truth = simulated.truth if simulated is not None else None
     record = _record(result, driver.describe(), identity, truth, path, online.mrgia_result(), factor)
     return dataclasses.replace(record, live=live, loop=_on_record(loop, result, record, factor)), estimator_config
+
+
+def identify_stop(record: Record, began_s: float) -> Stop | None:
+    """The stop of identification's fits after a live run on a real clock (None: none, a virtual clock or no run).
+
+    At ``began_s`` (the command's :func:`time.perf_counter` start, at or before the run's) plus the wall budget less
+    :data:`OUTPUTS_S`; a fit stopped there keeps the best answer made and says so (:func:`~servoid.ident.identify.identify`).
+    """
+    from servoid.ident.offline._threads import Stop
+
+    wall_s = ((record.live or {}).get("budget") or {}).get("wall_s")
+    return None if wall_s is None else Stop(began_s + wall_s - OUTPUTS_S, "the wall budget")
 
 
 def _cut(early: EarlySearch, slow_search: EarlySearch | None, online_loop: dict[str, Any]) -> list[str]:

@@ -11,8 +11,10 @@ first use (``stdout`` and ``stderr`` are made then), so that ``servoid
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
+import time
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -24,6 +26,10 @@ if TYPE_CHECKING:  # pragma: no cover
     stderr: Console
 
 __all__ = ["stdout", "stderr", "progress", "live_progress", "table", "print_json", "warn"]
+
+#: Least wall seconds between two drawings of a live bar on a terminal (:func:`live_progress`; a session calls it
+#: every 0.25 s, so each call draws): at most 5 a second, against rich's 10 from a thread of its own.
+REFRESH_EVERY_S = 0.2
 
 #: Width when writing to a file or a pipe (a log, CI): rich would assume 80
 #: columns and squeeze the tables; ``COLUMNS`` still wins when set.
@@ -76,11 +82,13 @@ def progress(label: str, total: int, *, enabled: bool = True) -> Iterator[Callab
 def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str], None]]:
     """A progress bar with a status line on stderr; yields ``update(done, text)``.
 
-    Not on a terminal (a pipe, a file, a test's capture) rich shows none of a transient bar, but its
-    refresh thread would still build it ten times a second beside a live session's sampling loop, at
-    the default priority and holding the interpreter lock the loop needs (it set off the full
-    garbage collection that held a live identify's loop 391 ms: :mod:`servoid.drivers.realtime`):
-    a no-op callback there.
+    rich's own refresh thread would build the bar ten times a second beside a live session's sampling
+    loop, at the default priority and holding the interpreter lock the loop needs (off a terminal it
+    set off the full garbage collection that held a live identify's loop 391 ms:
+    :mod:`servoid.drivers.realtime`). So no thread: off a terminal (a pipe, a file, a test's capture,
+    where rich shows none of a transient bar) a no-op callback; on one the bar is drawn by ``update``
+    itself, on the caller's thread (a session's loop calls it every ``progress_every_s``, 0.25 s, just
+    after a slot), at most every :data:`REFRESH_EVERY_S`.
     """
     console = _console_named("stderr")
     if not console.is_terminal:
@@ -90,11 +98,16 @@ def live_progress(label: str, total: int | None) -> Iterator[Callable[[int, str]
 
     columns = (TextColumn("{task.description}", markup=False), BarColumn(), MofNCompleteColumn(),
                TextColumn("{task.fields[text]}", markup=False))  # fmt: skip
-    with Progress(*columns, console=console, transient=True) as bar:
+    with Progress(*columns, console=console, transient=True, auto_refresh=False) as bar:
         task = bar.add_task(label, total=total, text="")
+        drawn = [-math.inf]  # when the bar was last drawn (time.monotonic)
 
         def update(done: int, text: str) -> None:
             bar.update(task, completed=done, text=text)
+            now = time.monotonic()
+            if now - drawn[0] >= REFRESH_EVERY_S:
+                drawn[0] = now
+                bar.refresh()
 
         yield update
 

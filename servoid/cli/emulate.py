@@ -34,7 +34,10 @@ channel). In another terminal, point a driver at it, for example:
   servoid emulate serial          # prints e.g. serial:///dev/pts/5
   servoid identify --driver serial:///dev/pts/5
 
-The emulator runs until Ctrl-C.
+The emulator runs until Ctrl-C. It takes real-time priority (SCHED_FIFO,
+above a live identify's sampling loop) where the system permits it (root,
+CAP_SYS_NICE, or an RLIMIT_RTPRIO), as the emulators a live session starts
+do, and runs at normal priority otherwise; dxl, feetech and can say which.
 """
 
 

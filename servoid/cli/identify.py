@@ -235,6 +235,7 @@ def _check_sizes(args: argparse.Namespace) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from servoid.ident.identify import identify
+    from servoid.ident.offline._threads import stopping
     from servoid.identify_outputs import OUTPUT_FILES, result_json, summary_rows, twin_truth, write_outputs
 
     output_dir(args.out, option="--out", files=OUTPUT_FILES.values())
@@ -243,13 +244,17 @@ def run(args: argparse.Namespace) -> int:
         _check_sizes(args)
         _refuse_reading_options(args)
         return _live_bus.run(args, lambda epsilon: _config(args, epsilon))
+    began = time.perf_counter()  # (at or before the live run's start: its wall budget counts from there)
     record, config = get_record(args)
     # the wall budget cut the live run's servo-loop search with no online estimate: the black box alone, withheld
     unanswered = ((record.live or {}).get("budget") or {}).get("unanswered")
     started = time.perf_counter()
-    with _term.progress(
-        "MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None
-    ) as bar:
+    # a live run on a real clock: identification's fits stop within the wall budget (the outputs' seconds kept)
+    stop = _live.identify_stop(record, began)
+    with (
+        _term.progress("MRGIA", record.u.size, enabled=record.u.size >= PROGRESS_FROM and record.online is None) as bar,
+        stopping(stop),
+    ):
         result = identify(record.u, record.y, config, refine_model=not args.no_refine,
                           record_every=_live.history_every(record.u.size), progress=bar, valid=record.valid,
                           online=record.online, select=_selected(args),
@@ -266,6 +271,10 @@ def run(args: argparse.Namespace) -> int:
         record = dataclasses.replace(
             record, live={**record.live, "wall_s": {**record.live.get("wall_s", {}), "identify": elapsed}}
         )
+    if stop is not None and stop.fired and record.live:  # in the JSON's budget.cut too (warned above, in the verdict)
+        budget = record.live["budget"]
+        cut = [*(budget.get("cut") or ()), "identification's own fits (the best made by then answers)"]
+        record = dataclasses.replace(record, live={**record.live, "budget": {**budget, "cut": cut}})
     paths = write_outputs(args.out, record, result, plots=not args.no_plots)
     status = 1 if args.strict and not result.identifiable else 0
     if args.json:

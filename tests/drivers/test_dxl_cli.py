@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import subprocess
@@ -31,6 +32,10 @@ def test_emulate_dxl_prints_the_port_and_serves_until_interrupted(tmp_path):
             lines.append(line.strip())
         assert re.fullmatch(r"Dynamixel emulator on /dev/pts/\d+ \(Protocol 2\.0, XM430-W350, any baud rate, "
                             r"sampled at 200 Hz\)", lines[0])  # fmt: skip
+        # the servos' clock at real-time priority where the system permits it, as a live session's emulators; said
+        said = [line for line in lines if line.startswith("real-time priority: ")]
+        fifo = os.sched_getscheduler(proc.pid) & ~os.SCHED_RESET_ON_FORK == os.SCHED_FIFO
+        assert len(said) == 1 and ("SCHED_FIFO" in said[0]) == fifo and ("not permitted" in said[0]) != fifo
         urls = [line.split(": ", 1)[1] for line in lines if line.startswith("servo ")]
         assert urls == [f"dxl://{link}?id=1&baud=1000000", f"dxl://{link}?id=4&baud=1000000"]
         with driver_from_url(f"{urls[1]}&latency_ms={TEST_LATENCY_MS}") as servo:

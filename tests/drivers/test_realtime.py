@@ -2,8 +2,8 @@
 
 A session on the real clock also keeps the garbage collector off the heap it
 started with (a full collection in any thread holds the interpreter lock the
-loop needs), hands it back afterwards, and no progress thread builds a bar
-that nobody sees beside the loop.
+loop needs), hands it back afterwards, and no progress thread runs beside the
+loop: off a terminal no bar is built, on one the loop's progress call draws it.
 
 A live session's loop runs at ``SCHED_FIFO`` where the system permits it
 (and says so in ``acquisition.realtime``), gives the policy back afterwards,
@@ -133,6 +133,24 @@ def test_no_progress_thread_beside_the_loop_when_stderr_is_not_a_terminal(capsys
         update(5, "half")
         assert set(threading.enumerate()) == threads
     assert capsys.readouterr().err == ""
+
+
+def test_on_a_terminal_the_bar_is_drawn_by_its_caller_with_no_thread_beside_the_loop(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import io
+
+    from rich.console import Console
+
+    from servoid.cli import _term
+
+    screen = io.StringIO()
+    monkeypatch.setattr(_term, "stderr", Console(file=screen, force_terminal=True, width=100), raising=False)
+    threads = set(threading.enumerate())
+    with _term.live_progress("live", 10) as update:
+        assert set(threading.enumerate()) == threads  # no refresh thread of rich's
+        update(5, "half way")
+        assert "half way" in screen.getvalue() and "5/10" in screen.getvalue()  # drawn by the call itself
 
 
 def test_not_permitted_runs_as_before(monkeypatch: pytest.MonkeyPatch, firmware_url: tuple[str, int]) -> None:
