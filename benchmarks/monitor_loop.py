@@ -74,6 +74,13 @@ On the horn twins the file's loop sets the level of every window play: with the 
 -1.0 % on 40 s) raw tracking read 21-25 % and 14-15 % where the seed-1 files read 8-16 % and 0.4-11 %
 (docs/monitor.md, "the first fit with the file's loop held").
 
+``--calibrate``: the window plays read relative to the model file's play (``LoopWearTracker(calibrate=True)``: the
+first 2.5 s of counted window plays read the file's play, every later one that times its change since;
+``servoid monitor``'s ``CALIBRATE``, off). It assumes the play is the file's while it calibrates, 12-15 s into the
+run: ``--wear-from S`` holds the tracking run's play at the unworn one for its first ``S`` s, then grows it by 50 %
+by the run's end (default 0: from the start, the tables before). docs/monitor.md, "The window plays read relative to
+the file".
+
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
 ``--track-seeds``: the twin seeds of the tracking run (default 1, the tables before); the raw and bias
@@ -137,7 +144,7 @@ from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
-from servoid.monitor_loop import HOLD_LOOP, HORN_RECORD_S, short_horn
+from servoid.monitor_loop import CALIBRATE, HOLD_LOOP, HORN_RECORD_S, short_horn
 from servoid.recording import write_recording
 
 RATE = 200.0
@@ -207,7 +214,7 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
-         hold_loop: bool = HOLD_LOOP):  # fmt: skip
+         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
@@ -231,7 +238,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     low, high = (math.nan if v is None else float(v) for v in file.play_interval)
     tracker = LoopWearTracker(model, [bound], background=False, rebase=True, interval=(low, high),
                               identifiable=file.identifiable, fresh=fresh, min_reversals=min_reversals,
-                              steady_s=steady_s, hold_loop=hold_loop)  # fmt: skip
+                              steady_s=steady_s, hold_loop=hold_loop, calibrate=calibrate)  # fmt: skip
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
@@ -310,13 +317,29 @@ def main() -> None:
         "servoid monitor's HOLD_LOOP) instead of the play alone on the file's loop",
     )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
+    parser.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="the window plays read relative to the model file's play (LoopWearTracker's calibrate; servoid monitor's "
+        "CALIBRATE)",
+    )
+    parser.add_argument(
+        "--wear-from",
+        type=float,
+        default=0.0,
+        help="servo s of the tracking run before its play starts to grow (default 0; it then grows 50 %% by the end)",
+    )
     args = parser.parse_args()
     quiet = 1_000_000 if args.full else args.quiet
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine load (1 min): {load:.2f} on {os.cpu_count()} cores", file=sys.stderr)
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
-            "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop}  # fmt: skip
+            "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
+            "calibrate": args.calibrate or CALIBRATE}  # fmt: skip
+    wear_from = args.wear_from
+    if not 0.0 <= wear_from < args.track:
+        raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")
     for name in args.presets:
         started = time.perf_counter()
         reference_s = REFERENCE_S if args.reference_s is None else args.reference_s
@@ -332,7 +355,7 @@ def main() -> None:
             model, tracker, tr, t, at, play0 = _run(
                 name,
                 args.track,
-                lambda s: 1.0 + 0.5 * s / args.track,
+                lambda s: 1.0 + 0.5 * max(0.0, s - wear_from) / (args.track - wear_from),
                 track_seed,
                 file,
                 **opts,
@@ -350,7 +373,7 @@ def main() -> None:
         # monitor's own (RMS with the bias out), and of that what is not the mean's lag (against the truth TRACK_S / 2
         # earlier: the mean of the last TRACK_S of window plays lags a growth by half of it)
         own = float(np.sqrt(np.mean((mean / truth / (1.0 + bias) - 1.0) ** 2)))
-        earlier = play0 * (1.0 + 0.5 * (t[sel] - TRACK_S / 2.0) / args.track)
+        earlier = play0 * (1.0 + 0.5 * np.maximum(0.0, t[sel] - TRACK_S / 2.0 - wear_from) / (args.track - wear_from))
         unlagged = mean / earlier / float(np.median(mean / earlier))
         scatter = float(np.sqrt(np.mean((unlagged - 1.0) ** 2)))
         cost = np.array([r.window.seconds for r in tr[1:]])
@@ -377,6 +400,8 @@ def main() -> None:
         doubt = (f"{tr[0].window.play / at[0] - 1:+.0%}; {'' if file.identifiable else 'not '}identifiable, "
                  f"[{lo:.2f}, {hi:.2f}]x; {'doubt' if tracker.doubt else 'no doubt'}")  # fmt: skip
         place = "in the loop" if file.structure == PLAY_IN_LOOP else "outside the loop"
+        if opts["calibrate"]:
+            doubt += f"; scale {tracker.scale:.3f}"
         rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}, {reference_s:g} s", doubt, " / ".join(f"{r:.1%}" for r in raws), " / ".join(f"{b:+.1%}" for b in biases) + f" / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      " / ".join(after), str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "

@@ -63,6 +63,7 @@ __all__ = [
     "short_horn",
     "HORN_RECORD_S",
     "HOLD_LOOP",
+    "CALIBRATE",
     "LoopMonitorResult",
     "run_loop_monitor",
     "LOOP_COLUMNS",
@@ -80,6 +81,12 @@ LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum
 #: The monitor's first fit holds the model file's loop gains and refits the play alone
 #: (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``hold_loop``; docs/monitor.md).
 HOLD_LOOP = True
+
+#: The window plays read relative to the model file's play
+#: (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``calibrate``): off. It takes the file's error,
+#: and wear before or during its calibration, as its own (``benchmarks/monitor_loop.py --calibrate``; docs/monitor.md,
+#: "the window plays read relative to the file").
+CALIBRATE = False
 
 #: Servo seconds of gentle sines identification's horn stage needs to size a play in the loop on a compliant
 #: contact (``benchmarks/horn_live.py``: the STS3215 twin's play -23.4 % on 20 s, -1.6 % on 40 s; docs/online.md).
@@ -340,7 +347,7 @@ class _LoopRun:
         interval = tuple(math.nan if v is None else float(v) for v in model_file.play_interval)
         self.tracker = LoopWearTracker(start, bounds, wait=wait, rebase=rebase, interval=(interval[0], interval[1]),
                                        identifiable=model_file.identifiable, steady_s=steady_s,
-                                       hold_loop=HOLD_LOOP)  # fmt: skip
+                                       hold_loop=HOLD_LOOP, calibrate=CALIBRATE)  # fmt: skip
         self.rebase = rebase
         self.based = self.doubted = self.refused = False
         self.rows_seen = self.events_seen = 0

@@ -260,3 +260,40 @@ def test_the_first_refit_with_the_loop_held_keeps_the_files_gains_and_moves_the_
     assert model.play == pytest.approx(worn * LOOP.play, rel=0.03)
     free, _ = first_refit(u, y, score, dataclasses.replace(LOOP, kv=54.0), max_nfev=10)
     assert free.kv != 54.0  # without it the gains move
+
+
+def test_a_calibrated_tracker_reads_the_files_play_then_its_change_and_raises_as_the_uncalibrated_one() -> None:
+    # the held loop reads the play 0.85x on the monitoring input: calibrated, the window plays read the file's play
+    # on the first CALIBRATE_S of counted windows (which do not count otherwise), then that times their change
+    from servoid.ident.monitoring.loop_wear import BASELINE_S, CALIBRATE_S, PLAY, LoopWearTracker
+    from servoid.ident.online.window import WindowRow
+
+    def run(calibrate: bool) -> LoopWearTracker:
+        tracker = LoopWearTracker(LOOP, [Bound(quantity=PLAY, low=0.9 * LOOP.play, high=1.1 * LOOP.play)],
+                                  background=False, rebase=True, calibrate=calibrate)  # fmt: skip
+        noise = np.random.default_rng(14).standard_normal(300)
+        t = 10.0
+        tracker._take(WindowRow(t, LOOP.play, 0.01, 0.01, 0.0, PLAY_IN_LOOP))  # the first fit
+        plays = 0.85 * LOOP.play * (1.0 + 0.01 * noise)
+        plays[200:] *= 1.2  # the play steps up by 20 % after the baseline
+        for i, p in enumerate(plays):
+            tracker._take(WindowRow(t + 0.25 * (i + 1), float(p), 0.01, 0.01, 0.0, PLAY_IN_LOOP))
+        return tracker
+
+    plain, calibrated = run(False), run(True)
+    n_cal = round(CALIBRATE_S / 0.25)
+    rows = calibrated.rows_since(0)[1:]
+    assert not any(r.counted for r in rows[:n_cal]) and all(r.counted for r in rows[n_cal:])
+    scale = LOOP.play / float(np.median([r.window.play for r in rows[:n_cal]]))
+    assert calibrated.scale == scale == pytest.approx(1 / 0.85, rel=0.01) and plain.scale == 1.0
+    assert rows[n_cal].window.play == pytest.approx(scale * plain.rows_since(0)[n_cal + 1].window.play, rel=1e-12)
+    assert np.median([r.window.play for r in rows[n_cal:200]]) == pytest.approx(LOOP.play, rel=0.01)
+    assert rows[-1].mean == pytest.approx(1.2 * LOOP.play, rel=0.02)
+    assert plain.rows_since(0)[-1].mean == pytest.approx(1.2 * 0.85 * LOOP.play, rel=0.02)  # as fitted
+    # the baseline waits as long for as many counted windows, and the alarm comes as it does uncalibrated
+    assert calibrated.baseline()["scatter"] / calibrated.baseline()["median"] == pytest.approx(
+        plain.baseline()["scatter"] / plain.baseline()["median"], rel=0.3)  # fmt: skip
+    assert len([r for r in rows if r.counted and r.window.t_s <= 10.0 + BASELINE_S + CALIBRATE_S]) == len(
+        [r for r in plain.rows_since(0)[1:] if r.window.t_s <= 10.0 + BASELINE_S])  # fmt: skip
+    raised = [[round((e.sample / RATE - 10.0) / 0.25) - 1 for e in t.events if e.raised] for t in (plain, calibrated)]
+    assert raised[0] and raised[1] and 200 <= raised[0][0] < 206 and abs(raised[1][0] - raised[0][0]) <= 1

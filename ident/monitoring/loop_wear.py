@@ -85,6 +85,15 @@ with :class:`~servoid.ident.online.window.WindowRefit`:
    STS3215, XM430 twins), it under-reads large steps (a linearisation), and it
    was dropped.
 
+With ``calibrate`` (off in ``servoid monitor``) the window plays are read relative to the model file's:
+the first :data:`CALIBRATE_S` of counted ones (not counted otherwise) give their median, and every later
+one is multiplied by the file's play over it. The held loop reads a horn servo's play low on the steady
+sine (0.83-0.90x the play it reads on the identification's sines on the XM430 twin's massless file,
+0.92-0.94x on the STS3215's horn file; the twins' velocity filter is no part of it: their PID firmware
+does not use it), and the calibration removes that exactly, but the level is then the file's, and wear
+before or during the calibration is read as the file's play (docs/monitor.md, "The window plays read
+relative to the file").
+
 Memory is bounded: the window keeps at most two windows of samples (the first
 fit's ``FIRST_FIT_S``) and :data:`~servoid.ident.online.window.HISTORY_ROWS`
 refits; the tracker keeps its last :data:`ROWS_KEPT` rows and the
@@ -128,6 +137,7 @@ __all__ = [
     "file_doubt",
     "first_refit",
     "LOOP_GAINS",
+    "CALIBRATE_S",
 ]
 
 #: The quantity name of the play in the alarm rule's readings and bounds.
@@ -155,6 +165,9 @@ CLIP = 3.0
 MIN_REVERSALS = 2
 #: The loop's parameters a first fit with ``hold_loop`` holds at the model file's (:func:`first_refit`).
 LOOP_GAINS = ("kp", "kv", "fc", "fs", "vs", "veps")
+#: Servo seconds of counted window plays a tracker with ``calibrate`` reads the model file's play on
+#: (:class:`LoopWearTracker`; 10 estimates, 3-10 independent on the twins' steady sine).
+CALIBRATE_S = 2.5
 #: Rows the tracker keeps (the last ones; a caller copies new ones with :meth:`LoopWearTracker.rows_since`).
 ROWS_KEPT = 4096
 
@@ -317,6 +330,15 @@ class LoopWearTracker:
         The first fit holds the start's loop gains (:func:`first_refit`'s ``hold_loop``): the play
         and the constant force alone are refitted (``servoid monitor``'s choice; False: the whole
         loop, as before).
+    calibrate : bool
+        Read the window plays relative to the model file's: the first :data:`CALIBRATE_S` of
+        counted window plays (after ``steady_s``; they do not count otherwise) give their median ``m``,
+        and every later window play is multiplied by ``start.play / m`` (:attr:`scale`), so the
+        monitor reports the file's play times the change of its own reading since then. It removes
+        the held loop's bias on the monitoring input (the horn servos' window plays read 0.83-0.94x
+        the play the loop was identified with), assumes the play is the file's while it calibrates,
+        and takes the file's error as its own (docs/monitor.md, "The window plays read relative to
+        the file"). False (default): the window plays as fitted, as before.
     """
 
     def __init__(
@@ -336,6 +358,7 @@ class LoopWearTracker:
         min_reversals: int = MIN_REVERSALS,
         steady_s: float = 0.0,
         hold_loop: bool = False,
+        calibrate: bool = False,
     ) -> None:
         config = config or play_config(start.sample_period_s)
         first = functools.partial(first_refit, max_nfev=config.max_nfev, hold_loop=hold_loop)
@@ -362,6 +385,10 @@ class LoopWearTracker:
         self._identifiable = identifiable
         self.doubt: str | None = None
         """Why the model file's play is not to be trusted, once the first refit shows it (else None)."""
+        self._calibrate = bool(calibrate)
+        self._calibration: list[float] = []  # the counted window plays read while calibrating
+        self._calibrated_from = math.nan  # the first one's time, s
+        self._scale = math.nan  # the model file's play over their median, once known
 
     def update(self, u: float, y: float) -> None:
         """Take a measured sample."""
@@ -391,12 +418,19 @@ class LoopWearTracker:
             counted = False
             mean = self._rows[-1].mean if self._rows else row.play
             stat = self.alarms.statistic(PLAY) if self.bounds and not math.isnan(self._std) else math.nan
+        elif self._calibrate and self._calibrating(row):
+            counted = False  # read on the file's play, not counted
+            mean = self._rows[-1].mean if self._rows else row.play
         else:
+            if self._calibrate:
+                row = dataclasses.replace(row, play=row.play * self._scale)
             self._recent.append(row.play)
             mean = float(np.mean(self._recent))
             if math.isnan(self._std):
                 self._baseline.append(row.play)
-                if row.t_s - self._first.t_s >= self.baseline_s - 1e-9 and len(self._baseline) >= 4:
+                # (a calibration's windows do not count: the baseline waits as long for as many)
+                span = self.baseline_s + (CALIBRATE_S if self._calibrate else 0.0)
+                if row.t_s - self._first.t_s >= span - 1e-9 and len(self._baseline) >= 4:
                     self._set_baseline()
             else:
                 k = int(round(row.t_s / self.window.config.sample_period_s))
@@ -406,6 +440,25 @@ class LoopWearTracker:
         if len(self._rows) > 2 * ROWS_KEPT:
             del self._rows[:-ROWS_KEPT]
             self._gone += ROWS_KEPT
+
+    def _calibrating(self, row: WindowRow) -> bool:
+        """Whether a counted window play is one of the calibration's (:data:`CALIBRATE_S`); sets :attr:`scale` at its end."""
+        if not math.isnan(self._scale):
+            return False
+        if math.isnan(self._calibrated_from):
+            self._calibrated_from = row.t_s
+        if row.t_s - self._calibrated_from < CALIBRATE_S - 1e-9 or not self._calibration:
+            self._calibration.append(row.play)
+            return True
+        self._scale = self._start_play / float(np.median(self._calibration))
+        self._calibration = []
+        return False
+
+    @property
+    def scale(self) -> float:
+        """What the window plays are multiplied by (``calibrate``: the model file's play over the calibration's median;
+        NaN before it is known; 1 without ``calibrate``)."""
+        return self._scale if self._calibrate else 1.0
 
     def _set_baseline(self) -> None:
         plays = np.asarray(self._baseline)
