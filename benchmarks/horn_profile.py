@@ -25,12 +25,13 @@ from pathlib import Path
 
 import numpy as np
 
+from servoid.drivers.twin import preset
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.offline import horn_contact as hc
 from servoid.ident.offline import loop_fit as lf
 
-#: Truth plays (c1 + c2) of the horn presets, rad.
-TRUTH = {"sts3215": 0.01047, "xm430": 0.00436332}
+#: Truth plays (c1 + c2) of the horn presets, rad (the twins' own: one owner of the fact).
+TRUTH = {name: preset(name).play_rad for name in ("sts3215", "xm430")}
 #: The horn stage's own profile over the play, as the module has it.
 PLAY_PROFILE = hc.PLAY_PROFILE
 

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 from horn_cost import live_record  # benchmarks/, on the path when a benchmark runs as a script
 
+from servoid.drivers.twin import preset
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.offline.horn_contact import with_horn
 from servoid.ident.offline.loop_fit import fit_loop, refit_loop
@@ -44,8 +45,8 @@ from servoid.ident.online.window import BURN_IN_S, EVERY_S, FIRST_S, MAX_NFEV, W
 
 #: The horn's parameters a window holds (the rest of :func:`refit_loop`'s are refitted).
 HORN = ("mu", "e", "al", "wc", "zeta")
-#: The true play of the STS3215 twin (c1 + c2), rad.
-TRUTH = 0.01047
+#: The true play of the STS3215 twin (c1 + c2), rad (the twin's own).
+TRUTH = preset("sts3215").play_rad
 #: Evaluations of each profile point's refit.
 PROFILE_NFEV = 20
 
