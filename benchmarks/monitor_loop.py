@@ -81,6 +81,11 @@ run: ``--wear-from S`` holds the tracking run's play at the unworn one for its f
 by the run's end (default 0: from the start, the tables before). docs/monitor.md, "The window plays read relative to
 the file".
 
+``--dither D``: the steady sine's amplitude drawn anew each period, log-uniform in ``[(1 - D) A, A]`` at the same peak
+acceleration (:func:`~servoid.excitation.monitor_input.monitor_spec`'s ``dither``; default 0, one amplitude). The horn
+twins' firmware closes its loop on whole counts of the horn's encoder, and a steady sine reverses at one place on that
+grid, where the held loop reads the play with a bias of its own (docs/monitor.md, "the count grid").
+
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
 ``--track-seeds``: the twin seeds of the tracking run (default 1, the tables before); the raw and bias
@@ -160,14 +165,18 @@ def _excitation(name: str, n: int, seed: int) -> np.ndarray:
     return sample(monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2), n, seed=seed + 1000)
 
 
-def _monitor_input(name: str, n: int, seed: int, kind: str, share: float = SINE_ACCEL_SHARE) -> np.ndarray:
+def _monitor_input(
+    name: str, n: int, seed: int, kind: str, share: float = SINE_ACCEL_SHARE, dither: float = 0.0
+) -> np.ndarray:
     """The monitoring input after the first fit (:data:`~servoid.excitation.monitor_input.MONITOR_INPUTS`), ``n`` samples.
 
     ``share``: the steady sine's peak acceleration over the identification's (``servoid monitor``'s
-    :data:`~servoid.excitation.monitor_input.SINE_ACCEL_SHARE`; 1 before).
+    :data:`~servoid.excitation.monitor_input.SINE_ACCEL_SHARE`; 1 before). ``dither``: the steady sine's amplitude
+    drawn each period (:func:`~servoid.excitation.monitor_input.monitor_spec`; 0: one amplitude).
     """
     scale = share / SINE_ACCEL_SHARE if kind == SINE else 1.0
-    return sample(monitor_spec(kind, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2), n, seed=seed + 2000)
+    spec = monitor_spec(kind, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2, dither=dither if kind == SINE else 0.0)
+    return sample(spec, n, seed=seed + 2000)
 
 
 def _live_file(name: str, seed: int) -> ModelFile:
@@ -214,7 +223,7 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
-         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE):  # fmt: skip
+         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
@@ -229,7 +238,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
         # servoid monitor: monitor_stream), then the monitoring input from the offset: no step
         ident = monitor_spec(IDENT, SINE_AMPLITUDE[name], 8.0 / RATE**2)
         cut = min(segment_end(ident, seed + 1000, n_ref + int(FIRST_FIT_S * RATE)), n_ref + n)
-        u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input, share)
+        u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input, share, dither)
         steady_s = 0.0 if count_switch else (cut - n_ref) / RATE
     twin.sample(u[:n_ref], 1.0 / RATE)
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
@@ -316,6 +325,13 @@ def main() -> None:
         help="the first fit refits the whole loop (free, or the play held where that fits better: the code before "
         "servoid monitor's HOLD_LOOP) instead of the play alone on the file's loop",
     )
+    parser.add_argument(
+        "--dither",
+        type=float,
+        default=0.0,
+        help="the steady sine's amplitude drawn each period in [(1 - D) A, A], its reversals spread over the loop "
+        "encoder's count grid (default 0: one amplitude)",
+    )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
         "--calibrate",
@@ -336,7 +352,7 @@ def main() -> None:
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
-            "calibrate": args.calibrate or CALIBRATE}  # fmt: skip
+            "calibrate": args.calibrate or CALIBRATE, "dither": args.dither}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")

@@ -20,6 +20,17 @@ did. The first fit, which refits the whole loop, keeps the identification's
 sines: their segments of many amplitudes and accelerations are what the
 loop's parameters need.
 
+Where the play sits inside the loop the servo's firmware closes its loop on whole counts of the horn's
+encoder (the twins' XM430 and STS3215: the play is 2.8 and 6.8 counts), a term the continuous servo-loop
+model does not carry. A steady sine reverses at the same place on that count grid every period, and the
+held loop reads the play there with a bias of its own: on the XM430 twin's file the window plays read
+0.90x the play the monitor's first fit reads on the identification's sines, and 0.94 / 1.09 / 0.89 /
+0.94x with the sine's amplitude a quarter count larger each time (the STS3215's: 0.94 / 0.97 / 1.02 /
+1.04x); with the loop closed on 16x finer counts 0.96-1.00x (docs/monitor.md, "the count grid"). The
+identification's sines reverse at many places and average it out. ``dither`` (off by default) draws the
+steady sine's amplitude anew each period within ``[(1 - dither) A, A]``: its reversals then spread over
+the grid, at the price of window plays that scatter with it.
+
 The benchmark and ``servoid monitor`` build both parts here (one owner).
 """
 
@@ -33,7 +44,8 @@ from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["IDENT", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "monitor_spec", "monitor_stream"]
+__all__ = ["IDENT", "MAX_DITHER", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "monitor_spec",
+           "monitor_stream"]  # fmt: skip
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
@@ -46,10 +58,19 @@ SINE_ACCEL_SHARE = 0.5
 #: identification's highest) of gentle sines. ``ident``: the identification's own (``GentleSpec``'s defaults);
 #: ``sine``: one amplitude at :data:`SINE_ACCEL_SHARE` of the highest acceleration, a steady sine.
 MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25, 1.0), SINE: (1.0, 1.0, 1.0, SINE_ACCEL_SHARE)}
+#: Largest ``dither`` of the steady sine's amplitude (:func:`monitor_spec`).
+MAX_DITHER = 0.5
 
 
 def monitor_spec(
-    kind: str, amplitude: float, accel: float, *, offset: float = 0.0, rate: float = math.inf, coast: float = math.inf
+    kind: str,
+    amplitude: float,
+    accel: float,
+    *,
+    offset: float = 0.0,
+    rate: float = math.inf,
+    coast: float = math.inf,
+    dither: float = 0.0,
 ) -> GentleSpec:
     """The gentle-sines spec of one monitoring input (:data:`MONITOR_INPUTS`).
 
@@ -71,15 +92,24 @@ def monitor_spec(
         load coasts across the play (:func:`coast_accel`). Where it is below the sine's own, the sine
         keeps its frequency (its reversals a second, what a window counts) and its amplitude shrinks
         in proportion.
+    dither : float
+        The steady sine's amplitude drawn anew each period, log-uniform in ``[(1 - dither) A, A]`` at the
+        same peak acceleration, so that its reversals spread over the loop encoder's count grid (the
+        module's text); in ``[0, 0.5]``, 0 (default): one amplitude, segments of three periods.
 
     Returns
     -------
     GentleSpec
     """
+    if not 0.0 <= dither <= MAX_DITHER:
+        raise ValueError(f"dither must lie in [0, {MAX_DITHER:g}], not {dither!r}")
     scale, spread, smallest, share = MONITOR_INPUTS[kind]
     amp, peak = scale * amplitude, share * accel
     if kind == SINE and coast < peak:  # the same reversals a second, a smaller amplitude: the load does not coast
         amp, peak = amp * coast / peak, coast
+    if kind == SINE and dither > 0.0:  # one period a segment, each its own amplitude
+        return GentleSpec(amplitude=amp, accel=peak, spread=spread, smallest=1.0 - dither, cycles=1, offset=offset,
+                          rate=rate)  # fmt: skip
     return GentleSpec(amplitude=amp, accel=peak, spread=spread, smallest=smallest, offset=offset, rate=rate)
 
 
@@ -124,12 +154,13 @@ def monitor_stream(
     offset: float = 0.0,
     rate: float = math.inf,
     coast: float = math.inf,
+    dither: float = 0.0,
 ) -> Iterator[float]:
     """The monitor's endless input: ``first`` samples of the identification's sines, then the steady sine.
 
     Parameters
     ----------
-    amplitude, accel, offset, rate, coast : float
+    amplitude, accel, offset, rate, coast, dither : float
         As :func:`monitor_spec`.
     first : int
         Samples of the identification's sines at least (the first fit's, ``FIRST_FIT_S`` at the session's
@@ -137,7 +168,8 @@ def monitor_stream(
         (:func:`~servoid.excitation.gentle.segment_end`), so the steady sine starts at the offset
         where the sines are back at it: no step in the command.
     seed : int
-        Seed of the identification's sines (the steady sine draws nothing: its segments are alike).
+        Seed of the identification's sines (the steady sine draws nothing unless ``dither``: its segments are
+        alike).
 
     Returns
     -------
@@ -145,5 +177,5 @@ def monitor_stream(
     """
     ident = monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate)
     head = stream(ident, seed=seed, n=segment_end(ident, seed, first))
-    steady = monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate, coast=coast)
+    steady = monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate, coast=coast, dither=dither)
     return itertools.chain(head, stream(steady, seed=seed))

@@ -16,6 +16,8 @@ later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``
     ``sigma`` (``dead_zone_std``: the upper 95 % bound on the scatter of the
     baseline's window plays; empty before it is known), the tracking
     estimate (``dead_zone_mean``: the mean of the last 5 s of window plays), the
+    window's play over the baseline's median (``dead_zone_rel``: the wear since
+    monitoring began, what the CUSUM judges; empty before the baseline), the
     CUSUM's statistic in standard deviations (``cusum``; the alarm is raised
     above the threshold the ``baseline`` event gives), the loop gains ``kp``,
     ``kv`` (held after the first row), the window's free-run NRMSE and floor, its
@@ -74,8 +76,8 @@ __all__ = [
 METHOD = "window-tracking"
 
 #: Columns of ``estimates.csv`` (the module's text); ``true_play`` is added for a simulated twin.
-LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "cusum", "kp", "kv", "fit", "floor",
-                "reversals", "refit_s", "alarms")  # fmt: skip
+LOOP_COLUMNS = ("k", "t", "dead_zone", "dead_zone_std", "dead_zone_mean", "dead_zone_rel", "cusum", "kp", "kv", "fit",
+                "floor", "reversals", "refit_s", "alarms")  # fmt: skip
 
 
 #: The monitor's first fit holds the model file's loop gains and refits the play alone
@@ -447,7 +449,9 @@ class _LoopRun:
         k = int(round(row.t_s / self.session.period_s))
         model = self.tracker.window.model
         active = "+".join(e.bound.quantity for e in self.tracker.active.values())
-        values: list[Any] = [k, row.t_s, row.play, self.tracker.std, tracked.mean, tracked.statistic,
+        median = self.tracker.median  # NaN before the baseline: an empty cell
+        rel = row.play / median if median > 0.0 else math.nan
+        values: list[Any] = [k, row.t_s, row.play, self.tracker.std, tracked.mean, rel, tracked.statistic,
                              model.kp if model else math.nan, model.kv if model else math.nan, row.nrmse, row.floor,
                              row.reversals, row.seconds, active]  # fmt: skip
         if self.true_play is not None:

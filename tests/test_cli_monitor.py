@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import json
 
+import numpy as np
 import pytest
 
 from servoid.cli import main
@@ -159,6 +160,13 @@ def test_a_servo_loop_model_is_followed_by_its_window_refit_and_alarms_after_the
     rows, meta = read_estimates(out / "estimates.csv")
     assert "window" in meta["servoid monitor"] and rows["true_play"][-1] == pytest.approx(1.6 * rows["true_play"][0])
     assert rows["dead_zone"][-1] > 1.2 * rows["dead_zone"][0]  # the window plays followed the step up
+    # the wear since monitoring began: each window play over the baseline's median, empty before the baseline
+    rel = np.asarray(rows["dead_zone_rel"])
+    based = ~np.isnan(np.asarray(rows["dead_zone_std"]))
+    assert np.all(np.isnan(rel[~based])) and based.any() and not np.isnan(rel[based]).any()
+    median = np.asarray(rows["dead_zone"])[based] / rel[based]
+    np.testing.assert_allclose(median, median[0], rtol=1e-12)  # one median, the baseline's
+    assert rel[-1] > 1.2
     # the bound in % follows the monitor's own baseline: a doubt about the file's play re-baselines, and says so
     events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     doubts = [e for e in events if e["event"] == "doubt"]

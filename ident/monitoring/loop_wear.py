@@ -524,6 +524,12 @@ class LoopWearTracker:
         return self._start_play
 
     @property
+    def median(self) -> float:
+        """The baseline's median window play (NaN before it is known): the monitor's own start, against which
+        ``servoid monitor``'s ``dead_zone_rel`` reads the wear since monitoring began."""
+        return self._median
+
+    @property
     def std(self) -> float:
         """The CUSUM's ``sigma``: the upper bound on the scatter of the baseline's play estimates (NaN before)."""
         return self._std
