@@ -90,7 +90,8 @@ the first :data:`CALIBRATE_S` of counted ones (not counted otherwise) give their
 one is multiplied by the file's play over it. The held loop reads a horn servo's play low on the steady
 sine (0.83-0.90x the play it reads on the identification's sines on the XM430 twin's massless file,
 0.92-0.94x on the STS3215's horn file; the twins' velocity filter is no part of it: their PID firmware
-does not use it), and the calibration removes that exactly, but the level is then the file's, and wear
+does not use it; the cause is the firmware's loop on whole counts of the horn's encoder, where a steady sine
+reverses at one place of the grid: :mod:`~servoid.excitation.monitor_input`), and the calibration removes that exactly, but the level is then the file's, and wear
 before or during the calibration is read as the file's play (docs/monitor.md, "The window plays read
 relative to the file").
 
