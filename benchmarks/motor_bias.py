@@ -319,6 +319,7 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
             columns["held load: answer"] = [r["held load"]["answer"] for r in group]
             for i, load in enumerate(group[0]["held load"].get("loads", [[]])):
                 columns[f"held load {','.join(f'{v:g}' for v in load)}"] = [_held(r)[0][i] for r in group]
+        where: dict[str, str] = {}
         if "contact profile" in group[0]:
             columns["contact profile: answer"] = [r["contact profile"]["answer"] for r in group]
             for rigid in (k for k in group[0]["contact profile"] if k.startswith("rigid")):
@@ -326,16 +327,31 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
                                                         for r in group]  # fmt: skip
             for mode in modes:
                 columns[f"contact profile, {mode}: least"] = [least(r["contact profile"], mode)[1] for r in group]
+                where[f"contact profile, {mode}: least"] = _where(group, mode)
                 columns[f"contact profile, {mode}: where it pays"] = [
                     least(r["contact profile"], mode, pays=True)[1] for r in group
                 ]
         for reading, gaps in columns.items():
             g = np.array(gaps)
             out.append([*key, reading, str(g.size), str(int(np.sum(np.abs(g) <= 0.05))), f"{100 * g.mean():+.1f} %",
-                        f"{100 * g.std(ddof=1) if g.size > 1 else 0.0:.1f} %", f"{100 * np.abs(g).max():.1f} %"])  # fmt: skip
+                        f"{100 * g.std(ddof=1) if g.size > 1 else 0.0:.1f} %", f"{100 * np.abs(g).max():.1f} %",
+                        where.get(reading, "")])  # fmt: skip
     table(
-        "Per effect and reading", ["preset", "effect", "reading", "records", "within 5 %", "mean", "sd", "largest"], out
+        "Per effect and reading (least: where the profile's least cost sits, rad/s; heavy: the answers with mu > 2)",
+        ["preset", "effect", "reading", "records", "within 5 %", "mean", "sd", "largest", "least at"],
+        out,
     )
+
+
+def _where(group: list[dict[str, Any]], mode: str) -> str:
+    """Where a profile's least cost sits on a group's records, and on its heavy answers (``mu > 2``): ``200 on 9``."""
+
+    def counted(rows: list[dict[str, Any]]) -> str:
+        at = [least(r["contact profile"], mode)[0] for r in rows]
+        return ", ".join(f"{wc:g} on {at.count(wc)}" for wc in sorted(set(at), reverse=True))
+
+    heavy = [r for r in group if r["contact profile"]["mu"] > 2.0]
+    return f"{counted(group)}; heavy {len(heavy)}: {counted(heavy)}"
 
 
 def main() -> None:
