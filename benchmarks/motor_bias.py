@@ -36,7 +36,8 @@ user's gear has its own; :func:`contact_profile`). ``--tq-scales 0,0.5,1,2``: th
 drive's current loop between the velocity loop's command and the motor's torque) held at each multiple of the record's
 twin's (:func:`twin_torque_lag_s`, from the twin's parameters as this run overrides them, so that a current loop made
 faster or slower moves it along), in the contact profile (its points per multiple, and the rigid answer refitted with
-the lag held, ``rigid``) and in each held load (a ninth value; 0: none, the load as given). ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
+the lag held, ``rigid``) and in each held load (a ninth value; 0: none, the load as given); ``--profile-tv TV`` holds
+the model's velocity filter in the profile too (s). ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
 scaled; a load of a hundredth, ``load x0.01``, leaves the motor side without the load it picks up at a flank).
 Per effect and reading: within 5 %, mean, standard deviation, largest. The twins' presets are not changed (the
 overrides make this run's copies). The machine may be shared: times are one run each.
@@ -174,6 +175,7 @@ def contact_profile(
     zeta: float,
     lags: tuple[list[float], float] = ([0.0], 0.0),
     modes: tuple[str, ...] = PROFILE_MODES,
+    tv: float = 0.0,
 ) -> dict[str, Any]:
     """``fit_loop``'s answer (as ``identify`` runs it) refitted on every sample on the model's compliant contact held at
     each frequency of ``wcs`` (rad/s on the load's inertia, in the order given, each point started from the one before)
@@ -183,7 +185,7 @@ def contact_profile(
     inertia ratio]``; nothing for a massless answer (the contact is a massive load's). ``lags``: the multiples of the
     twin's torque lag ``tq`` (s) the profile is run at (each a mode of its own, ``"load free, tq x1"``: the lag held at
     every point, and ``"rigid, tq x1"``: the answer refitted with the lag alone); ``modes``: which of
-    :data:`PROFILE_MODES`."""
+    :data:`PROFILE_MODES`; ``tv``: the model's velocity filter held at every point too, s (0: none)."""
     model, rec, answer, base = _answer(u, y, period)
     scales, tq_twin = lags
     row: dict[str, Any] = {"answer": model.play / truth - 1.0, "mu": float(model.mu), "wcs": wcs, "zeta": zeta,
@@ -192,7 +194,7 @@ def contact_profile(
         return row
     loop = lf._free(model.structure, model.ki > 0.0)
     for scale in scales:
-        start = dict(answer, tq=scale * tq_twin)
+        start = dict(answer, tq=scale * tq_twin, **({"tv": tv} if tv > 0.0 else {}))
         if scale > 0.0:
             d, cost = _refit(rec, period, model, start, loop)
             row["rigid" + _lag_label(scale)] = [d["play"] / truth - 1.0, (cost - base) / (base / rec[1].size), d["mu"]]
@@ -235,6 +237,7 @@ def record(
     profile: tuple[list[float], float] | None = None,
     tq_scales: list[float] | None = None,
     modes: tuple[str, ...] = PROFILE_MODES,
+    tv: float = 0.0,
 ) -> dict[str, Any]:
     """One record's play errors on the ``wanted`` readings, and the load's against the gear's motor side (``tq_scales``:
     the held loads and the contact profile at those multiples of the twin's torque lag, :func:`twin_torque_lag_s`)."""
@@ -270,7 +273,7 @@ def record(
         row["held load"] = held_load(np.asarray(rec["u"]), readings["twin"], period, truth, held)
     if profile:
         row["contact profile"] = contact_profile(
-            np.asarray(rec["u"]), readings["twin"], period, truth, *profile, (tq_scales or [0.0], tq_twin), modes
+            np.asarray(rec["u"]), readings["twin"], period, truth, *profile, (tq_scales or [0.0], tq_twin), modes, tv
         )
     return row
 
@@ -374,6 +377,7 @@ def main() -> None:
     parser.add_argument(
         "--profile-modes", default=",".join(PROFILE_MODES), help="comma-separated: " + ", ".join(PROFILE_MODES)
     )
+    parser.add_argument("--profile-tv", type=float, default=0.0, help="the profile's velocity filter held, s (0: none)")
     parser.add_argument(
         "--tq-scales", default="", help="S,S,...: the model's torque lag held at S x the twin's (0: none)"
     )
@@ -401,7 +405,9 @@ def main() -> None:
             for mult in (float(m) for m in args.rates.split(",")):
                 for seed in (int(s) for s in args.seeds.split(",")):
                     wanted = tuple(r for r in args.readings.split(",") if r)
-                    rows.append(record(name, what, over, mult, seed, wanted, held, profile, tq_scales, modes))
+                    rows.append(
+                        record(name, what, over, mult, seed, wanted, held, profile, tq_scales, modes, args.profile_tv)
+                    )
                     print(json.dumps(rows[-1]), flush=True)
                     append_json(args.dump, rows[-1])
     print_tables(rows)
