@@ -2,7 +2,8 @@
 
 Run: ``.venv/bin/python benchmarks/motor_bias.py --presets cia402 --rates 10,50 --seeds 1,2,3
 [--output-cpr 16384] [--effects "as is,load x0.01"] [--readings twin] [--held-load 0.89,10,0.85[,WC,ZETA,ALS,VLS[,TV]]]
-[--contact-profile 566,400,283,200,141,100 [--contact-zeta 0.025]] [--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
+[--contact-profile 566,400,283,200,141,100 [--contact-zeta 0.025] [--profile-modes "load free"]] [--tq-scales 0,1]
+[--dump out.jsonl]``; ``--load out.jsonl`` prints a dump's tables again.
 
 On each record (``real_servos.twin_record``: the table's gentle sines and 0.3 count of noise; the output encoder's
 counts per revolution ``--output-cpr``, default the table's 4096), ``identify`` with no flags on three readings of
@@ -31,7 +32,12 @@ drive's 0.001; ``0,0,0,0,0,0,0,0.001`` is the massless answer with the filter al
 compliant contact held at each frequency in turn (rad/s on the load's inertia, each from the fit before; damping ratio
 ``--contact-zeta``), with the load's inertia and friction held at the answer's and refitted too: the cost over the
 contact's frequency as a fit of it would see it, and the play at its least (the twin's frequency is not given: a
-user's gear has its own; :func:`contact_profile`). ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
+user's gear has its own; :func:`contact_profile`). ``--tq-scales 0,0.5,1,2``: the model's torque lag (``tq``, s: the
+drive's current loop between the velocity loop's command and the motor's torque) held at each multiple of the record's
+twin's (:func:`twin_torque_lag_s`, from the twin's parameters as this run overrides them, so that a current loop made
+faster or slower moves it along), in the contact profile (its points per multiple, and the rigid answer refitted with
+the lag held, ``rigid``) and in each held load (a ninth value; 0: none, the load as given); ``--profile-tv TV`` holds
+the model's velocity filter in the profile too (s). ``--effects`` are the twin's variants by the names of ``twin_effects.effects`` (one effect switched off or
 scaled; a load of a hundredth, ``load x0.01``, leaves the motor side without the load it picks up at a flank).
 Per effect and reading: within 5 %, mean, standard deviation, largest. The twins' presets are not changed (the
 overrides make this run's copies). The machine may be shared: times are one run each.
@@ -52,6 +58,7 @@ from real_servos import NOISE_COUNTS, run, twin_record
 from scipy.optimize import minimize
 from twin_effects import effects
 
+from servoid.drivers.twin import preset
 from servoid.ident.models.kernels import backlash_step
 from servoid.ident.offline import loop_fit as lf
 from servoid.ident.offline.load_stage import _PER_INERTIA
@@ -61,9 +68,22 @@ from servoid.ident.offline.operating_point import operating_point
 READINGS = ("twin", "load now", "play operator")
 #: What ``--held-load`` holds, in its order: the model's load, its contact (``wc`` 0: rigid), its break-away and its
 #: velocity filter.
-HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls", "tv")
+HELD_NAMES = ("mu", "al", "e", "wc", "zeta", "als", "vls", "tv", "tq")
 #: ``--contact-profile``: the load's inertia and friction held at the answer's at every point, or refitted there.
 PROFILE_MODES = ("load held", "load free")
+
+
+def twin_torque_lag_s(params: Any) -> float:
+    """The time constant of a cascade twin's current loop, s: ``L / kp`` (its PI's zero cancels the winding's pole,
+    ``ki / kp = R / L``, so the loop is first order with the bandwidth ``kp / L``); 0 for a twin without one."""
+    if params.firmware != "cascade" or params.inductance_h <= 0.0 or params.cur_kp_v_a <= 0.0:
+        return 0.0
+    return float(params.inductance_h / params.cur_kp_v_a)
+
+
+def _lag_label(scale: float) -> str:
+    """The key suffix of a profile held at ``scale`` times the twin's torque lag (none for 0)."""
+    return "" if scale == 0.0 else f", tq x{scale:g}"
 
 
 def play_operator(x: np.ndarray, play: float, y0: float) -> np.ndarray:
@@ -147,27 +167,51 @@ def held_load(
 
 
 def contact_profile(
-    u: np.ndarray, y: np.ndarray, period: float, truth: float, wcs: list[float], zeta: float
+    u: np.ndarray,
+    y: np.ndarray,
+    period: float,
+    truth: float,
+    wcs: list[float],
+    zeta: float,
+    lags: tuple[list[float], float] = ([0.0], 0.0),
+    modes: tuple[str, ...] = PROFILE_MODES,
+    tv: float = 0.0,
 ) -> dict[str, Any]:
     """``fit_loop``'s answer (as ``identify`` runs it) refitted on every sample on the model's compliant contact held at
     each frequency of ``wcs`` (rad/s on the load's inertia, in the order given, each point started from the one before)
     with the damping ratio ``zeta``; the final refit's free parameters and budget, with the load's inertia and friction
     held at the answer's (:data:`PROFILE_MODES` "load held") or refitted too ("load free"). Returns the answer's play
     error and inertia ratio and per mode each point's ``[play error, cost in residual variances against the answer's,
-    inertia ratio]``; nothing for a massless answer (the contact is a massive load's)."""
+    inertia ratio]``; nothing for a massless answer (the contact is a massive load's). ``lags``: the multiples of the
+    twin's torque lag ``tq`` (s) the profile is run at (each a mode of its own, ``"load free, tq x1"``: the lag held at
+    every point, and ``"rigid, tq x1"``: the answer refitted with the lag alone); ``modes``: which of
+    :data:`PROFILE_MODES`; ``tv``: the model's velocity filter held at every point too, s (0: none)."""
     model, rec, answer, base = _answer(u, y, period)
+    scales, tq_twin = lags
     row: dict[str, Any] = {"answer": model.play / truth - 1.0, "mu": float(model.mu), "wcs": wcs, "zeta": zeta,
-                           "samples": int(rec[1].size)}  # fmt: skip
+                           "samples": int(rec[1].size), "tq": tq_twin}  # fmt: skip
     if not model.massive:
         return row
     loop = lf._free(model.structure, model.ki > 0.0)
-    for mode, free in zip(PROFILE_MODES, (loop, loop + ("mu", "al")), strict=True):
-        d, points = answer, []
-        for wc in wcs:
-            d, cost = _refit(rec, period, model, dict(d, wc=wc, zeta=zeta), free)
-            points.append([d["play"] / truth - 1.0, (cost - base) / (base / rec[1].size), d["mu"]])
-        row[mode] = points
+    for scale in scales:
+        start = dict(answer, tq=scale * tq_twin, **({"tv": tv} if tv > 0.0 else {}))
+        if scale > 0.0:
+            d, cost = _refit(rec, period, model, start, loop)
+            row["rigid" + _lag_label(scale)] = [d["play"] / truth - 1.0, (cost - base) / (base / rec[1].size), d["mu"]]
+        for mode, free in zip(PROFILE_MODES, (loop, loop + ("mu", "al")), strict=True):
+            if mode not in modes:
+                continue
+            d, points = start, []
+            for wc in wcs:
+                d, cost = _refit(rec, period, model, dict(d, wc=wc, zeta=zeta), free)
+                points.append([d["play"] / truth - 1.0, (cost - base) / (base / rec[1].size), d["mu"]])
+            row[mode + _lag_label(scale)] = points
     return row
+
+
+def profile_modes(row: dict[str, Any]) -> list[str]:
+    """The contact profile's modes in ``row`` (:data:`PROFILE_MODES`, each with and without a torque lag)."""
+    return [k for k in row if k.startswith(PROFILE_MODES)]
 
 
 def least(row: dict[str, Any], mode: str, pays: bool = False) -> tuple[float, float]:
@@ -191,9 +235,16 @@ def record(
     wanted: tuple[str, ...] = READINGS,
     held: list[tuple[float, ...]] | None = None,
     profile: tuple[list[float], float] | None = None,
+    tq_scales: list[float] | None = None,
+    modes: tuple[str, ...] = PROFILE_MODES,
+    tv: float = 0.0,
 ) -> dict[str, Any]:
-    """One record's play errors on the ``wanted`` readings, and the load's against the gear's motor side."""
+    """One record's play errors on the ``wanted`` readings, and the load's against the gear's motor side (``tq_scales``:
+    the held loads and the contact profile at those multiples of the twin's torque lag, :func:`twin_torque_lag_s`)."""
     rec = twin_record(name, mult, 1.0, "sines", seed, **over)
+    tq_twin = twin_torque_lag_s(preset(name, **over))  # type: ignore[arg-type]
+    if tq_scales and held:
+        held = [load + (0.0,) * (8 - len(load)) + (s * tq_twin,) for s in tq_scales for load in held]
     truth, period, cpr = float(rec["play"]), float(rec["period"]), float(rec["cpr"])  # type: ignore[arg-type]
     gear, load = np.asarray(rec["gear_side_true"]), np.asarray(rec["load_true"])
     rng = np.random.default_rng(seed + 77)
@@ -209,6 +260,7 @@ def record(
         "seed": seed,
         "counts": truth * cpr / (2 * np.pi),
     }
+    row["tq twin"] = tq_twin
     for label in wanted:
         y = readings[label]
         with warnings.catch_warnings():
@@ -220,7 +272,9 @@ def record(
     if held:
         row["held load"] = held_load(np.asarray(rec["u"]), readings["twin"], period, truth, held)
     if profile:
-        row["contact profile"] = contact_profile(np.asarray(rec["u"]), readings["twin"], period, truth, *profile)
+        row["contact profile"] = contact_profile(
+            np.asarray(rec["u"]), readings["twin"], period, truth, *profile, (tq_scales or [0.0], tq_twin), modes, tv
+        )
     return row
 
 
@@ -238,21 +292,25 @@ def _profiled(row: dict[str, Any], mode: str) -> str:
     if mode not in prof:
         return f"{100 * prof['answer']:+.1f} % (massless)"
     points = " / ".join(f"{100 * p[0]:+.1f} ({p[1]:+.0f})" for p in prof[mode])
-    return f"{100 * prof['answer']:+.1f} -> {points}: {least(prof, mode)[0]:g}"
+    rigid = prof.get("rigid" + mode[mode.index(", tq") :]) if ", tq" in mode else None
+    head = f"{100 * prof['answer']:+.1f}" + (f", rigid {100 * rigid[0]:+.1f} ({rigid[1]:+.0f})" if rigid else "")
+    return f"{head} -> {points}: {least(prof, mode)[0]:g}"
 
 
 def print_tables(rows: list[dict[str, Any]]) -> None:
     """The per-record table and the summary per effect and reading."""
+    modes = list(dict.fromkeys(m for r in rows if "contact profile" in r for m in profile_modes(r["contact profile"])))
+    modes = modes or list(PROFILE_MODES)
     table(
         "identify's play error on each reading (mu: the load stage's inertia ratio, 0 massless)",
         ["preset", "effect", "rate", "seed", "play (counts)", *READINGS, "load vs gear", "held load (variances)",
-         *(f"contact, {mode}: least (rad/s)" for mode in PROFILE_MODES)],
+         *(f"contact, {mode}: least (rad/s)" for mode in modes)],
         [[r["preset"], r["effect"], f"{r['mult']:g}x", str(r["seed"]), f"{r['counts']:.2f}",
           *(f"{100 * r[k]['gap']:+.1f} % ({r[k]['mu']:.2f})" if k in r else "" for k in READINGS),
           f"{100 * r['load vs gear']:+.2f} %",
           f"{100 * r['held load']['answer']:+.1f} -> " + " / ".join(
               f"{100 * g:+.1f} % ({v:+.0f})" for g, v in zip(*_held(r), strict=True)) if "held load" in r else "",
-          *(_profiled(r, mode) for mode in PROFILE_MODES)]
+          *(_profiled(r, mode) for mode in modes)]
          for r in rows],
     )  # fmt: skip
     out = []
@@ -264,20 +322,39 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
             columns["held load: answer"] = [r["held load"]["answer"] for r in group]
             for i, load in enumerate(group[0]["held load"].get("loads", [[]])):
                 columns[f"held load {','.join(f'{v:g}' for v in load)}"] = [_held(r)[0][i] for r in group]
+        where: dict[str, str] = {}
         if "contact profile" in group[0]:
             columns["contact profile: answer"] = [r["contact profile"]["answer"] for r in group]
-            for mode in PROFILE_MODES:
+            for rigid in (k for k in group[0]["contact profile"] if k.startswith("rigid")):
+                columns[f"contact profile: {rigid}"] = [r["contact profile"].get(rigid, [r["contact profile"]["answer"]])[0]
+                                                        for r in group]  # fmt: skip
+            for mode in modes:
                 columns[f"contact profile, {mode}: least"] = [least(r["contact profile"], mode)[1] for r in group]
+                where[f"contact profile, {mode}: least"] = _where(group, mode)
                 columns[f"contact profile, {mode}: where it pays"] = [
                     least(r["contact profile"], mode, pays=True)[1] for r in group
                 ]
         for reading, gaps in columns.items():
             g = np.array(gaps)
             out.append([*key, reading, str(g.size), str(int(np.sum(np.abs(g) <= 0.05))), f"{100 * g.mean():+.1f} %",
-                        f"{100 * g.std(ddof=1) if g.size > 1 else 0.0:.1f} %", f"{100 * np.abs(g).max():.1f} %"])  # fmt: skip
+                        f"{100 * g.std(ddof=1) if g.size > 1 else 0.0:.1f} %", f"{100 * np.abs(g).max():.1f} %",
+                        where.get(reading, "")])  # fmt: skip
     table(
-        "Per effect and reading", ["preset", "effect", "reading", "records", "within 5 %", "mean", "sd", "largest"], out
+        "Per effect and reading (least: where the profile's least cost sits, rad/s; heavy: the answers with mu > 2)",
+        ["preset", "effect", "reading", "records", "within 5 %", "mean", "sd", "largest", "least at"],
+        out,
     )
+
+
+def _where(group: list[dict[str, Any]], mode: str) -> str:
+    """Where a profile's least cost sits on a group's records, and on its heavy answers (``mu > 2``): ``200 on 9``."""
+
+    def counted(rows: list[dict[str, Any]]) -> str:
+        at = [least(r["contact profile"], mode)[0] for r in rows]
+        return ", ".join(f"{wc:g} on {at.count(wc)}" for wc in sorted(set(at), reverse=True))
+
+    heavy = [r for r in group if r["contact profile"]["mu"] > 2.0]
+    return f"{counted(group)}; heavy {len(heavy)}: {counted(heavy)}"
 
 
 def main() -> None:
@@ -297,6 +374,13 @@ def main() -> None:
     profile_help = "WC,WC,... rad/s, in this order: also refit the answer on the contact held at each (contact_profile)"
     parser.add_argument("--contact-profile", default="", help=profile_help)
     parser.add_argument("--contact-zeta", type=float, default=0.025, help="the profile's contact damping ratio")
+    parser.add_argument(
+        "--profile-modes", default=",".join(PROFILE_MODES), help="comma-separated: " + ", ".join(PROFILE_MODES)
+    )
+    parser.add_argument("--profile-tv", type=float, default=0.0, help="the profile's velocity filter held, s (0: none)")
+    parser.add_argument(
+        "--tq-scales", default="", help="S,S,...: the model's torque lag held at S x the twin's (0: none)"
+    )
     parser.add_argument("--dump", default=None)
     parser.add_argument("--load", default=None)
     args = parser.parse_args()
@@ -307,6 +391,10 @@ def main() -> None:
     held = [tuple(float(v) for v in load.split(",")) for load in args.held_load.split(";") if load.strip()]
     wcs = [float(v) for v in args.contact_profile.split(",") if v.strip()]
     profile = (wcs, args.contact_zeta) if wcs else None
+    tq_scales = [float(v) for v in args.tq_scales.split(",") if v.strip()] or None
+    modes = tuple(m.strip() for m in args.profile_modes.split(",") if m.strip())
+    if any(m not in PROFILE_MODES for m in modes):
+        raise SystemExit(f"--profile-modes (={args.profile_modes!r}) must name {' or '.join(PROFILE_MODES)}")
     rows = []
     for name in args.presets.split(","):
         cases = effects(name)
@@ -317,7 +405,9 @@ def main() -> None:
             for mult in (float(m) for m in args.rates.split(",")):
                 for seed in (int(s) for s in args.seeds.split(",")):
                     wanted = tuple(r for r in args.readings.split(",") if r)
-                    rows.append(record(name, what, over, mult, seed, wanted, held, profile))
+                    rows.append(
+                        record(name, what, over, mult, seed, wanted, held, profile, tq_scales, modes, args.profile_tv)
+                    )
                     print(json.dumps(rows[-1]), flush=True)
                     append_json(args.dump, rows[-1])
     print_tables(rows)

@@ -50,6 +50,8 @@ def effects(name: str) -> dict[str, dict[str, object]]:
         "motor hump off": {"motor_breakaway_nm": b.motor_coulomb_nm},
         "motor friction x0.01": {"motor_coulomb_nm": 0.01 * b.motor_coulomb_nm, "motor_breakaway_nm": 0.01 * b.motor_breakaway_nm, "motor_viscous_nms": 0.01 * b.motor_viscous_nms},
         "current loop x3 faster": {"cur_kp_v_a": 3 * b.cur_kp_v_a, "cur_ki_v_as": 3 * b.cur_ki_v_as},
+        "current loop x2 faster": {"cur_kp_v_a": 2 * b.cur_kp_v_a, "cur_ki_v_as": 2 * b.cur_ki_v_as},
+        "current loop x2 slower": {"cur_kp_v_a": 0.5 * b.cur_kp_v_a, "cur_ki_v_as": 0.5 * b.cur_ki_v_as},
         "loop encoder x64 counts": {"motor_encoder_cpr": 64 * b.motor_encoder_cpr},
         "load inertia x3": {"load_inertia_kgm2": 3 * b.load_inertia_kgm2},
         "load inertia x0.01": {"load_inertia_kgm2": 0.01 * b.load_inertia_kgm2},

@@ -345,3 +345,91 @@ def test_a_velocity_filter_is_in_every_kernel_and_off_changes_nothing(structure:
     # a vanishing time constant is the loop without the filter
     plain = _model(structure)
     np.testing.assert_allclose(dataclasses.replace(plain, tv=1e-12).simulate(u), plain.simulate(u), rtol=0, atol=1e-9)
+
+
+def test_a_torque_lag_lags_the_loop_as_a_first_order_lag_should() -> None:
+    # no friction, no play, no integrator: a set point far away clips the velocity command at vmax, a step of it.
+    # The loop is then dv/dt = a, da/dt = (kv (vmax - v) - a) / tq (a = kv (vmax - v) without the lag): the motor
+    # speed and the drive's torque against that system's exact step response, each within the sub-step's error
+    from scipy.linalg import expm
+
+    kv, vmax, period = 400.0, 2.0, 0.00025
+    t = period * np.arange(1, 161)
+
+    def exact(tq: float) -> np.ndarray:
+        m = np.zeros((3, 3))  # [v, a, 1]
+        m[0, 1] = 1.0
+        m[1, :] = [-kv / tq, -1.0 / tq, kv * vmax / tq]
+        step = expm(m * period)
+        at, out = np.eye(3), []
+        for _ in t:
+            at = step @ at
+            out.append(at[:2, 2])
+        return np.array(out)
+
+    for tq in (0.001, 0.004):
+        model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tq=tq)
+        p = model.vector()
+        state = np.empty(STATE_SIZE)
+        initial_state(p, 0.0, state)
+        got = []
+        for _ in t:
+            advance(p, False, state, 10.0, period, model.substeps)
+            got.append((state[2], state[7]))
+        got_arr, want = np.array(got), exact(tq)
+        assert np.max(np.abs(got_arr[:, 0] - want[:, 0])) < 0.05 * vmax
+        assert np.max(np.abs(got_arr[:, 1] - want[:, 1])) < 0.05 * kv * vmax
+    # the lag is far beyond that error: the loop with a 4 ms lag overshoots by a fifth (damping ratio 0.4), the plain one not
+    plain = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3)
+    state = np.empty(STATE_SIZE)
+    initial_state(plain.vector(), 0.0, state)
+    speeds = []
+    for _ in t:
+        advance(plain.vector(), False, state, 10.0, period, plain.substeps)
+        speeds.append(state[2])
+    assert np.max(exact(0.004)[:, 0]) > 1.2 * vmax and max(speeds) <= vmax
+
+
+@pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
+def test_a_torque_lag_is_in_every_kernel_and_off_changes_nothing(structure: str) -> None:
+    u = 0.1 * np.sin(np.arange(300) * 0.05)
+    loads = (
+        {},
+        {"mu": 0.6, "e": 0.3, "al": 3.0},
+        {"mu": 0.6, "al": 3.0, "wc": 900.0, "zeta": 0.1, "als": 5.0, "vls": 0.02},
+    )
+    for load in loads:
+        for tv in (0.0, 0.004):
+            plain = _model(structure, **load, tv=tv)
+            lagged = dataclasses.replace(plain, tq=0.03)
+            assert lagged.names()[-1] == "tq" and "tq" not in plain.names()
+            assert ServoLoopModel.from_vector(structure, 0.01, lagged.vector()) == lagged
+            assert ServoLoopModel.from_dict(lagged.to_dict()) == lagged
+            # off: a vector without the lag (an older model's) simulates to the bit as one with tq = 0
+            short = np.empty(u.size)
+            simulate_kernel(plain.vector()[:-1], plain.feedback_load, u, 0.0, 0.01, plain.substeps, short)
+            np.testing.assert_array_equal(plain.simulate(u, y0=0.0), short)
+            # on: it changes the free run, compiled as in Python, and the pair kernel gives both to the bit
+            fast, slow = np.empty(u.size), np.empty(u.size)
+            args = (lagged.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps)
+            simulate_kernel(*args, fast)
+            python_version(simulate_kernel)(*args, slow)
+            np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+            assert np.max(np.abs(fast - short)) > 1e-2 * plain.play
+            both = [np.empty(u.size), np.empty(u.size)]
+            simulate_pair_kernel(
+                lagged.vector(), plain.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
+            )
+            assert np.array_equal(both[0], fast) and np.array_equal(both[1], short)
+            simulate_pair_kernel(
+                plain.vector(), lagged.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
+            )
+            assert np.array_equal(both[0], short) and np.array_equal(both[1], fast)
+    # a vanishing time constant is the loop without the lag (on the same sub-steps: the lag's own would be 48)
+    plain = _model(structure)
+    assert dataclasses.replace(plain, tq=1e-12).substeps == 48 and dataclasses.replace(plain, tq=0.01).substeps == 10
+    vanishing = np.empty(u.size)
+    simulate_kernel(
+        dataclasses.replace(plain, tq=1e-12).vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, vanishing
+    )
+    np.testing.assert_allclose(vanishing, plain.simulate(u, y0=0.0), rtol=0, atol=1e-9)

@@ -18,6 +18,9 @@ simulator serves both places of the play (:mod:`~servoid.ident.models.structure_
     velocity filter (opt-in, tv > 0): the velocity loop feeds back vf, the motor side's speed through a first-order
                  filter, vf' = (v - vf) / tv, in place of v (kv (v_cmd - vf), z' = ki (v_cmd - vf)): a cascade
                  drive's velocity estimate, the encoder's differences filtered (:func:`_filtered`)
+    torque lag (opt-in, tq > 0): the motor feels a, the velocity loop's command a_cmd = kv (v_cmd - vf) + z through
+                 a first-order lag, a' = (a_cmd - a) / tq (dv/dt = a - F(v) + a0): a cascade drive's current loop
+                 (:func:`_lagged`)
     reading:     y_hat(k) = y(t_k), read at the host instant before the command u(k) is applied
 
 Why this form (physics, see the issue-12 study): a drive that closes its loop
@@ -66,6 +69,7 @@ __all__ = [
     "CONTACT_NAMES",
     "BREAKAWAY_NAMES",
     "FILTER_NAMES",
+    "LAG_NAMES",
     "KERNEL_NAMES",
     "STATE_SIZE",
     "ServoLoopModel",
@@ -96,9 +100,13 @@ BREAKAWAY_NAMES: tuple[str, ...] = ("als", "vls")
 #: first-order filter on the speed the velocity loop feeds back, s (0, or a vector without it: none, the loop feeds
 #: back the motor side's speed itself). Any model, massless or not.
 FILTER_NAMES: tuple[str, ...] = ("tv",)
+#: The drive's torque lag (:func:`_lagged`), after :data:`FILTER_NAMES`: the time constant ``tq`` of the first-order
+#: lag between the velocity loop's command and the motor's torque, s (a cascade drive's current loop, about one over
+#: its bandwidth; 0, or a vector without it: none, the torque is the command at once). Any model, massless or not.
+LAG_NAMES: tuple[str, ...] = ("tq",)
 #: The kernel's parameter vector: :data:`PARAM_NAMES`, :data:`LOAD_NAMES`, :data:`CONTACT_NAMES`,
-#: :data:`BREAKAWAY_NAMES`, then :data:`FILTER_NAMES`.
-KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES + FILTER_NAMES
+#: :data:`BREAKAWAY_NAMES`, :data:`FILTER_NAMES`, then :data:`LAG_NAMES`.
+KERNEL_NAMES: tuple[str, ...] = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES + FILTER_NAMES + LAG_NAMES
 #: A rebound slower than this share of the speed the load's friction takes off in one sub-step ends in
 #: contact (:func:`_advance_load`): small, so that a small restitution still bounces (the fit needs its slope).
 REBOUND_SHARE = 0.01
@@ -106,16 +114,16 @@ REBOUND_SHARE = 0.01
 #: sub-steps per period of the contact's ringing, so that the explicit contact force neither damps nor
 #: excites it (the fit's own sub-step, :data:`H_KV_MAX`, is up to ten times longer than the contact's period).
 H_WC_MAX = 0.1
-#: Floats in the simulation's state: ``[x, y, v, z, w, contact, vf]`` (:func:`initial_state`).
-STATE_SIZE = 7
+#: Floats in the simulation's state: ``[x, y, v, z, w, contact, vf, a]`` (:func:`initial_state`).
+STATE_SIZE = 8
 
 #: Largest ``h kv`` of a sub-step: the implicit velocity step stays accurate (the study measured
 #: 0.7 count rms of model error on the XM430 at ``h kv = 0.8``, 0.35 at 0.1).
 H_KV_MAX = 0.15
 
 
-def substeps(sample_period_s: float, kv: float) -> int:
-    """Sub-steps per host period so that ``h kv <= H_KV_MAX``, between 2 and 48.
+def substeps(sample_period_s: float, kv: float, tq: float = 0.0) -> int:
+    """Sub-steps per host period so that ``h kv <= H_KV_MAX`` (and ``h / tq <= H_KV_MAX`` with a torque lag), 2..48.
 
     Parameters
     ----------
@@ -123,13 +131,16 @@ def substeps(sample_period_s: float, kv: float) -> int:
         The host period ``T``, s.
     kv : float
         The velocity loop's rate, 1/s.
+    tq : float, optional
+        The drive's torque lag, s (0: none; :func:`_lagged`): its implicit step is as accurate as the velocity loop's.
 
     Returns
     -------
     int
-        ``ceil(T kv / H_KV_MAX)`` clipped to 2..48.
+        ``ceil(T rate / H_KV_MAX)`` clipped to 2..48, the rate ``kv`` or ``1 / tq`` if larger.
     """
-    return int(np.clip(np.ceil(sample_period_s * kv / H_KV_MAX), 2, 48))
+    rate = max(kv, 1.0 / tq) if tq > 0.0 else kv
+    return int(np.clip(np.ceil(sample_period_s * rate / H_KV_MAX), 2, 48))
 
 
 @jit
@@ -156,9 +167,10 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     y0 : float
         The load's position.
     state : ndarray
-        ``[x, y, v, z, w, contact, vf]``, overwritten: motor side, load, motor speed, integrator, load speed,
-        the flank in contact (0 free, +1 the motor pushes up, -1 down; a massive load only) and the filtered
-        speed the velocity loop feeds back (with ``tv > 0``; else it follows the motor speed).
+        ``[x, y, v, z, w, contact, vf, a]``, overwritten: motor side, load, motor speed, integrator, load speed,
+        the flank in contact (0 free, +1 the motor pushes up, -1 down; a massive load only), the filtered
+        speed the velocity loop feeds back (with ``tv > 0``; else it follows the motor speed) and the drive's
+        torque as an acceleration (with ``tq > 0``: the lagged command, :func:`_lagged`; else not used).
     """
     c1, c2, s0 = p[9], p[10], p[11]
     state[0] = y0 - c2 + s0 * (c1 + c2)
@@ -170,6 +182,8 @@ def initial_state(p: np.ndarray, y0: float, state: np.ndarray) -> None:
     state[4] = 0.0
     state[5] = 0.0
     state[6] = 0.0
+    # at rest the velocity error is 0: the drive's torque is the integrator's
+    state[7] = state[3]
 
 
 @jit
@@ -201,18 +215,20 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
             return _advance_contact(p, feedback_load, state, r, period, m, veps)
         return _advance_load(p, feedback_load, state, r, period, m, veps)
     h = period / m
-    g = _filter_gain(p, h)
-    x, yl, v, z, vf = state[0], state[1], state[2], state[3], state[6]
+    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    x, yl, v, z, vf, a = state[0], state[1], state[2], state[3], state[6], state[7]
     for _ in range(m):
         vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0, h)
         base, kvf = _filtered(base, kv, vf, g, h)
+        base, kvf, drive = _lagged(base, kvf, v, h * a0, a, gq, h)
         vn = v
         for _ in range(2):
             vn = _newton(vn, base, kvf, fc, fs, vs, veps, h)
         vf = _filter_moved(vf, vn, g)
+        a = _torque_moved(a, drive, kvf, vn, gq, h)
         x, yl, z = _moved(x, yl, z, vcmd, vn, vf, ki, c1, c2, h)
         v = vn
-    state[0], state[1], state[2], state[3], state[6] = x, yl, v, z, vf
+    state[0], state[1], state[2], state[3], state[6], state[7] = x, yl, v, z, vf, a
     return float(yl)
 
 
@@ -248,6 +264,47 @@ def _filter_moved(vf: float, vn: float, g: float) -> float:
     if g < 1.0:
         return vf + g * (vn - vf)
     return vn
+
+
+@jit
+def _lag_gain(p: np.ndarray, h: float) -> float:
+    """The torque lag's weight of the new command in one implicit sub-step ``h``: ``h / (tq + h)`` (1: no lag).
+
+    ``tq`` is ``p``'s :data:`LAG_NAMES` (0, or a vector without it: none).
+    """
+    if p.shape[0] > 20 and p[20] > 0.0:
+        return h / (float(p[20]) + h)
+    return 1.0
+
+
+@jit_inline
+def _lagged(
+    base: float, kvf: float, inert: float, ext: float, a: float, gq: float, h: float
+) -> tuple[float, float, float]:
+    """The implicit velocity step's known part and rate when the drive's torque lags its command (``gq < 1``).
+
+    The velocity loop commands the torque ``a_cmd = kv (v_cmd - vf) + z`` (as an acceleration); a cascade drive's
+    current loop makes it with a first-order lag, ``a' = (a_cmd - a) / tq``, and the motor feels ``a``:
+    ``dv/dt = a + a0 - F(v)`` (and the load's push). Implicit in ``v`` and ``a`` together, ``a_new = a + gq (a_cmd_new
+    - a)`` with ``gq = h / (tq + h)``: of the step's known part ``base`` (``inert``, the motor's momentum term, plus
+    ``ext``, ``h`` times the forces the drive does not make, plus ``h`` times the command's known part) the command's
+    part is weighted ``gq`` and ``h (1 - gq) a`` added, and the rate ``kvf`` on the new speed is weighted ``gq``.
+    Returns the new ``base``, the rate and ``drive``, ``h`` times the new torque's known part (:func:`_torque_moved`);
+    ``gq = 1`` (no lag) returns ``base`` and ``kvf`` unchanged.
+    """
+    if gq < 1.0:
+        drive = gq * (base - inert - ext) + (1.0 - gq) * h * a
+        return inert + ext + drive, kvf * gq, drive
+    return base, kvf, 0.0
+
+
+@jit_inline
+def _torque_moved(a: float, drive: float, kq: float, vn: float, gq: float, h: float) -> float:
+    """The drive's torque after a sub-step whose motor speed is ``vn`` (:func:`_lagged`'s ``drive`` and rate ``kq``;
+    ``gq = 1``: ``a`` unchanged, not used)."""
+    if gq < 1.0:
+        return drive / h - kq * vn
+    return a
 
 
 @jit_inline
@@ -297,16 +354,18 @@ def _moved(
 @jit
 def _motor_step(
     v: float, vcmd: float, z: float, a0: float, kv: float, fc: float, fs: float, vs: float, veps: float, h: float,
-    vf: float = 0.0, g: float = 1.0,
-) -> float:  # fmt: skip
-    """The motor side's implicit velocity step alone (the massless load's, :func:`advance`; ``vf``, ``g``: the
-    velocity filter's, :func:`_filtered`)."""
+    vf: float = 0.0, g: float = 1.0, a: float = 0.0, gq: float = 1.0,
+) -> tuple[float, float]:  # fmt: skip
+    """The motor side's implicit velocity step alone and the drive's torque after it (the massless load's,
+    :func:`advance`; ``vf``, ``g``: the velocity filter's, :func:`_filtered`; ``a``, ``gq``: the torque lag's,
+    :func:`_lagged`)."""
     base, kv = _filtered(v + h * (kv * vcmd + z + a0), kv, vf, g, h)
+    base, kv, drive = _lagged(base, kv, v, h * a0, a, gq, h)
     vn = v
     for _ in range(2):
         f, df = _friction(vn, fc, fs, vs, veps)
         vn -= (vn * (1.0 + h * kv) - base + h * f) / (1.0 + h * kv + h * df)
-    return vn
+    return vn, _torque_moved(a, drive, kv, vn, gq, h)
 
 
 @jit_inline
@@ -397,14 +456,14 @@ def _advance_load(
     mu, e, al = p[12], p[13], p[14]
     als, vls = _breakaway(p)
     h = period / m
-    g = _filter_gain(p, h)
-    x, yl, v, z, w, side, vf = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    x, yl, v, z, w, side, vf, a = state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7]
     for _ in range(m):
-        x, yl, v, z, w, side, vf = _load_substep(
+        x, yl, v, z, w, side, vf, a = _load_substep(
             x, yl, v, z, w, side, r, feedback_load, kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2, mu, e, al, h,
-            als, vls, vf, g,
+            als, vls, vf, g, a, gq,
         )  # fmt: skip
-    state[0], state[1], state[2], state[3], state[4], state[5], state[6] = x, yl, v, z, w, side, vf
+    state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7] = x, yl, v, z, w, side, vf, a
     return float(yl)
 
 
@@ -437,13 +496,17 @@ def _load_substep(
     vls: float = 1.0,
     vf: float = 0.0,
     g: float = 1.0,
-) -> tuple[float, float, float, float, float, float, float]:
-    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact, vf)`` (``als``, ``vls``: the
-    load's break-away, :func:`_load_level`; ``vf``, ``g``: the velocity filter's, :func:`_filtered`)."""
+    a: float = 0.0,
+    gq: float = 1.0,
+) -> tuple[float, float, float, float, float, float, float, float]:
+    """One sub-step ``h`` of :func:`_advance_load`: the new ``(x, y, v, z, w, contact, vf, a)`` (``als``, ``vls``: the
+    load's break-away, :func:`_load_level`; ``vf``, ``g``: the velocity filter's, :func:`_filtered`; ``a``, ``gq``: the
+    torque lag's, :func:`_lagged`)."""
     vcmd = _velocity_command(kp, r - (yl if feedback_load else x), vmax)
     if side != 0.0:
         # one body: the implicit step of the pair, two Newton steps on both frictions
         base, kvf = _filtered((1.0 + mu) * v + h * (kv * vcmd + z + a0), kv, vf, g, h)
+        base, kvf, drive = _lagged(base, kvf, (1.0 + mu) * v, h * a0, a, gq, h)
         vc = v
         for _ in range(2):
             f, df = _friction(vc, fc, fs, vs, veps)
@@ -456,12 +519,13 @@ def _load_substep(
         # the flank's force on the load, mu (dv/dt + al sat): it pushes, it never pulls
         if side * ((vc - v) / h + lv * sl) >= 0.0:
             vf = _filter_moved(vf, vc, g)
+            a = _torque_moved(a, drive, kvf, vc, gq, h)
             if ki > 0.0:
                 z += h * ki * (vcmd - vf)
             x += h * vc
-            return x, x - c1 if side > 0.0 else x + c2, vc, z, vc, side, vf
+            return x, x - c1 if side > 0.0 else x + c2, vc, z, vc, side, vf, a
         side = 0.0
-    vn = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h, vf, g)
+    vn, a = _motor_step(v, vcmd, z, a0, kv, fc, fs, vs, veps, h, vf, g, a, gq)
     vf = _filter_moved(vf, vn, g)
     if ki > 0.0:
         z += h * ki * (vcmd - vf)
@@ -495,7 +559,7 @@ def _load_substep(
         yn = (xi - c1 if hit > 0.0 else xi + c2) + (1.0 - tau) * h * wn
         if side != 0.0:
             yn = xn - c1 if side > 0.0 else xn + c2
-    return xn, yn, vn, z, wn, side, vf  # fmt: skip
+    return xn, yn, vn, z, wn, side, vf, a  # fmt: skip
 
 
 @jit
@@ -549,13 +613,13 @@ def _advance_contact(
     h = period / mc
     k2 = wc * wc
     c = 2.0 * zeta * wc
-    g = _filter_gain(p, h)
-    x, yl, v, z, w, vf = state[0], state[1], state[2], state[3], state[4], state[6]
+    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    x, yl, v, z, w, vf, a = state[0], state[1], state[2], state[3], state[4], state[6], state[7]
     loop = (kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)
     contact = (mu, al, k2, c) + _breakaway(p)
     for _ in range(mc):
-        x, yl, v, z, w, vf = _contact_substep(x, yl, v, z, w, vf, r, feedback_load, loop, contact, h, g)
-    state[0], state[1], state[2], state[3], state[4], state[6] = x, yl, v, z, w, vf
+        x, yl, v, z, w, vf, a = _contact_substep(x, yl, v, z, w, vf, r, feedback_load, loop, contact, h, g, a, gq)
+    state[0], state[1], state[2], state[3], state[4], state[6], state[7] = x, yl, v, z, w, vf, a
     return float(yl)
 
 
@@ -613,23 +677,28 @@ def _contact_substep(
     contact: tuple[float, float, float, float, float, float],
     h: float,
     g: float,
-) -> tuple[float, float, float, float, float, float]:
-    """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w, vf)`` after it.
+    a: float = 0.0,
+    gq: float = 1.0,
+) -> tuple[float, float, float, float, float, float, float]:
+    """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w, vf, a)`` after it.
 
     ``loop`` is :func:`_loop_params`'s ``(kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)``, ``contact`` is
-    ``(mu, al, wc^2, 2 zeta wc, als, vls)``, ``g`` the velocity filter's weight (:func:`_filter_gain`).
+    ``(mu, al, wc^2, 2 zeta wc, als, vls)``, ``g`` the velocity filter's weight (:func:`_filter_gain`), ``a`` the
+    drive's torque and ``gq`` the torque lag's weight (:func:`_lag_gain`).
     """
     kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2 = loop
     mu, al, k2, c, als, vls = contact
     f = _contact_force(x, yl, v, w, c1, c2, k2, c)
     vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0 - mu * f, h)
     base, kvf = _filtered(base, kv, vf, g, h)
+    base, kvf, drive = _lagged(base, kvf, v, h * (a0 - mu * f), a, gq, h)
     vn = v
     for _ in range(2):
         vn = _newton(vn, base, kvf, fc, fs, vs, veps, h)
     vf = _filter_moved(vf, vn, g)
+    a = _torque_moved(a, drive, kvf, vn, gq, h)
     x, yl, z, w = _contact_moved(x, yl, z, w, f, vcmd, vn, vf, ki, al, veps, h, als, vls)
-    return x, yl, vn, z, w, vf
+    return x, yl, vn, z, w, vf, a
 
 
 @jit
@@ -663,11 +732,11 @@ def simulate_kernel(
 
 
 @jit_inline
-def _at_rest(p: np.ndarray, y0: float) -> tuple[float, float, float, float, float, float, float]:
-    """:func:`initial_state` as a tuple ``(x, y, v, z, w, contact, vf)``."""
+def _at_rest(p: np.ndarray, y0: float) -> tuple[float, float, float, float, float, float, float, float]:
+    """:func:`initial_state` as a tuple ``(x, y, v, z, w, contact, vf, a)``."""
     state = np.empty(STATE_SIZE)
     initial_state(p, y0, state)
-    return state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    return state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7]
 
 
 @jit_inline
@@ -709,8 +778,8 @@ def simulate_pair_kernel(
     if compliant_p and compliant_q:
         # two compliant contacts, each on its own sub-step (:func:`contact_substeps`): while both have sub-steps left
         # in a host period their forces, commands and Newton steps alternate, then the one with more finishes alone
-        x1, yl1, v1, z1, w1, _, vf1 = _at_rest(p, y0)
-        x2, yl2, v2, z2, w2, _, vf2 = _at_rest(q, y0)
+        x1, yl1, v1, z1, w1, _, vf1, a1 = _at_rest(p, y0)
+        x2, yl2, v2, z2, w2, _, vf2, a2 = _at_rest(q, y0)
         loop1, loop2 = _loop_params(p), _loop_params(q)
         kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11, c21 = loop1
         kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12, c22 = loop2
@@ -719,6 +788,7 @@ def simulate_pair_kernel(
         mc1, mc2 = contact_substeps(period, m, mu1, wc1), contact_substeps(period, m, mu2, wc2)
         h1, h2 = period / mc1, period / mc2
         g1, g2 = _filter_gain(p, h1), _filter_gain(q, h2)
+        gq1, gq2 = _lag_gain(p, h1), _lag_gain(q, h2)
         k21, k22 = wc1 * wc1, wc2 * wc2
         cd1, cd2 = 2.0 * zeta1 * wc1, 2.0 * zeta2 * wc2
         both = min(mc1, mc2)
@@ -735,29 +805,32 @@ def simulate_pair_kernel(
                 vcmd2, base2 = _command(x2, yl2, v2, z2, r, feedback_load, kp2, kv2, vmax2, a02 - mu2 * f2, h2)
                 base1, kvf1 = _filtered(base1, kv1, vf1, g1, h1)
                 base2, kvf2 = _filtered(base2, kv2, vf2, g2, h2)
+                base1, kvf1, drive1 = _lagged(base1, kvf1, v1, h1 * (a01 - mu1 * f1), a1, gq1, h1)
+                base2, kvf2, drive2 = _lagged(base2, kvf2, v2, h2 * (a02 - mu2 * f2), a2, gq2, h2)
                 vn1, vn2 = v1, v2
                 for _ in range(2):
                     vn1 = _newton(vn1, base1, kvf1, fc1, fs1, vs1, veps1, h1)
                     vn2 = _newton(vn2, base2, kvf2, fc2, fs2, vs2, veps2, h2)
                 vf1, vf2 = _filter_moved(vf1, vn1, g1), _filter_moved(vf2, vn2, g2)
+                a1, a2 = _torque_moved(a1, drive1, kvf1, vn1, gq1, h1), _torque_moved(a2, drive2, kvf2, vn2, gq2, h2)
                 x1, yl1, z1, w1 = _contact_moved(x1, yl1, z1, w1, f1, vcmd1, vn1, vf1, ki1, al1, veps1, h1, als1, vls1)
                 x2, yl2, z2, w2 = _contact_moved(x2, yl2, z2, w2, f2, vcmd2, vn2, vf2, ki2, al2, veps2, h2, als2, vls2)
                 v1, v2 = vn1, vn2
             for _ in range(mc1 - both):
-                x1, yl1, v1, z1, w1, vf1 = _contact_substep(
-                    x1, yl1, v1, z1, w1, vf1, r, feedback_load, loop1, contact1, h1, g1
+                x1, yl1, v1, z1, w1, vf1, a1 = _contact_substep(
+                    x1, yl1, v1, z1, w1, vf1, r, feedback_load, loop1, contact1, h1, g1, a1, gq1
                 )
             for _ in range(mc2 - both):
-                x2, yl2, v2, z2, w2, vf2 = _contact_substep(
-                    x2, yl2, v2, z2, w2, vf2, r, feedback_load, loop2, contact2, h2, g2
+                x2, yl2, v2, z2, w2, vf2, a2 = _contact_substep(
+                    x2, yl2, v2, z2, w2, vf2, r, feedback_load, loop2, contact2, h2, g2, a2, gq2
                 )
         return
     if massive_p != massive_q or compliant_p or compliant_q:
         simulate_kernel(p, feedback_load, u, y0, period, m, y_p)
         simulate_kernel(q, feedback_load, u, y0, period, m, y_q)
         return
-    x1, yl1, v1, z1, w1, side1, vf1 = _at_rest(p, y0)
-    x2, yl2, v2, z2, w2, side2, vf2 = _at_rest(q, y0)
+    x1, yl1, v1, z1, w1, side1, vf1, a1 = _at_rest(p, y0)
+    x2, yl2, v2, z2, w2, side2, vf2, a2 = _at_rest(q, y0)
     # the parameters in locals: the outputs are written in the loop, and the compiler cannot tell they do not alias p, q
     kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11, c21 = _loop_params(p)
     kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12, c22 = _loop_params(q)
@@ -765,6 +838,7 @@ def simulate_pair_kernel(
     (als1, vls1), (als2, vls2) = _breakaway(p), _breakaway(q)
     h = period / m
     g1, g2 = _filter_gain(p, h), _filter_gain(q, h)
+    gq1, gq2 = _lag_gain(p, h), _lag_gain(q, h)
     for k in range(y_p.shape[0]):
         y_p[k] = yl1
         y_q[k] = yl2
@@ -772,13 +846,13 @@ def simulate_pair_kernel(
         for _ in range(m):
             if massive_p:
                 # two massive loads: :func:`_advance_load`'s sub-steps side by side
-                x1, yl1, v1, z1, w1, side1, vf1 = _load_substep(
+                x1, yl1, v1, z1, w1, side1, vf1, a1 = _load_substep(
                     x1, yl1, v1, z1, w1, side1, r, feedback_load, kp1, kv1, ki1, vmax1, fc1, fs1, vs1, veps1, a01, c11,
-                    c21, mu1, e1, al1, h, als1, vls1, vf1, g1,
+                    c21, mu1, e1, al1, h, als1, vls1, vf1, g1, a1, gq1,
                 )  # fmt: skip
-                x2, yl2, v2, z2, w2, side2, vf2 = _load_substep(
+                x2, yl2, v2, z2, w2, side2, vf2, a2 = _load_substep(
                     x2, yl2, v2, z2, w2, side2, r, feedback_load, kp2, kv2, ki2, vmax2, fc2, fs2, vs2, veps2, a02, c12,
-                    c22, mu2, e2, al2, h, als2, vls2, vf2, g2,
+                    c22, mu2, e2, al2, h, als2, vls2, vf2, g2, a2, gq2,
                 )  # fmt: skip
                 continue
             # the two chains step by step side by side (their Newton steps too: that is what overlaps)
@@ -786,11 +860,14 @@ def simulate_pair_kernel(
             vcmd2, base2 = _command(x2, yl2, v2, z2, r, feedback_load, kp2, kv2, vmax2, a02, h)
             base1, kvf1 = _filtered(base1, kv1, vf1, g1, h)
             base2, kvf2 = _filtered(base2, kv2, vf2, g2, h)
+            base1, kvf1, drive1 = _lagged(base1, kvf1, v1, h * a01, a1, gq1, h)
+            base2, kvf2, drive2 = _lagged(base2, kvf2, v2, h * a02, a2, gq2, h)
             vn1, vn2 = v1, v2
             for _ in range(2):
                 vn1 = _newton(vn1, base1, kvf1, fc1, fs1, vs1, veps1, h)
                 vn2 = _newton(vn2, base2, kvf2, fc2, fs2, vs2, veps2, h)
             vf1, vf2 = _filter_moved(vf1, vn1, g1), _filter_moved(vf2, vn2, g2)
+            a1, a2 = _torque_moved(a1, drive1, kvf1, vn1, gq1, h), _torque_moved(a2, drive2, kvf2, vn2, gq2, h)
             x1, yl1, z1 = _moved(x1, yl1, z1, vcmd1, vn1, vf1, ki1, c11, c21, h)
             x2, yl2, z2 = _moved(x2, yl2, z2, vcmd2, vn2, vf2, ki2, c12, c22, h)
             v1, v2 = vn1, vn2
@@ -844,6 +921,9 @@ class ServoLoopModel:
     tv : float
         The time constant of the first-order filter on the speed the velocity loop feeds back, s (0: none; a
         cascade drive's velocity estimate, :func:`_filtered`).
+    tq : float
+        The time constant of the first-order lag between the velocity loop's command and the motor's torque, s (0:
+        none; a cascade drive's current loop, :func:`_lagged`).
     """
 
     structure: str
@@ -868,6 +948,7 @@ class ServoLoopModel:
     als: float = 0.0
     vls: float = 0.0
     tv: float = 0.0
+    tq: float = 0.0
 
     def __post_init__(self) -> None:
         if self.structure not in STRUCTURES:
@@ -875,7 +956,7 @@ class ServoLoopModel:
         validation.positive("sample_period_s", self.sample_period_s)
         for name in ("kp", "kv", "vs", "veps"):
             validation.positive(name, getattr(self, name))
-        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta", "als", "vls", "tv"):
+        for name in ("ki", "vmax", "fc", "fs", "c1", "c2", "mu", "al", "wc", "zeta", "als", "vls", "tv", "tq"):
             validation.non_negative(name, getattr(self, name))
         validation.in_unit_interval("e", self.e, open_low=False, open_high=False)
         validation.real("a0", self.a0)
@@ -894,7 +975,7 @@ class ServoLoopModel:
     @property
     def substeps(self) -> int:
         """Sub-steps per host period of the simulation (:func:`substeps`)."""
-        return substeps(self.sample_period_s, self.kv)
+        return substeps(self.sample_period_s, self.kv, self.tq)
 
     @property
     def massive(self) -> bool:
@@ -916,17 +997,23 @@ class ServoLoopModel:
         """Whether the velocity loop feeds back a filtered speed (``tv > 0``: :func:`_filtered`)."""
         return self.tv > 0.0
 
+    @property
+    def lagged(self) -> bool:
+        """Whether the drive's torque lags the velocity loop's command (``tq > 0``: :func:`_lagged`)."""
+        return self.tq > 0.0
+
     def names(self) -> tuple[str, ...]:
         """The model's parameter names: :data:`PARAM_NAMES`, :data:`LOAD_NAMES` for a massive load,
         :data:`CONTACT_NAMES` for a compliant contact (or one that breaks away), :data:`BREAKAWAY_NAMES` for a
-        load that breaks away, and :data:`FILTER_NAMES` for a filtered velocity loop."""
+        load that breaks away, :data:`FILTER_NAMES` for a filtered velocity loop and :data:`LAG_NAMES` for a lagged torque."""
         if not self.massive:
             names = PARAM_NAMES
         elif self.breaks_away:
             names = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES + BREAKAWAY_NAMES
         else:
             names = PARAM_NAMES + LOAD_NAMES + CONTACT_NAMES if self.compliant else PARAM_NAMES + LOAD_NAMES
-        return names + FILTER_NAMES if self.filtered else names
+        names = names + FILTER_NAMES if self.filtered else names
+        return names + LAG_NAMES if self.lagged else names
 
     def vector(self) -> np.ndarray:
         """The parameters in the order of :data:`KERNEL_NAMES` (what :func:`simulate_kernel` takes)."""
@@ -935,7 +1022,7 @@ class ServoLoopModel:
     @classmethod
     def from_vector(cls, structure: str, sample_period_s: float, p: np.ndarray) -> ServoLoopModel:
         """The model of a parameter vector in the order of :data:`KERNEL_NAMES` (or a leading part of it: :data:`PARAM_NAMES`
-        alone, with :data:`LOAD_NAMES`, with :data:`CONTACT_NAMES`, with :data:`BREAKAWAY_NAMES`).
+        alone, with :data:`LOAD_NAMES`, with :data:`CONTACT_NAMES`, with :data:`BREAKAWAY_NAMES`, with :data:`FILTER_NAMES`).
 
         Parameters
         ----------
@@ -951,7 +1038,7 @@ class ServoLoopModel:
         ServoLoopModel
         """
         p = np.asarray(p, dtype=np.float64)
-        parts = (PARAM_NAMES, LOAD_NAMES, CONTACT_NAMES, BREAKAWAY_NAMES, FILTER_NAMES)
+        parts = (PARAM_NAMES, LOAD_NAMES, CONTACT_NAMES, BREAKAWAY_NAMES, FILTER_NAMES, LAG_NAMES)
         names = KERNEL_NAMES[: p.size] if p.size in np.cumsum([len(part) for part in parts]) else PARAM_NAMES
         values = {name: float(v) for name, v in zip(names, p, strict=True)}
         return cls(structure=structure, sample_period_s=float(sample_period_s), **values)

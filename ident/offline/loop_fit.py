@@ -436,7 +436,7 @@ class _Problem:
         #: The residual of a simulation that ran away (:meth:`scored`).
         self.runaway = 10.0 * (float(np.ptp(y)) + 1.0)
         self.a_scale = a_scale
-        self.m = substeps(period, start["kv"])
+        self.m = substeps(period, start["kv"], start.get("tq", 0.0))
         self.buffer = np.empty(self.stop)
         self.evaluations = 0
         self._last: tuple[np.ndarray, np.ndarray] | None = None
