@@ -78,6 +78,9 @@ def test_a_live_run_on_the_default_twin_says_what_is_true_of_it(tmp_path, capsys
         (["--driver", "sim://", "--rate", "0"], "--rate (=0) must lie in"),
         (["--driver", "tcp://host"], "unknown driver scheme 'tcp'"),
         (["--driver", "sim://", "--budget", "1"], "--budget (=1) must be a number of wall seconds > 2"),
+        # a bus session checks its budget and --max-lost before it opens the port
+        (["--driver", "feetech:///dev/null?id=1,2", "--budget", "nan"], "--budget (=nan) must be a number"),
+        (["--driver", "dxl:///dev/null?id=1,2", "--max-lost", "2"], "--max-lost (=2) must lie in [0, 1]"),
     ],
 )
 def test_bad_live_options_are_one_line_errors(tmp_path, capsys, argv, fragment):

@@ -70,6 +70,14 @@ BUDGET_WHY = ("on a real clock every fit after the run (the early searches, the 
               "refits and horn stage) stops at the budget less {after:g} s kept for identification and the outputs, "
               f"identification's own fits at the budget less {OUTPUTS_S:g} s kept for the outputs; "
               "the best answer made by then answers, the cut stages are named and the verdict withheld")  # fmt: skip
+#: What the wall budget bounds in a bus session (``--driver '...?id=1,2,3'``, :mod:`servoid.cli._live_bus`), said in
+#: --help and in its JSON's ``budget``.
+BUS_BUDGET_WHY = ("for several servos of one bus (id=1,2,3) the budget counts the whole session from the bus's "
+                  f"opening (default {WALL_TARGET_S:g} s a joint): the wall time left after the run is shared among "
+                  "the joints in turn (what one joint leaves goes to the next), each joint's identification "
+                  f"stopping at its share less {OUTPUTS_S:g} s kept for its outputs")  # fmt: skip
+#: The stage a stop after the answer cuts, named in the JSON's ``budget.cut`` (one live servo, or a bus's joint).
+IDENTIFY_CUT = "identification's own fits (the best made by then answers)"
 #: Reversals of the set point a design's slow phase holds at least (:func:`slow_phase`): each is a
 #: motor crossing of the play, what the slow phase's search reads a play outside the loop from. 18:
 #: the fewest a third of a 60 s run held on the twins (ODrive, XM430 designs, seeds 0-2), whose
@@ -118,10 +126,10 @@ def add_options(parser: argparse.ArgumentParser) -> None:
     live.add_argument("--hold", type=int, metavar="N",
                       help="held random levels of N samples instead of the designed gentle sines (whose fastest "
                            "segment is set from the probe's loop bandwidth: docs/online.md)")  # fmt: skip
-    live.add_argument("--budget", type=float, default=WALL_TARGET_S, metavar="S",
+    live.add_argument("--budget", type=float, default=None, metavar="S",
                       help=f"wall seconds for the probe, the run and the answer (default {WALL_TARGET_S:g}, issue 15's "
-                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; a simulated servo on a virtual clock "
-                           "(sim://NAME?clock=virtual) is not timed")  # fmt: skip
+                           f"target): {BUDGET_WHY.format(after=AFTER_ANSWER_S)}; {BUS_BUDGET_WHY}; a simulated servo "
+                           "on a virtual clock (sim://NAME?clock=virtual) is not timed")  # fmt: skip
     live.add_argument("--max-lost", type=float, default=DEFAULT_MAX_LOST, metavar="SHARE",
                       help="refuse to report a model when more than this share of the samples was lost, late or "
                            f"guarded (default {DEFAULT_MAX_LOST:g})")  # fmt: skip
@@ -305,7 +313,7 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the wall budget on a real clock: one stop for every fit after the run (the early searches', the last
         # window's, the answer's), at the budget less what identification and the outputs take (module BUDGET_WHY)
         virtual = simulated is not None and isinstance(simulated.clock, VirtualClock)
-        wall_s = getattr(args, "budget", WALL_TARGET_S)
+        wall_s = budget_s(args)
         budget = None if virtual else Stop(began + wall_s - AFTER_ANSWER_S, "the wall budget")
         live["budget"] = {"wall_s": None if virtual else wall_s, "after_answer_s": AFTER_ANSWER_S,
                           "bounds": "not timed (a virtual clock)" if virtual else BUDGET_WHY.format(after=AFTER_ANSWER_S)}  # fmt: skip
@@ -840,15 +848,26 @@ def _check_live_options(args: argparse.Namespace) -> None:
         value = getattr(args, name)
         if value is not None and value < 1:
             raise ConfigError(f"--{name} (={value}) must be >= 1")
-    budget = getattr(args, "budget", WALL_TARGET_S)
-    if not budget > AFTER_ANSWER_S:  # (NaN too; inf: no budget)
-        raise ConfigError(f"--budget (={budget:g}) must be a number of wall seconds > {AFTER_ANSWER_S:g}")
-    if not (math.isfinite(args.max_lost) and 0.0 <= args.max_lost <= 1.0):
-        raise ConfigError(f"--max-lost (={args.max_lost:g}) must lie in [0, 1]")
+    check_budget_and_lost(args)
     if args.no_probe and args.hold is not None:
         raise ConfigError(
             "--hold shapes the excitation designed from the probe; with --no-probe use --excitation steps:hold=N"
         )
+
+
+def budget_s(args: argparse.Namespace, joints: int = 1) -> float:
+    """The wall budget in s: ``--budget``, else :data:`WALL_TARGET_S` a servo (a bus session's ``joints``)."""
+    given = getattr(args, "budget", None)
+    return WALL_TARGET_S * joints if given is None else float(given)
+
+
+def check_budget_and_lost(args: argparse.Namespace) -> None:
+    """``--budget`` and ``--max-lost``, which a bus session takes too (one-line errors, before the servo moves)."""
+    budget = budget_s(args)
+    if not budget > AFTER_ANSWER_S:  # (NaN too; inf: no budget)
+        raise ConfigError(f"--budget (={budget:g}) must be a number of wall seconds > {AFTER_ANSWER_S:g}")
+    if not (math.isfinite(args.max_lost) and 0.0 <= args.max_lost <= 1.0):
+        raise ConfigError(f"--max-lost (={args.max_lost:g}) must lie in [0, 1]")
 
 
 def acquisition(result: SessionResult) -> dict[str, Any]:

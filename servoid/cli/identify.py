@@ -273,7 +273,7 @@ def run(args: argparse.Namespace) -> int:
         )
     if stop is not None and stop.fired and record.live:  # in the JSON's budget.cut too (warned above, in the verdict)
         budget = record.live["budget"]
-        cut = [*(budget.get("cut") or ()), "identification's own fits (the best made by then answers)"]
+        cut = [*(budget.get("cut") or ()), _live.IDENTIFY_CUT]
         record = dataclasses.replace(record, live={**record.live, "budget": {**budget, "cut": cut}})
     paths = write_outputs(args.out, record, result, plots=not args.no_plots)
     status = 1 if args.strict and not result.identifiable else 0

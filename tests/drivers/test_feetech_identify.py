@@ -30,6 +30,8 @@ def test_two_joints_of_one_bus_give_two_models_near_the_plant(tmp_path, capsys):
     assert [j["id"] for j in out["joints"]] == [3, 5]
     for joint in out["joints"]:  # each joint answers with its verdict and its own lost-sample count (1000 slots)
         assert isinstance(joint["identifiable"], bool) and joint["structure"] and joint["lost"]["samples"] == 1000
+        assert joint["budget"]["share_s"] > 0 and isinstance(joint["budget"]["cut"], list)  # its share of 60 s
+    assert out["budget"]["wall_s"] == 120 and out["budget"]["seconds"] > 5  # 60 s a joint by default
     rec = read_recording(tmp_path / "recording.csv", u_column="u_5", y_column="y_5")
     assert rec.metadata["joints"] == "3,5" and len(rec) == 1000
     for servo_id in (3, 5):
@@ -52,3 +54,34 @@ def test_the_bus_default_is_gentle_sines_at_8_rad_s2_and_needs_rad():
     assert parse_spec(gentle_default(0.05, 100.0, "rad")).amplitude == 0.05
     with pytest.raises(ConfigError, match="'deg'.*--excitation"):
         gentle_default(None, 200.0, "deg")
+
+
+def test_a_bus_session_past_its_wall_budget_cuts_each_joint_says_so_and_leaves_the_torque_off(tmp_path, capsys):
+    from servoid.cli._live import IDENTIFY_CUT
+    from servoid.drivers.feetech.emulator import FeetechEmulator
+
+    from .dxl_helpers import TEST_LATENCY_MS
+
+    # two joints one after the other, 0.75 s of servo time each, in a budget of 2.1 s: the run takes at least its
+    # 1.5 s (the sampler keeps the rate), so no joint's share of the 0.6 s left (at most) outlasts its outputs' 1 s:
+    # each identification is stopped at its first fit evaluation, answers with the best made by then (withheld) or
+    # none, and says so
+    with FeetechEmulator(ids=[1, 2], servo="model") as emu:
+        code = main(["identify", "--driver", emu.url([1, 2], latency_ms=TEST_LATENCY_MS), "--samples", "150",
+                     "--rate", "200", "--use-late", "--guard", "0", "--allow-lost", "--budget", "2.1", "--no-plots",
+                     "--json", "--out", str(tmp_path)])  # fmt: skip
+        torque = [s.torque for s in emu.bus.servos]
+    captured = capsys.readouterr()
+    out = json.loads(captured.out, parse_constant=lambda c: pytest.fail(f"not strict JSON: {c}"))
+    assert torque == [False, False]
+    assert out["budget"]["wall_s"] == 2.1 and out["budget"]["joints_cut"] == [1, 2]
+    assert "shared among the joints" in out["budget"]["bounds"]
+    for joint in out["joints"]:
+        assert joint["budget"]["cut"] == [IDENTIFY_CUT] and joint["budget"]["share_s"] < 0.6
+        if "error" in joint:  # no answer made by then: the refusal names the cut
+            assert code == 1 and "cut by the wall budget" in joint["error"]
+        else:  # the best made by then, withheld, the cut among its reasons
+            assert joint["identifiable"] is False
+            assert any("stopped at the wall budget's deadline" in r for r in joint["reasons"])
+            assert f"joint {joint['id']}: the wall budget (2.1 s" in captured.err  # its warning line
+    assert "leaves the joints no time within --budget 2.1 s" in " ".join(captured.err.split())
