@@ -721,3 +721,18 @@ def test_warm_up_imports_what_the_refits_import_before_the_sampler_starts(monkey
         "servoid.ident.offline.intervals",
     ):
         assert name in asked, asked
+
+
+def test_a_first_search_still_queued_at_the_runs_end_releases_the_head() -> None:
+    # the run ended as its first window fell due: that search's job is queued, not started, so it can never offer
+    # its model; the head's search (``early``) waits for an offer or a release, and must get the release
+    from concurrent.futures import Future
+    from types import SimpleNamespace
+
+    released: list[bool] = []
+    early = SimpleNamespace(at=10**9, searched=lambda wait: None, offer=_ignored, release=lambda: released.append(True))
+    est = WindowRefit(WindowConfig(1 / RATE, first_s=10.0), end=10**6, early=early)
+    queued: Future[Any] = Future()  # pending: a job the worker has not started
+    est._future, est._offering = queued, True
+    result = est.result(final=False, wait=False, wait_s=0.0)
+    assert released and queued.cancelled() and result.abandoned == 1

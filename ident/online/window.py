@@ -982,10 +982,20 @@ class WindowRefit:
             sys.setswitchinterval(self._switch)
 
     def _bounded(self, wait: bool, wait_s: float) -> None:
-        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop."""
+        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop.
+
+        A refit still queued (not started) is dropped; where it was the first window's search, ``early`` is released
+        (a stopped search tells it itself, :func:`_refit`): a run that ended as its first window fell due left the
+        answer's head search waiting for an offer that never came (found by livebus20, issue 15).
+        """
         if not wait and self._future is not None and wait_s > 0.0:
             futures_wait([self._future], timeout=wait_s)
         self._collect(wait=wait)
+        if self._future is not None and self._future.cancel():  # queued, never started: it will tell ``early`` nothing
+            if self._early is not None and self._offering and not self._history:
+                self._early.release()  # the first window's search never ran: its head must not wait for it
+            self._future = None
+            self._abandoned += 1
         if self._future is not None:  # still running, not waited for: it stops at its next fit
             self._stop.set()
             self._stop = threading.Event()  # a final refit runs on
