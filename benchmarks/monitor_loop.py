@@ -86,6 +86,11 @@ acceleration (:func:`~servoid.excitation.monitor_input.monitor_spec`'s ``dither`
 twins' firmware closes its loop on whole counts of the horn's encoder, and a steady sine reverses at one place on that
 grid, where the held loop reads the play with a bias of its own (docs/monitor.md, "the count grid").
 
+``--cycle N``: the steady sine's amplitude steps deterministically, a count / N smaller each half-period over N values
+(:func:`~servoid.excitation.monitor_input.cycled_sine`; the count is the reference readings' resolution,
+:func:`~servoid.ident.offline.intervals.quantum`; default 0: one amplitude): every reversal side passes N places of the
+grid, and a window of 1.6 s (about 3 reversals) holds the cycle's places as evenly as N allows.
+
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
 ``--track-seeds``: the twin seeds of the tracking run (default 1, the tables before); the raw and bias
@@ -143,10 +148,18 @@ from servoid.drivers.twin import Twin, preset
 from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.gentle import segment_end
-from servoid.excitation.monitor_input import IDENT, MONITOR_INPUTS, SINE, SINE_ACCEL_SHARE, monitor_spec
+from servoid.excitation.monitor_input import (
+    IDENT,
+    MONITOR_INPUTS,
+    SINE,
+    SINE_ACCEL_SHARE,
+    cycled_sine,
+    monitor_spec,
+)
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
+from servoid.ident.offline.intervals import quantum
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
 from servoid.monitor_loop import CALIBRATE, HOLD_LOOP, HORN_RECORD_S, short_horn
@@ -223,7 +236,7 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
-         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0):  # fmt: skip
+         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int = 0):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one."""
     twin = Twin(preset(name), seed=seed)
@@ -240,7 +253,12 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
         cut = min(segment_end(ident, seed + 1000, n_ref + int(FIRST_FIT_S * RATE)), n_ref + n)
         u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input, share, dither)
         steady_s = 0.0 if count_switch else (cut - n_ref) / RATE
-    twin.sample(u[:n_ref], 1.0 / RATE)
+    ref = twin.sample(u[:n_ref], 1.0 / RATE)
+    if cycle > 0 and monitor_input == SINE:
+        # the steady sine's amplitude steps by a count / cycle each half-period; the count: the readings' resolution
+        scale = share / SINE_ACCEL_SHARE
+        steady = monitor_spec(SINE, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2)
+        u[cut:] = cycled_sine(steady, quantum(ref.y), cycle, n_ref + n - cut)
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
     model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
@@ -332,6 +350,13 @@ def main() -> None:
         help="the steady sine's amplitude drawn each period in [(1 - D) A, A], its reversals spread over the loop "
         "encoder's count grid (default 0: one amplitude)",
     )
+    parser.add_argument(
+        "--cycle",
+        type=int,
+        default=0,
+        help="the steady sine's amplitude a count / N smaller each half-period over N values (the count: the "
+        "reference readings' resolution), its reversals on N places of the loop encoder's grid (default 0: one amplitude)",
+    )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
         "--calibrate",
@@ -352,7 +377,7 @@ def main() -> None:
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
-            "calibrate": args.calibrate or CALIBRATE, "dither": args.dither}  # fmt: skip
+            "calibrate": args.calibrate or CALIBRATE, "dither": args.dither, "cycle": args.cycle}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")

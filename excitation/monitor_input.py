@@ -29,7 +29,9 @@ held loop reads the play there with a bias of its own: on the XM430 twin's file 
 1.04x); with the loop closed on 16x finer counts 0.96-1.00x (docs/monitor.md, "the count grid"). The
 identification's sines reverse at many places and average it out. ``dither`` (off by default) draws the
 steady sine's amplitude anew each period within ``[(1 - dither) A, A]``: its reversals then spread over
-the grid, at the price of window plays that scatter with it.
+the grid, at the price of window plays that scatter with it. :func:`cycled_sine` (off by default) steps it
+instead, deterministically: each half-period ``count / steps`` smaller, over ``steps`` values, so that every
+reversal side passes the same ``steps`` places on the grid (``count``: the loop encoder's, from the readings).
 
 The benchmark and ``servoid monitor`` build both parts here (one owner).
 """
@@ -40,12 +42,14 @@ import itertools
 import math
 from collections.abc import Iterator
 
+import numpy as np
+
 from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["IDENT", "MAX_DITHER", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "monitor_spec",
-           "monitor_stream"]  # fmt: skip
+__all__ = ["IDENT", "MAX_DITHER", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "cycled_sine",
+           "monitor_spec", "monitor_stream"]  # fmt: skip
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
@@ -179,3 +183,47 @@ def monitor_stream(
     head = stream(ident, seed=seed, n=segment_end(ident, seed, first))
     steady = monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate, coast=coast, dither=dither)
     return itertools.chain(head, stream(steady, seed=seed))
+
+
+def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int) -> np.ndarray:
+    """``n`` samples of the steady sine ``spec`` whose amplitude cycles over ``steps`` places of a count grid.
+
+    Half-period ``k`` (a reversal each, the sides alternating) has the amplitude ``A - (k mod steps) count / steps``
+    and the steady sine's peak acceleration (its length ``pi sqrt(a_k / accel)`` samples, not whole): each
+    reversal side passes ``steps`` places a ``count / steps`` apart on the loop encoder's grid, whatever the
+    offset, and with ``steps`` odd both sides pass all of them (the module's text). Every half-period starts and
+    ends at the offset: no step in the command.
+
+    Parameters
+    ----------
+    spec : GentleSpec
+        The steady sine (:func:`monitor_spec` ``("sine", ...)``): its amplitude, peak acceleration and offset.
+    count : float
+        The loop encoder's count, unit of ``u`` (the readings' resolution), ``> 0`` and under ``amplitude``.
+    steps : int
+        Places on the grid, ``>= 1`` (1: the steady sine, half-periods of one amplitude).
+    n : int
+        Samples from the start.
+
+    Returns
+    -------
+    ndarray
+    """
+    amplitude, accel = float(spec.amplitude), float(spec.accel or 0.0)
+    if not (0.0 < count < amplitude and math.isfinite(count)):
+        raise ValueError(f"count must lie in (0, amplitude = {amplitude:g}), not {count!r}")
+    if steps < 1:
+        raise ValueError(f"steps must be 1 or more, not {steps!r}")
+    amps = amplitude - np.arange(steps) * count / steps
+    halves = np.pi * np.sqrt(amps / accel)  # samples per half-period at the peak acceleration
+    per_cycle = float(np.sum(halves))
+    t = np.arange(n, dtype=np.float64)
+    cycles = np.floor(t / per_cycle)
+    rest = t - cycles * per_cycle
+    ends = np.cumsum(halves)
+    k = np.minimum(np.searchsorted(ends, rest, side="right"), steps - 1)
+    begin = ends[k] - halves[k]
+    half = (cycles.astype(np.int64) * steps + k) % 2  # the sides alternate half-period by half-period
+    sign = np.where(half == 0, 1.0, -1.0)
+    out: np.ndarray = spec.offset + sign * amps[k] * np.sin(np.pi * (rest - begin) / halves[k])
+    return out
