@@ -276,6 +276,18 @@ def test_a_load_that_breaks_away_is_in_the_kernels_and_round_trips() -> None:
     np.testing.assert_array_equal(off.simulate(u), rigid.simulate(u))
 
 
+def _far_step(model: ServoLoopModel, n: int, index: int) -> np.ndarray:
+    """``n`` host periods of the loop stepped towards a set point far away (10 rad): the motor speed and state ``index``."""
+    p = model.vector()
+    state = np.empty(STATE_SIZE)
+    initial_state(p, 0.0, state)
+    got = []
+    for _ in range(n):
+        advance(p, False, state, 10.0, model.sample_period_s, model.substeps)
+        got.append((state[2], state[index]))
+    return np.array(got)
+
+
 def test_a_velocity_filter_lags_the_loop_as_a_first_order_filter_should() -> None:
     # no friction, no play, no integrator: a set point far away clips the velocity command at vmax, a step of it.
     # The loop is then dv/dt = kv (vmax - vf), dvf/dt = (v - vf) / tv (vf = v without the filter): the motor speed
@@ -300,48 +312,49 @@ def test_a_velocity_filter_lags_the_loop_as_a_first_order_filter_should() -> Non
 
     for tv in (0.0, 0.002, 0.01):
         model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tv=tv)
-        p = model.vector()
-        state = np.empty(STATE_SIZE)
-        initial_state(p, 0.0, state)
-        got = []
-        for _ in t:
-            advance(p, False, state, 10.0, period, model.substeps)
-            got.append((state[2], state[6]))
-        assert np.max(np.abs(np.array(got) - exact(tv))) < 0.05 * vmax
+        assert np.max(np.abs(_far_step(model, t.size, 6) - exact(tv))) < 0.05 * vmax
     # the lag is far beyond that error: the loop with a 10 ms filter overshoots to twice the command, the plain one not
     assert np.max(exact(0.01)[:, 0]) > 2.0 * vmax and np.max(exact(0.0)[:, 0]) <= vmax
+
+
+#: One load per kernel an opt-in term must reach: massless, rigid impacts, the compliant contact with a break-away.
+_KERNEL_LOADS: tuple[dict[str, float], ...] = (
+    {},
+    {"mu": 0.6, "e": 0.3, "al": 3.0},
+    {"mu": 0.6, "al": 3.0, "wc": 900.0, "zeta": 0.1, "als": 5.0, "vls": 0.02},
+)
+
+
+def _check_optional_term(plain: ServoLoopModel, on: ServoLoopModel, name: str, u: np.ndarray) -> None:
+    """An opt-in term of the kernels (``name``, last of ``on``'s parameters): off to the bit, on in every kernel.
+
+    A vector without it (an older model's) simulates to the bit as one with it at 0; on, it changes the free run,
+    compiled as in Python, and the pair kernel gives both members to the bit, in either order.
+    """
+    assert on.names()[-1] == name and name not in plain.names()
+    assert ServoLoopModel.from_vector(on.structure, 0.01, on.vector()) == on
+    assert ServoLoopModel.from_dict(on.to_dict()) == on
+    short = np.empty(u.size)
+    simulate_kernel(plain.vector()[:-1], plain.feedback_load, u, 0.0, 0.01, plain.substeps, short)
+    np.testing.assert_array_equal(plain.simulate(u, y0=0.0), short)
+    fast, slow = np.empty(u.size), np.empty(u.size)
+    args = (on.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps)
+    simulate_kernel(*args, fast)
+    python_version(simulate_kernel)(*args, slow)
+    np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+    assert np.max(np.abs(fast - short)) > 1e-2 * plain.play
+    both = [np.empty(u.size), np.empty(u.size)]
+    for first, second, want in ((on, plain, (fast, short)), (plain, on, (short, fast))):
+        simulate_pair_kernel(first.vector(), second.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both)
+        assert np.array_equal(both[0], want[0]) and np.array_equal(both[1], want[1])
 
 
 @pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
 def test_a_velocity_filter_is_in_every_kernel_and_off_changes_nothing(structure: str) -> None:
     u = 0.1 * np.sin(np.arange(300) * 0.05)
-    loads = (
-        {},
-        {"mu": 0.6, "e": 0.3, "al": 3.0},
-        {"mu": 0.6, "al": 3.0, "wc": 900.0, "zeta": 0.1, "als": 5.0, "vls": 0.02},
-    )
-    for load in loads:
+    for load in _KERNEL_LOADS:
         plain = _model(structure, **load)
-        filtered = dataclasses.replace(plain, tv=0.02)
-        assert filtered.names()[-1] == "tv" and "tv" not in plain.names()
-        assert ServoLoopModel.from_vector(structure, 0.01, filtered.vector()) == filtered
-        assert ServoLoopModel.from_dict(filtered.to_dict()) == filtered
-        # off: a vector without the filter (an older model's) simulates to the bit as one with tv = 0
-        short = np.empty(u.size)
-        simulate_kernel(plain.vector()[:-1], plain.feedback_load, u, 0.0, 0.01, plain.substeps, short)
-        np.testing.assert_array_equal(plain.simulate(u, y0=0.0), short)
-        # on: it changes the free run, compiled as in Python, and the pair kernel gives both to the bit
-        fast, slow = np.empty(u.size), np.empty(u.size)
-        args = (filtered.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps)
-        simulate_kernel(*args, fast)
-        python_version(simulate_kernel)(*args, slow)
-        np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
-        assert np.max(np.abs(fast - short)) > 1e-2 * plain.play
-        both = [np.empty(u.size), np.empty(u.size)]
-        simulate_pair_kernel(
-            filtered.vector(), plain.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
-        )
-        assert np.array_equal(both[0], fast) and np.array_equal(both[1], short)
+        _check_optional_term(plain, dataclasses.replace(plain, tv=0.02), "tv", u)
     # a vanishing time constant is the loop without the filter
     plain = _model(structure)
     np.testing.assert_allclose(dataclasses.replace(plain, tv=1e-12).simulate(u), plain.simulate(u), rtol=0, atol=1e-9)
@@ -369,62 +382,21 @@ def test_a_torque_lag_lags_the_loop_as_a_first_order_lag_should() -> None:
 
     for tq in (0.001, 0.004):
         model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tq=tq)
-        p = model.vector()
-        state = np.empty(STATE_SIZE)
-        initial_state(p, 0.0, state)
-        got = []
-        for _ in t:
-            advance(p, False, state, 10.0, period, model.substeps)
-            got.append((state[2], state[7]))
-        got_arr, want = np.array(got), exact(tq)
+        got_arr, want = _far_step(model, t.size, 7), exact(tq)
         assert np.max(np.abs(got_arr[:, 0] - want[:, 0])) < 0.05 * vmax
         assert np.max(np.abs(got_arr[:, 1] - want[:, 1])) < 0.05 * kv * vmax
     # the lag is far beyond that error: the loop with a 4 ms lag overshoots by a fifth (damping ratio 0.4), the plain one not
     plain = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3)
-    state = np.empty(STATE_SIZE)
-    initial_state(plain.vector(), 0.0, state)
-    speeds = []
-    for _ in t:
-        advance(plain.vector(), False, state, 10.0, period, plain.substeps)
-        speeds.append(state[2])
-    assert np.max(exact(0.004)[:, 0]) > 1.2 * vmax and max(speeds) <= vmax
+    assert np.max(exact(0.004)[:, 0]) > 1.2 * vmax and np.max(_far_step(plain, t.size, 2)[:, 0]) <= vmax
 
 
 @pytest.mark.parametrize("structure", [OUTPUT_BACKLASH, PLAY_IN_LOOP])
 def test_a_torque_lag_is_in_every_kernel_and_off_changes_nothing(structure: str) -> None:
     u = 0.1 * np.sin(np.arange(300) * 0.05)
-    loads = (
-        {},
-        {"mu": 0.6, "e": 0.3, "al": 3.0},
-        {"mu": 0.6, "al": 3.0, "wc": 900.0, "zeta": 0.1, "als": 5.0, "vls": 0.02},
-    )
-    for load in loads:
+    for load in _KERNEL_LOADS:
         for tv in (0.0, 0.004):
             plain = _model(structure, **load, tv=tv)
-            lagged = dataclasses.replace(plain, tq=0.03)
-            assert lagged.names()[-1] == "tq" and "tq" not in plain.names()
-            assert ServoLoopModel.from_vector(structure, 0.01, lagged.vector()) == lagged
-            assert ServoLoopModel.from_dict(lagged.to_dict()) == lagged
-            # off: a vector without the lag (an older model's) simulates to the bit as one with tq = 0
-            short = np.empty(u.size)
-            simulate_kernel(plain.vector()[:-1], plain.feedback_load, u, 0.0, 0.01, plain.substeps, short)
-            np.testing.assert_array_equal(plain.simulate(u, y0=0.0), short)
-            # on: it changes the free run, compiled as in Python, and the pair kernel gives both to the bit
-            fast, slow = np.empty(u.size), np.empty(u.size)
-            args = (lagged.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps)
-            simulate_kernel(*args, fast)
-            python_version(simulate_kernel)(*args, slow)
-            np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
-            assert np.max(np.abs(fast - short)) > 1e-2 * plain.play
-            both = [np.empty(u.size), np.empty(u.size)]
-            simulate_pair_kernel(
-                lagged.vector(), plain.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
-            )
-            assert np.array_equal(both[0], fast) and np.array_equal(both[1], short)
-            simulate_pair_kernel(
-                plain.vector(), lagged.vector(), plain.feedback_load, u, 0.0, 0.01, plain.substeps, *both
-            )
-            assert np.array_equal(both[0], short) and np.array_equal(both[1], fast)
+            _check_optional_term(plain, dataclasses.replace(plain, tq=0.03), "tq", u)
     # a vanishing time constant is the loop without the lag (on the same sub-steps: the lag's own would be 48)
     plain = _model(structure)
     assert dataclasses.replace(plain, tq=1e-12).substeps == 48 and dataclasses.replace(plain, tq=0.01).substeps == 10
