@@ -21,7 +21,9 @@ import argparse
 import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -44,6 +46,16 @@ def _live(run: Path, end_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     slow = max(int(meta.get("slow_samples") or 0) - first, 0)
     n = u.size if end_s <= 0 else min(u.size, slow + int(round(end_s / period)))
     return u[:n], y[:n], keep[:n], period, run.name.split("-")[0]
+
+
+def live_ends(runs: list[Path], ends: list[float]) -> Iterator[tuple[Path, float, tuple[Any, ...]]]:
+    """Every kept live record cut at every end (:func:`_live`), its header printed first: ``(run, end, record)``."""
+    print(f"machine load (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
+    for run in runs:
+        for end in ends:
+            record = _live(run, end)
+            print(f"{run.name} fast part to {end or 'the end'} s ({record[0].size} samples):", flush=True)
+            yield run, end, record
 
 
 def _held_fit(
@@ -129,13 +141,9 @@ def main() -> None:
     parser.add_argument("--no-stage-profile", action="store_true", help="the horn stage without its own profile")
     args = parser.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    print(f"machine load (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
-    for run in args.runs:
-        for end in args.ends:
-            u, y, kept, period, name = _live(run, end)
-            print(f"{run.name} fast part to {end or 'the end'} s ({u.size} samples):", flush=True)
-            profile(u, y, kept, period, TRUTH[name], args.grid, False, args.no_stage_profile)
-            sys.stdout.flush()
+    for _, _, (u, y, kept, period, name) in live_ends(args.runs, args.ends):
+        profile(u, y, kept, period, TRUTH[name], args.grid, False, args.no_stage_profile)
+        sys.stdout.flush()
     if args.table:
         import real_servos
 

@@ -201,14 +201,10 @@ def main() -> None:
     parser.add_argument("--answers", type=Path, default=None, help="keep / read each record's answer here (json)")
     args = parser.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from horn_profile import _live
+    from horn_profile import live_ends
 
-    print(f"machine load (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
-    for run in args.runs:
-        for end in args.ends:
-            u, y, kept, period, name = _live(run, end)
-            print(f"{run.name} fast part to {end or 'the end'} s ({u.size} samples):", flush=True)
-            scan(u, y, kept, period, TRUTH[name], args, f"{run.name}-{end:g}")
+    for run, end, (u, y, kept, period, name) in live_ends(args.runs, args.ends):
+        scan(u, y, kept, period, TRUTH[name], args, f"{run.name}-{end:g}")
     print(f"machine load (1 min) at the end: {os.getloadavg()[0]:.2f}")
 
 
