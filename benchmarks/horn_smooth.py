@@ -86,7 +86,7 @@ def _simulate_held(p: np.ndarray, u: np.ndarray, y0: float, period: float, mc: i
     h = period / mc
     als, vls = sl._breakaway(p)
     k2, c = wc * wc, 2.0 * zeta * wc
-    g = sl._filter_gain(p, h)
+    g, _ = sl._gains(p, h)
     for k in range(y_out.shape[0]):
         y_out[k] = yl
         r = u[k]

@@ -276,6 +276,19 @@ def test_a_load_that_breaks_away_is_in_the_kernels_and_round_trips() -> None:
     np.testing.assert_array_equal(off.simulate(u), rigid.simulate(u))
 
 
+def _exact_steps(m: np.ndarray, period: float, n: int) -> np.ndarray:
+    """``n`` host periods of the linear system ``d[s1, s2, 1]/dt = m [s1, s2, 1]`` from rest, exactly (``expm``): the
+    two states at each period's end."""
+    from scipy.linalg import expm
+
+    step = expm(m * period)
+    at, out = np.eye(3), []
+    for _ in range(n):
+        at = step @ at
+        out.append(at[:2, 2])
+    return np.array(out)
+
+
 def _far_step(model: ServoLoopModel, n: int, index: int) -> np.ndarray:
     """``n`` host periods of the loop stepped towards a set point far away (10 rad): the motor speed and state ``index``."""
     p = model.vector()
@@ -292,7 +305,6 @@ def test_a_velocity_filter_lags_the_loop_as_a_first_order_filter_should() -> Non
     # no friction, no play, no integrator: a set point far away clips the velocity command at vmax, a step of it.
     # The loop is then dv/dt = kv (vmax - vf), dvf/dt = (v - vf) / tv (vf = v without the filter): the motor speed
     # and the filtered one against that system's exact step response, each within the sub-step's error
-    from scipy.linalg import expm
 
     kv, vmax, period = 400.0, 2.0, 0.00025
     t = period * np.arange(1, 161)
@@ -303,12 +315,7 @@ def test_a_velocity_filter_lags_the_loop_as_a_first_order_filter_should() -> Non
             m[:2, :2], m[0, 2] = [[0.0, -kv], [1.0 / tv, -1.0 / tv]], kv * vmax
         else:  # the speed fed back is the speed itself
             m[:2, :2], m[:2, 2] = [[-kv, 0.0], [0.0, -kv]], kv * vmax
-        step = expm(m * period)
-        at, out = np.eye(3), []
-        for _ in t:
-            at = step @ at
-            out.append(at[:2, 2])
-        return np.array(out)
+        return _exact_steps(m, period, t.size)
 
     for tv in (0.0, 0.002, 0.01):
         model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tv=tv)
@@ -364,7 +371,6 @@ def test_a_torque_lag_lags_the_loop_as_a_first_order_lag_should() -> None:
     # no friction, no play, no integrator: a set point far away clips the velocity command at vmax, a step of it.
     # The loop is then dv/dt = a, da/dt = (kv (vmax - v) - a) / tq (a = kv (vmax - v) without the lag): the motor
     # speed and the drive's torque against that system's exact step response, each within the sub-step's error
-    from scipy.linalg import expm
 
     kv, vmax, period = 400.0, 2.0, 0.00025
     t = period * np.arange(1, 161)
@@ -373,12 +379,7 @@ def test_a_torque_lag_lags_the_loop_as_a_first_order_lag_should() -> None:
         m = np.zeros((3, 3))  # [v, a, 1]
         m[0, 1] = 1.0
         m[1, :] = [-kv / tq, -1.0 / tq, kv * vmax / tq]
-        step = expm(m * period)
-        at, out = np.eye(3), []
-        for _ in t:
-            at = step @ at
-            out.append(at[:2, 2])
-        return np.array(out)
+        return _exact_steps(m, period, t.size)
 
     for tq in (0.001, 0.004):
         model = ServoLoopModel(OUTPUT_BACKLASH, period, kp=1000.0, kv=kv, vmax=vmax, veps=1e-3, tq=tq)

@@ -215,7 +215,7 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
             return _advance_contact(p, feedback_load, state, r, period, m, veps)
         return _advance_load(p, feedback_load, state, r, period, m, veps)
     h = period / m
-    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    g, gq = _gains(p, h)
     x, yl, v, z, vf, a = state[0], state[1], state[2], state[3], state[6], state[7]
     for _ in range(m):
         vcmd, base = _command(x, yl, v, z, r, feedback_load, kp, kv, vmax, a0, h)
@@ -232,15 +232,27 @@ def advance(p: np.ndarray, feedback_load: bool, state: np.ndarray, r: float, per
     return float(yl)
 
 
-@jit
-def _filter_gain(p: np.ndarray, h: float) -> float:
-    """The velocity filter's weight of the new speed in one implicit sub-step ``h``: ``h / (tv + h)`` (1: no filter).
+#: Where the kernel's vector holds the velocity filter's ``tv`` and the torque lag's ``tq`` (:data:`KERNEL_NAMES`).
+_TV_INDEX = KERNEL_NAMES.index("tv")
+_TQ_INDEX = KERNEL_NAMES.index("tq")
 
-    ``tv`` is ``p``'s :data:`FILTER_NAMES` (0, or a vector without it: none).
+
+@jit_inline
+def _weight(p: np.ndarray, index: int, h: float) -> float:
+    """A first-order lag's weight of its new input in one implicit sub-step ``h``: ``h / (tau + h)`` (1: none).
+
+    ``tau`` is ``p[index]`` (0, or a vector too short to hold it: none).
     """
-    if p.shape[0] > 19 and p[19] > 0.0:
-        return h / (float(p[19]) + h)
+    if p.shape[0] > index and p[index] > 0.0:
+        return h / (float(p[index]) + h)
     return 1.0
+
+
+@jit
+def _gains(p: np.ndarray, h: float) -> tuple[float, float]:
+    """The velocity filter's weight of the new speed (``tv``, :func:`_filtered`) and the torque lag's of the new
+    command (``tq``, :func:`_lagged`) in one implicit sub-step ``h`` (:func:`_weight`; 1: the term is off)."""
+    return _weight(p, _TV_INDEX, h), _weight(p, _TQ_INDEX, h)
 
 
 @jit_inline
@@ -264,17 +276,6 @@ def _filter_moved(vf: float, vn: float, g: float) -> float:
     if g < 1.0:
         return vf + g * (vn - vf)
     return vn
-
-
-@jit
-def _lag_gain(p: np.ndarray, h: float) -> float:
-    """The torque lag's weight of the new command in one implicit sub-step ``h``: ``h / (tq + h)`` (1: no lag).
-
-    ``tq`` is ``p``'s :data:`LAG_NAMES` (0, or a vector without it: none).
-    """
-    if p.shape[0] > 20 and p[20] > 0.0:
-        return h / (float(p[20]) + h)
-    return 1.0
 
 
 @jit_inline
@@ -456,7 +457,7 @@ def _advance_load(
     mu, e, al = p[12], p[13], p[14]
     als, vls = _breakaway(p)
     h = period / m
-    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    g, gq = _gains(p, h)
     x, yl, v, z, w, side, vf, a = state[0], state[1], state[2], state[3], state[4], state[5], state[6], state[7]
     for _ in range(m):
         x, yl, v, z, w, side, vf, a = _load_substep(
@@ -613,7 +614,7 @@ def _advance_contact(
     h = period / mc
     k2 = wc * wc
     c = 2.0 * zeta * wc
-    g, gq = _filter_gain(p, h), _lag_gain(p, h)
+    g, gq = _gains(p, h)
     x, yl, v, z, w, vf, a = state[0], state[1], state[2], state[3], state[4], state[6], state[7]
     loop = (kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)
     contact = (mu, al, k2, c) + _breakaway(p)
@@ -683,8 +684,8 @@ def _contact_substep(
     """One sub-step of :func:`_advance_contact`: ``(x, yl, v, z, w, vf, a)`` after it.
 
     ``loop`` is :func:`_loop_params`'s ``(kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2)``, ``contact`` is
-    ``(mu, al, wc^2, 2 zeta wc, als, vls)``, ``g`` the velocity filter's weight (:func:`_filter_gain`), ``a`` the
-    drive's torque and ``gq`` the torque lag's weight (:func:`_lag_gain`).
+    ``(mu, al, wc^2, 2 zeta wc, als, vls)``, ``g`` the velocity filter's weight (:func:`_gains`), ``a`` the
+    drive's torque and ``gq`` the torque lag's weight (:func:`_gains`).
     """
     kp, kv, ki, vmax, fc, fs, vs, veps, a0, c1, c2 = loop
     mu, al, k2, c, als, vls = contact
@@ -787,8 +788,7 @@ def simulate_pair_kernel(
         mu2, al2, wc2, zeta2 = q[12], q[14], q[15], q[16]
         mc1, mc2 = contact_substeps(period, m, mu1, wc1), contact_substeps(period, m, mu2, wc2)
         h1, h2 = period / mc1, period / mc2
-        g1, g2 = _filter_gain(p, h1), _filter_gain(q, h2)
-        gq1, gq2 = _lag_gain(p, h1), _lag_gain(q, h2)
+        (g1, gq1), (g2, gq2) = _gains(p, h1), _gains(q, h2)
         k21, k22 = wc1 * wc1, wc2 * wc2
         cd1, cd2 = 2.0 * zeta1 * wc1, 2.0 * zeta2 * wc2
         both = min(mc1, mc2)
@@ -837,8 +837,7 @@ def simulate_pair_kernel(
     mu1, e1, al1, mu2, e2, al2 = (p[12], p[13], p[14], q[12], q[13], q[14]) if massive_p else (0.0,) * 6
     (als1, vls1), (als2, vls2) = _breakaway(p), _breakaway(q)
     h = period / m
-    g1, g2 = _filter_gain(p, h), _filter_gain(q, h)
-    gq1, gq2 = _lag_gain(p, h), _lag_gain(q, h)
+    (g1, gq1), (g2, gq2) = _gains(p, h), _gains(q, h)
     for k in range(y_p.shape[0]):
         y_p[k] = yl1
         y_q[k] = yl2
