@@ -545,10 +545,12 @@ def identify(
     elif mrgia_model is not None and mrgia_nrmse is not None:
         model, method, fit = mrgia_model, "mrgia", mrgia_nrmse
     else:
-        raise ModelError(
-            "no valid model: the MRGIA estimate is invalid and refinement was not requested "
-            "(drop --no-refine, or check the orders and the input)"
+        why = (
+            f"{refine_cut} before any start was refined (a larger --budget S lets it end)"
+            if refine_cut is not None
+            else "refinement was not requested (drop --no-refine, or check the orders and the input)"
         )
+        raise ModelError(f"no valid model: the MRGIA estimate is invalid and {why}")
     online_poor = mrgia_nrmse is None or (refinement is not None and mrgia_nrmse > 2.0 * fit + 0.02)
     if online_poor and refinement is not None:
         margin = convergence_margin(model.a)

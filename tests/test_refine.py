@@ -145,3 +145,21 @@ def test_identification_inside_a_stop_keeps_what_it_made_and_says_so(paper_noisy
     monkeypatch.setattr(_oefit, "STREAM_FROM_ROWS", 100)  # the long record's path checks the stop too
     with _threads.stopping(stop), pytest.raises(_threads.Stopped):
         refine(u, y, whole.mrgia_model)
+
+
+def test_no_model_names_the_stop_that_cut_the_refinement_not_a_missing_request():
+    """A record whose MRGIA estimate is not a valid model (a doubly integrated walk: an unstable linear block) and a
+    wall budget already spent: the error names the cut refinement and the budget, not ``--no-refine``; without the
+    stop and with ``refine_model=False`` it names the request."""
+    from servoid.errors import ModelError
+    from servoid.ident.offline import _threads
+
+    rng = np.random.default_rng(1)
+    u, y = rng.uniform(-1.0, 1.0, 400), 1e-3 * np.cumsum(np.cumsum(rng.normal(0.0, 1.0, 400)))
+    with pytest.raises(ModelError, match="refinement was not requested"):
+        identify(u, y, MRGIAConfig(), refine_model=False)
+    stop = _threads.Stop(why="the test")
+    stop.now()
+    with _threads.stopping(stop), pytest.raises(ModelError, match="stopped by the test before any start") as cut:
+        identify(u, y, MRGIAConfig())
+    assert "--budget" in str(cut.value) and "not requested" not in str(cut.value)
