@@ -2,7 +2,9 @@
 
 Run: ``.venv/bin/python benchmarks/real_servos.py [--full] [--seeds 1,2,3]``; one preset and
 rate at a time (the full grid is expensive): ``--presets cia402 --rates 20 --kinds sines
---no-paper --no-real``.
+--no-paper --no-real``. ``--loop-counts-x 16`` closes each twin's loop on 16 times finer counts of its encoder (the
+gain per rad the same, the record read at the preset's counts as before: :func:`finer_loop`); ``--noise-seed-offset
+100`` draws each record's encoder noise from its seed plus 100 (the same set points, another noise draw).
 
 Every row is ``servoid.ident.identify`` as a user runs it with no structure
 flags (orders and delay chosen by BIC, the operating point and the initial
@@ -55,7 +57,7 @@ from pathlib import Path
 import numpy as np
 from _table import table
 
-from servoid.drivers.twin import Twin, preset
+from servoid.drivers.twin import Twin, TwinParams, preset
 from servoid.excitation.generate import sample
 from servoid.excitation.specs import GentleSpec
 from servoid.ident import MRGIAConfig, identify
@@ -94,8 +96,41 @@ def held_steps(n: int, rate_hz: float, rng: np.random.Generator) -> np.ndarray:
     return np.repeat(rng.uniform(-STEP_AMPLITUDE, STEP_AMPLITUDE, n // hold + 2), hold)[:n]
 
 
+def finer_loop(params: TwinParams, factor: int) -> dict[str, object]:
+    """Overrides that close the drive's loop on ``factor`` times finer counts of its encoder, the gain per rad the same.
+
+    The loop encoder gets ``factor`` times the counts per revolution and its noise the same angle (``factor`` times
+    the counts); a PID firmware's gains, written per count, are divided by ``factor`` and its dead band, in counts,
+    multiplied by it (a cascade's gains are per rad already). The record is re-read at the original counts by
+    :func:`coarse_reading` when the loop encoder is the output encoder (monhorn20's "loop encoder 16x finer").
+    """
+    side = params.loop_encoder
+    over: dict[str, object] = {
+        f"{side}_encoder_cpr": factor * getattr(params, f"{side}_encoder_cpr"),
+        f"{side}_encoder_noise_counts": factor * getattr(params, f"{side}_encoder_noise_counts"),
+    }
+    if params.firmware != "cascade":
+        over.update(pos_p=params.pos_p / factor, pos_i=params.pos_i / factor, pos_d=params.pos_d / factor)
+        over["deadband_counts"] = params.deadband_counts * factor
+    return over
+
+
+def coarse_reading(y: np.ndarray, fine_counts_per_rev: float, factor: int) -> np.ndarray:
+    """Readings of an encoder with ``fine_counts_per_rev`` re-read at ``1/factor`` of its counts (the count centred
+    on the angle, as :func:`servoid.drivers.twin.encoder.quantise` reads), output rad."""
+    fine = np.rint(y * fine_counts_per_rev / (2.0 * np.pi))
+    return np.floor(fine / factor + 0.5) * (2.0 * np.pi * factor / fine_counts_per_rev)
+
+
 def twin_record(
-    name: str, mult: float, friction: float, kind: str, seed: int, noise_seed: int | None = None, **overrides: object
+    name: str,
+    mult: float,
+    friction: float,
+    kind: str,
+    seed: int,
+    noise_seed: int | None = None,
+    loop_counts_x: int = 1,
+    **overrides: object,
 ) -> dict[str, object]:
     """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments).
 
@@ -103,6 +138,8 @@ def twin_record(
     each host instant the load's angle and the gear's motor side (``theta_m / N``), output rad.
 
     ``seed`` draws the excitation (``seed + 1000``) and, unless ``noise_seed`` is given, the encoders' noise.
+    ``loop_counts_x`` > 1: the drive's loop closes on that many times finer counts (:func:`finer_loop`), the record
+    read at the preset's counts as before (:func:`coarse_reading`).
     """
     base = preset(name)
     over: dict[str, object] = {"encoder_noise_counts": NOISE_COUNTS, "load_encoder_cpr": 4096}
@@ -110,6 +147,9 @@ def twin_record(
         over["motor_coulomb_nm"] = base.motor_coulomb_nm * friction
         over["motor_breakaway_nm"] = base.motor_breakaway_nm * friction
     over.update(overrides)
+    coarse = preset(name, **over)
+    if loop_counts_x != 1:
+        over.update(finer_loop(coarse, loop_counts_x))
     twin = Twin(preset(name, **over), seed=seed if noise_seed is None else noise_seed)
     twin.enable()
     rate = mult * BANDWIDTH_HZ[name]
@@ -121,14 +161,16 @@ def twin_record(
     else:
         u = held_steps(n, rate, np.random.default_rng(seed + 1000))
     rec = twin.sample(u, 1.0 / rate)
-    q = twin.truth.output_rad_per_count
+    q = 2.0 * np.pi / coarse.output_counts_per_rev
     y = np.asarray(rec.y, dtype=np.float64)
-    noise = float(over["encoder_noise_counts"])  # type: ignore[arg-type]
+    if loop_counts_x != 1 and coarse.loop_encoder == coarse.output_encoder:
+        y = coarse_reading(y, twin.params.output_counts_per_rev, loop_counts_x)
+    noise = coarse.output_encoder_noise_counts
     return {
         "u": np.asarray(rec.u, dtype=np.float64), "y": y, "period": 1.0 / rate, "play": twin.truth.play_rad,
         "floor": q * np.sqrt(1.0 / 12.0 + noise**2) / float(np.std(y)),
         "structure": PLAY_IN_LOOP if twin.truth.loop_encoder == "load" else OUTPUT_BACKLASH,
-        "load_true": rec.true_load_rad, "gear_side_true": rec.true_gear_side_rad, "cpr": twin.params.output_counts_per_rev,
+        "load_true": rec.true_load_rad, "gear_side_true": rec.true_gear_side_rad, "cpr": coarse.output_counts_per_rev,
     }  # fmt: skip
 
 
@@ -197,7 +239,13 @@ def grid_of(
     return grid
 
 
-def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: bool = False) -> None:
+def twins(
+    grid: list[tuple[str, float, float, str]],
+    seeds: list[int],
+    load: bool = False,
+    loop_counts_x: int = 1,
+    noise_offset: int | None = None,
+) -> None:
     cols = ["preset", "excitation", "rate", "fric", "seed", "true", "structure (form)", "place", "gap", "fit/floor",
             "95 % / truth", "covers", "white", "loop fit", "verdict", "s"]  # fmt: skip
     rows = []
@@ -209,7 +257,8 @@ def twins(grid: list[tuple[str, float, float, str]], seeds: list[int], load: boo
     confusion: dict[tuple[str, str], list[str]] = {}
     for name, mult, friction, kind in grid:
         for seed in seeds:
-            rec = twin_record(name, mult, friction, kind, seed)
+            noise = None if noise_offset is None else seed + noise_offset
+            rec = twin_record(name, mult, friction, kind, seed, noise, loop_counts_x)
             try:
                 result, seconds = run(rec["u"], rec["y"], rec["period"])  # type: ignore[arg-type]
             except Exception as exc:  # noqa: BLE001 - a benchmark prints what happened and goes on
@@ -398,7 +447,22 @@ def main() -> None:
     ap.add_argument("--no-paper", action="store_true", help="skip the paper's example")
     ap.add_argument("--no-real", action="store_true", help="skip the real recordings")
     ap.add_argument("--load", action="store_true", help="also fit each twin record with the opt-in load stage")
+    ap.add_argument(
+        "--loop-counts-x",
+        type=int,
+        default=1,
+        help="the drive's loop closes on this many times finer counts, gain per rad kept, the record read at the "
+        "preset's counts (default 1: the twin as it is)",
+    )
+    ap.add_argument(
+        "--noise-seed-offset",
+        type=int,
+        default=None,
+        help="draw each record's encoder noise from its seed plus this (default: the seed's own draw)",
+    )
     args = ap.parse_args()
+    if args.loop_counts_x < 1:
+        ap.error(f"--loop-counts-x (={args.loop_counts_x}) must be a whole number >= 1")
     seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else ([1, 2, 3] if args.full else [1])
     presets = args.presets.split(",")
     unknown = [p for p in presets if p not in BANDWIDTH_HZ]
@@ -415,6 +479,8 @@ def main() -> None:
         grid_of(args.full, presets, rates, args.kinds.split(",") if args.kinds else None, frictions),
         seeds,
         load=args.load,
+        loop_counts_x=args.loop_counts_x,
+        noise_offset=args.noise_seed_offset,
     )
 
 
