@@ -16,8 +16,8 @@ separated by ``;``) sets a constant of ``servoid.ident.offline.MODULE`` for the 
 the same).
 
 Per preset and rate: the records, those within 5 %, the mean gap, its sd over all records, the sd over noise draws
-(pooled over the set points drawn more than once), the sd over set points (the seeds' own records' variance less the
-noise's, 0 when below), the median interval half-width relative to the play and how many intervals cover the truth.
+(pooled over the set points drawn more than once), the sd over set points (the variance of the set points' mean gaps
+less the noise's share in them, ``noise var * mean(1 / draws)``, 0 when below), the median interval half-width relative to the play and how many intervals cover the truth.
 The machine may be shared: times are one run each.
 """
 
@@ -50,6 +50,7 @@ def one(name: str, mult: float, seed: int, noise: int | None, design: tuple[floa
         "samples": int(u.size), "turns": turns, "gap": result.play / play - 1.0,
         "lo": lo / play if math.isfinite(lo) else None, "hi": hi / play if math.isfinite(hi) else None,
         "identifiable": bool(result.identifiable), "structure": result.structure, "s": seconds,
+        "mu": float(result.loop.model.mu) if result.loop is not None else None,
     }  # fmt: skip
 
 
@@ -62,15 +63,18 @@ def split(rows: list[dict[str, Any]]) -> dict[str, float]:
     repeated = [np.array(g) for g in by_seed.values() if len(g) > 1]
     dof = sum(g.size - 1 for g in repeated)
     noise_var = sum(float(np.sum((g - g.mean()) ** 2)) for g in repeated) / dof if dof else math.nan
-    own = np.array([r["gap"] for r in rows if r["noise"] is None])
-    total_var = float(np.var(own, ddof=1)) if own.size > 1 else math.nan
-    point_var = max(0.0, total_var - noise_var) if math.isfinite(noise_var) else math.nan
+    means = np.array([np.mean(g) for g in by_seed.values()])
+    share = float(np.mean([1.0 / len(g) for g in by_seed.values()]))
+    spread = float(np.var(means, ddof=1)) if means.size > 1 else math.nan
+    point_var = max(0.0, spread - share * noise_var) if math.isfinite(noise_var) else math.nan
     halves = [0.5 * (r["hi"] - r["lo"]) / (1.0 + r["gap"]) for r in rows if r["lo"] is not None]
     covers = sum(1 for r in rows if r["lo"] is not None and r["lo"] <= 1.0 <= r["hi"])
     return {
         "n": gaps.size, "within": int(np.sum(np.abs(gaps) <= 0.05)), "mean": float(gaps.mean()),
         "sd": float(gaps.std(ddof=1)) if gaps.size > 1 else math.nan, "noise sd": math.sqrt(noise_var),
-        "noise dof": dof, "point sd": math.sqrt(point_var), "largest": float(np.abs(gaps).max()),
+        "noise dof": dof, "point sd": math.sqrt(point_var),
+        "points": " ".join(f"s{k} {100 * np.mean(g):+.1f}/{100 * np.std(g, ddof=1):.1f}" for k, g in by_seed.items()
+                           if len(g) > 1), "largest": float(np.abs(gaps).max()),
         "half": float(np.median(halves)) if halves else math.nan, "covers": covers, "intervals": len(halves),
     }  # fmt: skip
 
@@ -84,10 +88,11 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
     table(
         "identify on each record (noise own: the table's draw; interval relative to the truth)",
         ["preset", "design (len, amp, acc)", "set", "rate", "seed", "noise", "samples", "turns", "gap", "95 %",
-         "verdict", "s"],
+         "mu", "verdict", "s"],
         [[r["preset"], ",".join(f"{v:g}" for v in r["design"]), r.get("set", ""), f"{r['mult']:g}x", str(r["seed"]),
           "own" if r["noise"] is None else str(r["noise"]), str(r["samples"]), str(r["turns"]),
           _pct(r["gap"], True), f"[{r['lo']:.3f}, {r['hi']:.3f}]" if r["lo"] is not None else "none",
+          f"{r['mu']:.2f}" if r.get("mu") is not None else "",
           "identifiable" if r["identifiable"] else "withheld", f"{r['s']:.1f}"] for r in rows],
     )  # fmt: skip
     out = []
@@ -100,12 +105,12 @@ def print_tables(rows: list[dict[str, Any]]) -> None:
         out.append([name, ",".join(f"{v:g}" for v in design), setting, "all" if mult == math.inf else f"{mult:g}x",
                     str(s["n"]), str(s["within"]), _pct(s["mean"], True), _pct(s["sd"]),
                     f"{_pct(s['noise sd'])} ({s['noise dof']})", _pct(s["point sd"]), _pct(s["largest"]),
-                    _pct(s["half"]), f"{s['covers']} of {s['intervals']}"])  # fmt: skip
+                    _pct(s["half"]), f"{s['covers']} of {s['intervals']}", s["points"]])  # fmt: skip
     table(
-        "The split (noise sd: pooled over the set points drawn again, its degrees of freedom; set-point sd: the own "
-        "draws' variance less the noise's)",
+        "The split (noise sd: pooled over the set points drawn again, its degrees of freedom; set-point sd: the set "
+        "points' means' variance less the noise's share)",
         ["preset", "design", "set", "rate", "records", "within 5 %", "mean", "sd", "noise sd (dof)", "set-point sd",
-         "largest", "half-width", "covers"],
+         "largest", "half-width", "covers", "per set point drawn again: mean/sd %"],
         out,
     )  # fmt: skip
 
