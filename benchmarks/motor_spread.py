@@ -57,9 +57,9 @@ def one(name: str, mult: float, seed: int, noise: int | None, design: tuple[floa
 def split(rows: list[dict[str, Any]]) -> dict[str, float]:
     """One group's numbers: mean, sd, sd over noise draws, sd over set points (see the module's docstring)."""
     gaps = np.array([r["gap"] for r in rows])
-    by_seed: dict[int, list[float]] = {}
+    by_seed: dict[tuple[float, int], list[float]] = {}  # a set point: the rate and the seed
     for r in rows:
-        by_seed.setdefault(r["seed"], []).append(r["gap"])
+        by_seed.setdefault((r["mult"], r["seed"]), []).append(r["gap"])
     repeated = [np.array(g) for g in by_seed.values() if len(g) > 1]
     dof = sum(g.size - 1 for g in repeated)
     noise_var = sum(float(np.sum((g - g.mean()) ** 2)) for g in repeated) / dof if dof else math.nan
@@ -73,8 +73,8 @@ def split(rows: list[dict[str, Any]]) -> dict[str, float]:
         "n": gaps.size, "within": int(np.sum(np.abs(gaps) <= 0.05)), "mean": float(gaps.mean()),
         "sd": float(gaps.std(ddof=1)) if gaps.size > 1 else math.nan, "noise sd": math.sqrt(noise_var),
         "noise dof": dof, "point sd": math.sqrt(point_var),
-        "points": " ".join(f"s{k} {100 * np.mean(g):+.1f}/{100 * np.std(g, ddof=1):.1f}" for k, g in by_seed.items()
-                           if len(g) > 1), "largest": float(np.abs(gaps).max()),
+        "points": " ".join(f"{m:g}x s{k} {100 * np.mean(g):+.1f}/{100 * np.std(g, ddof=1):.1f}"
+                           for (m, k), g in by_seed.items() if len(g) > 1), "largest": float(np.abs(gaps).max()),
         "half": float(np.median(halves)) if halves else math.nan, "covers": covers, "intervals": len(halves),
     }  # fmt: skip
 
