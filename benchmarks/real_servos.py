@@ -130,9 +130,13 @@ def twin_record(
     seed: int,
     noise_seed: int | None = None,
     loop_counts_x: int = 1,
+    design: tuple[float, float, float] = (1.0, 1.0, 1.0),
     **overrides: object,
 ) -> dict[str, object]:
     """One host-sampled record of a preset with its truth (``overrides``: twin parameters by name, for experiments).
+
+    ``design``: the record's length (its seconds and its cap of samples), the sines' amplitude and their peak
+    acceleration, each as a multiple of the table's (``benchmarks/motor_spread.py``'s levers; 1: the table's).
 
     The truth: the play, the record's floor, the place of the play, the output encoder's counts per revolution, and at
     each host instant the load's angle and the gear's motor side (``theta_m / N``), output rad.
@@ -153,10 +157,11 @@ def twin_record(
     twin = Twin(preset(name, **over), seed=seed if noise_seed is None else noise_seed)
     twin.enable()
     rate = mult * BANDWIDTH_HZ[name]
-    n = int(min(DURATION_S * rate, MAX_SAMPLES))
+    length, amplitude, accel = design
+    n = int(min(DURATION_S * length * rate, MAX_SAMPLES * length))
     if kind == "sines":
         # peak accelerations 1-8 rad/s^2: the excitation kind servoid designs for a play in the loop
-        spec = GentleSpec(amplitude=SINE_AMPLITUDE[name], accel=8.0 / rate**2, spread=8.0)
+        spec = GentleSpec(amplitude=SINE_AMPLITUDE[name] * amplitude, accel=8.0 * accel / rate**2, spread=8.0)
         u = sample(spec, n, seed=seed + 1000)
     else:
         u = held_steps(n, rate, np.random.default_rng(seed + 1000))
