@@ -240,7 +240,7 @@ def redesign(settings: list[str], mid: str | None) -> str:
     return ", ".join(said)
 
 
-def _with_mid(share: float, part: float, slow: bool = False) -> None:
+def _with_mid(share: float, part: float, after_slow: bool = False) -> None:
     """Wrap the live run's input (``_live.excitation``): the fast part ends with ``part`` of the run at ``share``."""
     from servoid.cli import _live
     from servoid.excitation import parse_spec, sample
@@ -258,7 +258,7 @@ def _with_mid(share: float, part: float, slow: bool = False) -> None:
         mid_spec = parse_spec(f"gentle:amplitude={spec.amplitude!r},accel={accel!r}")
         rest = u.size - first
         fast = whole_segments(spec, args.seed, rest - int(part * u.size))  # type: ignore[arg-type]
-        if slow:  # after the slow phase, as its second half: only the whole record's fits (step 4's, 5's) see it
+        if after_slow:  # after the slow phase, as its second half: only the whole record's fits (step 4's, 5's) see it
             mid = whole_segments(mid_spec, args.seed + 7, int(part * u.size))
             head = limits.centre + sample(mid_spec, mid, seed=args.seed + 7)
             return np.concatenate([u[:first], head, u[first : u.size - mid]]), first + mid
