@@ -38,23 +38,28 @@ TRUTH = {name: preset(name).play_rad for name in ("sts3215", "xm430")}
 PLAY_PROFILE = hc.PLAY_PROFILE
 
 
-def _live(run: Path, end_s: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, str]:
-    """A kept live record as refine_online reads it, cut at the fast part's first ``end_s`` s (0: all)."""
+def _live(run: Path, end_s: float, back: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, str]:
+    """A kept live record as refine_online reads it, cut at the fast part's first ``end_s`` s (0: all; ``back``: cut
+    ``end_s`` s before the record's end, whatever the design's phases)."""
     from horn_cost import live_record
 
     u, y, keep, period, meta, first = live_record(run)
     slow = max(int(meta.get("slow_samples") or 0) - first, 0)
-    n = u.size if end_s <= 0 else min(u.size, slow + int(round(end_s / period)))
+    if back:
+        n = max(u.size - int(round(end_s / period)), 1)
+    else:
+        n = u.size if end_s <= 0 else min(u.size, slow + int(round(end_s / period)))
     return u[:n], y[:n], keep[:n], period, run.name.split("-")[0]
 
 
-def live_ends(runs: list[Path], ends: list[float]) -> Iterator[tuple[Path, float, tuple[Any, ...]]]:
+def live_ends(runs: list[Path], ends: list[float], back: bool = False) -> Iterator[tuple[Path, float, tuple[Any, ...]]]:
     """Every kept live record cut at every end (:func:`_live`), its header printed first: ``(run, end, record)``."""
     print(f"machine load (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
     for run in runs:
         for end in ends:
-            record = _live(run, end)
-            print(f"{run.name} fast part to {end or 'the end'} s ({record[0].size} samples):", flush=True)
+            record = _live(run, end, back)
+            where = f"{end:g} s before the end" if back else f"fast part to {end or 'the end'} s"
+            print(f"{run.name} {where} ({record[0].size} samples):", flush=True)
             yield run, end, record
 
 
@@ -132,6 +137,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=Path, nargs="*", default=[], help="online.py --keep run directories")
     parser.add_argument("--ends", type=float, nargs="+", default=[15.0, 20.0, 25.0, 0.0], help="fast part's s; 0: all")
+    parser.add_argument("--back", action="store_true", help="--ends count back from the record's end (any design)")
     parser.add_argument("--table", action="store_true", help="the STS3215 table records (real_servos.py sines)")
     parser.add_argument("--preset", default="sts3215")
     parser.add_argument("--rates", type=float, nargs="+", default=[10.0, 20.0, 50.0])
@@ -141,7 +147,7 @@ def main() -> None:
     parser.add_argument("--no-stage-profile", action="store_true", help="the horn stage without its own profile")
     args = parser.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    for _, _, (u, y, kept, period, name) in live_ends(args.runs, args.ends):
+    for _, _, (u, y, kept, period, name) in live_ends(args.runs, args.ends, args.back):
         profile(u, y, kept, period, TRUTH[name], args.grid, False, args.no_stage_profile)
         sys.stdout.flush()
     if args.table:

@@ -50,6 +50,13 @@ are, one row per run:
   ``slow`` the slow phase's, and the answer's ``search`` / ``candidate`` / ``extend`` / ``slow part`` / ``horn``;
   ``-`` none; a virtual clock is not timed).
 
+``--design NAME=VALUE`` runs every row under another live design (issue 15, hornturns21): ``GENTLE_SHARE``,
+``SLOW_SHARE``, ``SLOW_PART`` of ``ident/online/probe_design.py`` or ``DEFAULT_LIVE_S``, ``SLOW_REVERSALS`` of
+``servoid/cli/_live.py``, set for the whole process; ``--mid SHARE:PART`` ends the fast part with ``PART`` of the run's
+samples of gentle sines at ``SHARE`` of the probe's bandwidth (a middle speed between the slow and the fast phase;
+the fast part keeps the rest, cut at its whole segments); ``--mid SHARE:PART:slow`` puts them after the slow phase
+instead, counted in it (the fast part's search and windows do not see them; the fast part loses its last samples).
+
 The monitor's tracking of a growing play on the wearing twin is
 ``benchmarks/monitor_loop.py``. The machine may be shared: wall times depend on its load.
 """
@@ -206,6 +213,61 @@ def _identified(result: dict) -> str:
     return "not: " + re.split(r"[:(]", first, maxsplit=1)[0].strip()[:40]
 
 
+#: The live design's constants ``--design`` may set, by module.
+_DESIGN_KNOBS = {"GENTLE_SHARE": "servoid.ident.online.probe_design", "SLOW_SHARE": "servoid.ident.online.probe_design",
+                 "SLOW_PART": "servoid.ident.online.probe_design", "DEFAULT_LIVE_S": "servoid.cli._live",
+                 "SLOW_REVERSALS": "servoid.cli._live"}  # fmt: skip
+
+
+def redesign(settings: list[str], mid: str | None) -> str:
+    """Set the live design's constants (``NAME=VALUE``) and a middle phase (``SHARE:PART``) for this process; what
+    was set, for the table's title."""
+    import importlib
+
+    said = []
+    for item in settings:
+        name, _, value = item.partition("=")
+        if name not in _DESIGN_KNOBS or not value:
+            raise SystemExit(f"--design {item!r}: expected NAME=VALUE with NAME one of {', '.join(_DESIGN_KNOBS)}")
+        module = importlib.import_module(_DESIGN_KNOBS[name])
+        old = getattr(module, name)
+        setattr(module, name, type(old)(float(value)))
+        said.append(f"{name}={getattr(module, name):g}")
+    if mid is not None:
+        share, part, *where = mid.split(":")
+        _with_mid(float(share), float(part), where == ["slow"])
+        said.append(f"mid {float(share):g}x for {float(part):g} of the run{' after the slow phase' if where else ''}")
+    return ", ".join(said)
+
+
+def _with_mid(share: float, part: float, after_slow: bool = False) -> None:
+    """Wrap the live run's input (``_live.excitation``): the fast part ends with ``part`` of the run at ``share``."""
+    from servoid.cli import _live
+    from servoid.excitation import parse_spec, sample
+    from servoid.excitation.gentle import whole_segments
+    from servoid.ident.online import probe_design
+
+    plain = _live.excitation
+
+    def excitation(args, amplitude, limits, unit, *, designed=None, slow=None):  # type: ignore[no-untyped-def]
+        u, first = plain(args, amplitude, limits, unit, designed=designed, slow=slow)
+        if designed is None or args.excitation is not None:
+            return u, first
+        spec = parse_spec(designed)
+        accel = float(spec.accel) * (share / probe_design.GENTLE_SHARE) ** 2  # type: ignore[attr-defined]
+        mid_spec = parse_spec(f"gentle:amplitude={spec.amplitude!r},accel={accel!r}")
+        rest = u.size - first
+        fast = whole_segments(spec, args.seed, rest - int(part * u.size))  # type: ignore[arg-type]
+        if after_slow:  # after the slow phase, as its second half: only the whole record's fits (step 4's, 5's) see it
+            mid = whole_segments(mid_spec, args.seed + 7, int(part * u.size))
+            head = limits.centre + sample(mid_spec, mid, seed=args.seed + 7)
+            return np.concatenate([u[:first], head, u[first : u.size - mid]]), first + mid
+        tail = limits.centre + sample(mid_spec, rest - fast, seed=args.seed + 7)
+        return np.concatenate([u[: first + fast], tail]), first
+
+    _live.excitation = excitation
+
+
 def _seeded(cells: list[str], seed: int) -> list[str]:
     """A row with the seed after the transport."""
     return [*cells[:2], str(seed), *cells[2:]]
@@ -226,7 +288,12 @@ def main() -> None:
     parser.add_argument(
         "--keep", type=Path, default=None, help="keep each run's outputs (recording.csv, model.json) here"
     )
+    parser.add_argument("--design", nargs="+", default=[], metavar="NAME=VALUE",
+                        help=f"the live design's constants for this run: {', '.join(_DESIGN_KNOBS)}")  # fmt: skip
+    parser.add_argument("--mid", default=None, metavar="SHARE:PART",
+                        help="end the fast part with PART of the run at SHARE of the probe's bandwidth (SHARE:PART:slow: after the slow phase)")  # fmt: skip
     args = parser.parse_args()
+    designed = redesign(args.design, args.mid)
     if args.transports is None:
         args.transports = list(LIVE) if args.full else [next(iter(LIVE))]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
@@ -241,7 +308,7 @@ def main() -> None:
         ]
     table(
         f"servoid identify --driver URL{'' if args.samples is None else f' --samples {args.samples}'} (probe, design, "
-        "decimated MRGIA, verdict)",
+        "decimated MRGIA, verdict)" + (f"; design: {designed}" if designed else ""),
         ["preset", "transport", "seed", "true play", "probe s", "k", "lost", "estimator", "online", "refined", "err",
          "to 5 % s", "to answer s", "fit on/ref", "answer (err, verdict)", "refit s/stall ms/dropped/late/age s",
          "refits (searched)", "wall s",
