@@ -60,7 +60,7 @@ import numpy as np
 
 from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
-from servoid.excitation.monitor_input_names import CYCLED, INPUTS, STEADY
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, INPUTS, STEADY
 from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import GentleSpec
 
@@ -82,10 +82,6 @@ MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25, 1.0), SINE: (1.0, 1.0, 1.0, SINE_ACCEL
 #: Largest ``dither`` of the steady sine's amplitude (:func:`monitor_spec`).
 MAX_DITHER = 0.5
 
-#: Places of the count grid the cycled sine passes (``steps`` of :func:`cycled_sine`): 4 passed issue 15's gate on
-#: both horn twins (mongrid20, moncycle21); 3 read the level as well but its 3 s cycle, longer than a window, let the
-#: XM430's alarm come 6.75 s late (docs/monitor.md).
-CYCLE_STEPS = 4
 #: Fewest changes of the readings :func:`grid_count` takes a count from (those of
 #: :func:`~servoid.ident.offline.intervals.quantum`).
 MIN_COUNT_CHANGES = 10

@@ -14,7 +14,7 @@ from servoid import limits
 from servoid.cli import _live, _term
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
-from servoid.excitation.monitor_input_names import INPUTS
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, INPUTS
 from servoid.excitation.specs import SignalSpec, UniformSpec, format_spec, parse_spec
 from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
@@ -71,13 +71,13 @@ uniform noise below, and the header's "input:" line says which.
 
 --input chooses that steady sine. "cycled", the default where the file's play
 sits inside the loop (a horn servo: XM430, STS3215), steps its amplitude a
-count / 4 smaller each half-period over 4 values; "steady", the default where
+count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} values; "steady", the default where
 the play sits outside the loop, keeps one amplitude. Why: a horn servo's
 firmware closes its position loop on whole counts of the horn's encoder, and a
 sine of one amplitude reverses at the same place on that count grid every
 period, where the window plays read the play with a bias of their own (7-9 %
 low on the XM430 and STS3215 twins); cycled, every window's reversals pass the
-same few places a quarter count apart, and the bias averages out (4-5 %) while
+same few places a count / {CYCLE_STEPS} apart, and the bias averages out (4-5 %) while
 the alarm stays fast. The count is the encoder's, taken from the readings the
 first fit used; where they show none (too few changes, a continuous or noisy
 encoder) the steady sine runs, and a line says why. Where the play sits outside
@@ -150,9 +150,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="excitation added to it, e.g. uniform:amplitude=0.05 (default: without --operating, "
                           "for a servo-loop model with a design the identification's sines, then a steady sine; "
                           "else uniform noise of the driver's reference amplitude; with --operating, none)")  # fmt: skip
-    inp.add_argument("--input", choices=INPUTS, metavar="steady|cycled",
+    inp.add_argument("--input", choices=INPUTS, metavar="|".join(INPUTS),
                      help="the servo-loop monitor's steady sine after the first fit: 'cycled' (the default where the "
-                          "model file's play sits inside the loop) steps its amplitude over 4 places of the encoder's "
+                          f"model file's play sits inside the loop) steps its amplitude over {CYCLE_STEPS} places of the encoder's "
                           "count grid, which the firmware's loop closes on; 'steady' (the default where the play sits "
                           "outside the loop) keeps one amplitude (see above)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
