@@ -245,12 +245,15 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
-         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int | None = None):  # fmt: skip
+         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int | None = None,
+         progress: str = ""):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one.
 
     ``cycle``: the cycled sine's places (None: ``servoid monitor``'s default by the file's place; 0: one amplitude);
     its count from the readings before the steady part, taken when the feed reaches it (as the monitor's stream).
+    ``progress``: a label; every 100 000 samples a line on stderr with the alarms raised so far (a long quiet run
+    stopped early still says how far it went without one).
     """
     twin = Twin(preset(name), seed=seed)
     twin.enable()
@@ -283,6 +286,8 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
+        if progress and i and i % 100_000 == 0:
+            print(f"{progress}: {i} samples, {len(_raised(tracker))} alarms raised", file=sys.stderr, flush=True)
         f = factor(i / RATE)
         twin.set_play(play0 * f)
         parts = [(n_ref + i, n_ref + min(i + chunk, n))]
@@ -467,6 +472,7 @@ def main() -> None:
             3,
             file,
             chunk_s=1.0,
+            progress=f"{name} quiet",
             **opts,
         )
         base = calm.baseline()
