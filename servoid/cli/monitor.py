@@ -14,7 +14,7 @@ from servoid import limits
 from servoid.cli import _live, _term
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
-from servoid.excitation.monitor_input_names import CYCLE_STEPS, INPUTS
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, INPUTS, STEADY
 from servoid.excitation.specs import SignalSpec, UniformSpec, format_spec, parse_spec
 from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
@@ -525,8 +525,6 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
 
 def _ran(meta: dict[str, str], grid: GridCount | None) -> str | None:
     """Which steady sine ran (``steady`` or ``cycled``; None: not the monitor's own input)."""
-    from servoid.excitation.monitor_input import CYCLED, STEADY
-
     kind = meta.get("input_kind")
     if kind == CYCLED and grid is not None and not grid.found:
         return STEADY  # the readings showed no count
@@ -549,15 +547,7 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     slow phase's acceleration, at the same frequency), inside the driver's range and rate limit; a file without that design gets the MRGIA monitor's default, and the line says why.
     """
     from servoid.excitation.gentle import segment_end, segments
-    from servoid.excitation.monitor_input import (
-        CYCLE_STEPS,
-        CYCLED,
-        IDENT,
-        SINE,
-        default_input,
-        monitor_spec,
-        monitor_stream,
-    )
+    from servoid.excitation.monitor_input import IDENT, SINE, default_input, monitor_spec, monitor_stream
     from servoid.ident.monitoring.loop_wear import FIRST_FIT_S
     from servoid.monitor_loop import ReadingsGrid, design_sines
 
@@ -569,6 +559,8 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
         if args.operating is None and args.excitation is None:
             line += (f" ({args.model} holds no gentle-sines design from `servoid identify --driver`, so not the "
                      "steady sine the monitor measured best with: give --excitation to choose)")  # fmt: skip
+            if args.input is not None:
+                line += f"; --input {args.input} applies only to that steady sine"
         return inputs, {**meta, "input": line}, 0, None
     limits = driver.limits
     amplitude = min(sines[0], limits.high - limits.centre, limits.centre - limits.low)
@@ -602,8 +594,6 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
 
 def _cycle_note(kind: str, chosen: str | None) -> str:
     """The header's words on the steady sine's kind (``--input``) and why it is the default."""
-    from servoid.excitation.monitor_input import CYCLE_STEPS, CYCLED
-
     why = "chosen by --input" if chosen is not None else None
     if kind == CYCLED:
         why = why or "the default: the file's play sits inside the loop, whose firmware closes on whole counts"
