@@ -89,9 +89,9 @@ grid, where the held loop reads the play with a bias of its own (docs/monitor.md
 ``--cycle N``: the steady sine's amplitude steps deterministically, a count / N smaller each half-period over N values
 (:func:`~servoid.excitation.monitor_input.cycled_sine`): every reversal side passes N places of the grid, and a window
 of 1.6 s (about 3 reversals) holds the cycle's places as evenly as N allows. Default: ``servoid monitor``'s
-(:func:`~servoid.excitation.monitor_input.default_input`): N = ``CYCLE_STEPS`` (4) where the model file's play sits
-inside the loop, none where it sits outside. ``--cycle 0``: the steady sine of one amplitude, the input before
-(moncycle21). The count comes as ``servoid monitor`` takes it: from the readings of the monitor's own first fit, up to
+(:func:`~servoid.excitation.monitor_input.default_input`): the steady sine, ``CYCLED_DEFAULT`` off (on, N =
+``CYCLE_STEPS`` where the model file's play sits inside the loop); ``--cycle 4``: what ``servoid monitor --input
+cycled`` runs; ``--cycle 0``: the steady sine of one amplitude, the input before (moncycle21). The count comes as ``servoid monitor`` takes it: from the readings of the monitor's own first fit, up to
 the sample where the steady part starts (:func:`~servoid.excitation.monitor_input.grid_count`, the same samples
 :class:`~servoid.monitor_loop.ReadingsGrid` keeps; mongrid20 took it from the reference's readings); where they show
 none, the steady sine runs, and the input column says why.
@@ -390,8 +390,8 @@ def main() -> None:
         default=None,
         help="the steady sine's amplitude a count / N smaller each half-period over N values (the count: the first "
         f"fit's readings' step, as servoid monitor takes it), its reversals on N places of the loop encoder's grid "
-        f"(default: servoid monitor's, {CYCLE_STEPS} where the file's play sits in the loop, else 0; 0: one amplitude, "
-        "the input before)",
+        f"(default: servoid monitor's, 0 unless its CYCLED_DEFAULT is on, then {CYCLE_STEPS} where the file's play sits "
+        "in the loop; 0: one amplitude, the input before)",
     )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(

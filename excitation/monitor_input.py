@@ -34,8 +34,9 @@ instead, deterministically: each half-period ``count / steps`` smaller, over ``s
 reversal side passes the same ``steps`` places on the grid (``count``: the loop encoder's, from the readings).
 
 Which steady sine runs (:data:`STEADY` or :data:`CYCLED`, ``servoid monitor --input``): the cycled one, over
-:data:`CYCLE_STEPS` places, where the model file's play sits inside the loop (:func:`default_input`), the steady
-one where it sits outside. The count grid is a property of a loop closed on the encoder the readings come from:
+:data:`CYCLE_STEPS` places, only where the model file's play sits inside the loop, and by default only with
+:data:`CYCLED_DEFAULT` (off: on the twins' live files it delayed the XM430's alarm; :func:`default_input`); the
+steady one elsewhere. The count grid is a property of a loop closed on the encoder the readings come from:
 the horn servos' firmware (XM430, STS3215) closes its position loop on whole counts of the horn's encoder, so the
 readings' count is the loop's grid, and the cycle moves each reversal by a known share of it (on the XM430 twin's
 file the window plays read 4.6 % low instead of 9.0-9.3 %, the STS3215's 3.9-4.0 % instead of 7.2-7.3 %; the
@@ -60,11 +61,11 @@ import numpy as np
 
 from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
-from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, INPUTS, STEADY
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, CYCLED_DEFAULT, INPUTS, STEADY
 from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["CYCLE_STEPS", "CYCLED", "IDENT", "INPUTS", "MAX_COUNT_SHARE", "MAX_DITHER", "MIN_COUNT_CHANGES",
+__all__ = ["CYCLE_STEPS", "CYCLED", "CYCLED_DEFAULT", "IDENT", "INPUTS", "MAX_COUNT_SHARE", "MAX_DITHER", "MIN_COUNT_CHANGES",
            "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "GridCount", "coast_accel", "cycled_sine",
            "default_input", "grid_count", "monitor_spec", "monitor_stream"]  # fmt: skip
 
@@ -174,16 +175,19 @@ def coast_accel(structure: str, slow_accel: float) -> float:
     return float(slow_accel)
 
 
-def default_input(structure: str) -> str:
-    """The steady sine's kind by the model file's place of the play: :data:`CYCLED` inside the loop, else :data:`STEADY`.
+def default_input(structure: str, cycled: bool | None = None) -> str:
+    """The steady sine's kind by the model file's place of the play: :data:`CYCLED` inside the loop when ``cycled``, else
+    :data:`STEADY`.
 
     The count grid is the loop encoder's, and the readings show it only where the loop closes on the encoder
-    they come from: the play inside the loop (the module's text).
+    they come from: the play inside the loop (the module's text). Outside it the steady sine stays whatever ``cycled``.
 
     Parameters
     ----------
     structure : str
         Where the model file's play sits (``play_in_loop`` or ``output_backlash``).
+    cycled : bool, optional
+        Whether the cycled sine is the default inside the loop (default: :data:`CYCLED_DEFAULT`, off).
 
     Returns
     -------
@@ -191,7 +195,8 @@ def default_input(structure: str) -> str:
     """
     from servoid.ident.models.structure_names import PLAY_IN_LOOP
 
-    return CYCLED if structure == PLAY_IN_LOOP else STEADY
+    on = CYCLED_DEFAULT if cycled is None else cycled
+    return CYCLED if on and structure == PLAY_IN_LOOP else STEADY
 
 
 @dataclass(frozen=True)

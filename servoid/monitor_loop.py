@@ -32,8 +32,8 @@ later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``
     The model file with the held loop and the tracking estimate's play,
     rewritten at each alarm and at the end.
 
-With the cycled sine (:data:`~servoid.excitation.monitor_input.CYCLED`, the default where the play sits inside the
-loop) ``events.jsonl`` also holds an ``input`` event when the steady part starts: the count the first fit's readings
+With the cycled sine (:data:`~servoid.excitation.monitor_input.CYCLED`, ``--input cycled``; off by default)
+``events.jsonl`` also holds an ``input`` event when the steady part starts: the count the first fit's readings
 showed (:class:`ReadingsGrid`), or why there was none and the steady sine ran instead.
 
 Memory is bounded: the session keeps no samples, the tracker two windows

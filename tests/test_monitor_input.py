@@ -90,8 +90,9 @@ def test_cycled_sine_refuses_a_bad_count_or_steps(count: float, steps: int) -> N
 COUNT = 2.0 * math.pi / 4096.0  # a 4096-count encoder's, rad
 
 
-def test_the_cycled_sine_is_the_default_only_where_the_play_sits_inside_the_loop() -> None:
-    assert default_input(PLAY_IN_LOOP) == CYCLED and default_input(OUTPUT_BACKLASH) == STEADY
+def test_the_cycled_sine_is_off_by_default_and_never_the_default_outside_the_loop() -> None:
+    assert default_input(PLAY_IN_LOOP) == STEADY and default_input(OUTPUT_BACKLASH) == STEADY
+    assert default_input(PLAY_IN_LOOP, cycled=True) == CYCLED and default_input(OUTPUT_BACKLASH, cycled=True) == STEADY
 
 
 def test_cycled_sine_in_chunks_equals_one_call() -> None:

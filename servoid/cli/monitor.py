@@ -69,20 +69,21 @@ first 10 s, then one steady sine at their largest amplitude and half their highe
 acceleration (inside the driver's limits); a file without that design gets the
 uniform noise below, and the header's "input:" line says which.
 
---input chooses that steady sine. "cycled", the default where the file's play
-sits inside the loop (a horn servo: XM430, STS3215), steps its amplitude a
-count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} values; "steady", the default where
-the play sits outside the loop, keeps one amplitude. Why: a horn servo's
-firmware closes its position loop on whole counts of the horn's encoder, and a
-sine of one amplitude reverses at the same place on that count grid every
-period, where the window plays read the play with a bias of their own (7-9 %
-low on the XM430 and STS3215 twins); cycled, every window's reversals pass the
-same few places a count / {CYCLE_STEPS} apart, and the bias averages out (4-5 %) while
-the alarm stays fast. The count is the encoder's, taken from the readings the
-first fit used; where they show none (too few changes, a continuous or noisy
-encoder) the steady sine runs, and a line says why. Where the play sits outside
-the loop the loop closes on the motor's encoder, whose grid the readings do not
-show: there the cycle has nothing to average, so "steady" is the default.
+--input chooses that steady sine: "steady" (the default) keeps one amplitude;
+"cycled" steps it a count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} values, for a
+file whose play sits inside the loop (a horn servo: XM430, STS3215). Why: a
+horn servo's firmware closes its position loop on whole counts of the horn's
+encoder, and a sine of one amplitude reverses at the same place on that count
+grid every period, where the window plays read the play with a bias of their
+own (7-9 % low on the XM430 and STS3215 twins' data files); cycled, every
+window's reversals pass the same few places a count / {CYCLE_STEPS} apart and the bias
+averages out (4-5 %). It is not the default because on the twins' live files
+(what `servoid identify --driver` writes) it delayed the XM430's alarm after a
++20 % step from 1.25 to 4.25 s. The count is the encoder's, taken from the
+readings the first fit used; where they show none (too few changes, a
+continuous or noisy encoder) the steady sine runs, and a line says why. Where
+the play sits outside the loop the loop closes on the motor's encoder, whose
+grid the readings do not show: the cycle has nothing to average there.
 
 The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
@@ -151,10 +152,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                           "for a servo-loop model with a design the identification's sines, then a steady sine; "
                           "else uniform noise of the driver's reference amplitude; with --operating, none)")  # fmt: skip
     inp.add_argument("--input", choices=INPUTS, metavar="|".join(INPUTS),
-                     help="the servo-loop monitor's steady sine after the first fit: 'cycled' (the default where the "
-                          f"model file's play sits inside the loop) steps its amplitude over {CYCLE_STEPS} places of the encoder's "
-                          "count grid, which the firmware's loop closes on; 'steady' (the default where the play sits "
-                          "outside the loop) keeps one amplitude (see above)")  # fmt: skip
+                     help="the servo-loop monitor's steady sine after the first fit: 'steady' (the default) keeps one "
+                          f"amplitude; 'cycled' steps it over {CYCLE_STEPS} places of the encoder's count grid, which a "
+                          "horn servo's firmware closes its loop on (see above)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
     al = p.add_argument_group("alarms")
     al.add_argument(
@@ -536,9 +536,9 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     """The servo-loop monitor's commands, their description (``input``: the line the header prints), the sample
     where the steady sine begins (0 without it: the input does not change) and the cycled sine's count source.
 
-    The steady sine is ``--input``'s, by default by the file's place of the play
-    (:func:`~servoid.excitation.monitor_input.default_input`): cycled inside the loop, whose firmware closes on the
-    readings' encoder, steady outside it, the input before, bit for bit.
+    The steady sine is ``--input``'s, by default :func:`~servoid.excitation.monitor_input.default_input`'s: the steady
+    sine, the input before, bit for bit (the cycled one only where the file's play sits inside the loop and
+    ``CYCLED_DEFAULT`` is on, which it is not).
 
     Without ``--operating`` and ``--excitation``: what ``benchmarks/monitor_loop.py`` measured, the
     identification's gentle sines for the first fit, then one steady sine at their largest amplitude
@@ -594,12 +594,10 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
 
 def _cycle_note(kind: str, chosen: str | None) -> str:
     """The header's words on the steady sine's kind (``--input``) and why it is the default."""
-    why = "chosen by --input" if chosen is not None else None
+    why = "chosen by --input" if chosen is not None else "the default"
     if kind == CYCLED:
-        why = why or "the default: the file's play sits inside the loop, whose firmware closes on whole counts"
         return (f", cycled: its amplitude a count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} "
                 f"values, the count from the first fit's readings ({why}; --input steady for one amplitude)")  # fmt: skip
-    why = why or "the default where the file's play sits outside the loop"
     return f", one amplitude ({why}; --input cycled to step it over the encoder's count grid)"
 
 
