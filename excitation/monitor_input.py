@@ -33,14 +33,15 @@ the grid, at the price of window plays that scatter with it. :func:`cycled_sine`
 instead, deterministically: each half-period ``count / steps`` smaller, over ``steps`` values, so that every
 reversal side passes the same ``steps`` places on the grid (``count``: the loop encoder's, from the readings).
 
-Which steady sine runs (:data:`STEADY` or :data:`CYCLED`, ``servoid monitor --input``): the cycled one, over
-:data:`CYCLE_STEPS` places, only where the model file's play sits inside the loop, and by default only with
-:data:`CYCLED_DEFAULT` (off: on the twins' live files it delayed the XM430's alarm; :func:`default_input`); the
-steady one elsewhere. The count grid is a property of a loop closed on the encoder the readings come from:
+Which steady sine runs (:data:`STEADY` or :data:`CYCLED`, ``servoid monitor --input``): the steady one by default.
+The cycled one, over :data:`CYCLE_STEPS` places, is meant for a play inside the loop and is the default there only
+with :data:`CYCLED_DEFAULT` (off: on the twins' live files it delayed the XM430's alarm; :func:`default_input`). The
+count grid is a property of a loop closed on the encoder the readings come from:
 the horn servos' firmware (XM430, STS3215) closes its position loop on whole counts of the horn's encoder, so the
 readings' count is the loop's grid, and the cycle moves each reversal by a known share of it (on the XM430 twin's
-file the window plays read 4.6 % low instead of 9.0-9.3 %, the STS3215's 3.9-4.0 % instead of 7.2-7.3 %; the
-alarm after +20 % within 1.00-2.00 s; docs/monitor.md, mongrid20 and moncycle21). Where the play sits outside the
+data file the window plays read 4.6 % low instead of 9.0-9.3 %, the STS3215's 3.9-4.0 % instead of 7.2-7.3 %, the
+alarm after +20 % within 0.75-2.00 s; on the XM430's live file the alarm came 4.25 s after, against 1.25 s on the
+steady sine; docs/monitor.md, mongrid20 and moncycle21). Where the play sits outside the
 loop (the CiA 402 and ODrive: the loop closes on the motor's encoder, the readings are the load's, 2^20 and 2^14
 counts a turn on the twins), a step of the readings' count moves the reversals by nothing the motor's loop sees:
 there the steady sine stays, bit for bit. The count is taken when the steady part starts, from the readings the
