@@ -87,9 +87,14 @@ twins' firmware closes its loop on whole counts of the horn's encoder, and a ste
 grid, where the held loop reads the play with a bias of its own (docs/monitor.md, "the count grid").
 
 ``--cycle N``: the steady sine's amplitude steps deterministically, a count / N smaller each half-period over N values
-(:func:`~servoid.excitation.monitor_input.cycled_sine`; the count is the reference readings' resolution,
-:func:`~servoid.ident.offline.intervals.quantum`; default 0: one amplitude): every reversal side passes N places of the
-grid, and a window of 1.6 s (about 3 reversals) holds the cycle's places as evenly as N allows.
+(:func:`~servoid.excitation.monitor_input.cycled_sine`): every reversal side passes N places of the grid, and a window
+of 1.6 s (about 3 reversals) holds the cycle's places as evenly as N allows. Default: ``servoid monitor``'s
+(:func:`~servoid.excitation.monitor_input.default_input`): the steady sine, ``CYCLED_DEFAULT`` off (on, N =
+``CYCLE_STEPS`` where the model file's play sits inside the loop); ``--cycle 4``: what ``servoid monitor --input
+cycled`` runs; ``--cycle 0``: the steady sine of one amplitude, the input before (moncycle21). The count comes as ``servoid monitor`` takes it: from the readings of the monitor's own first fit, up to
+the sample where the steady part starts (:func:`~servoid.excitation.monitor_input.grid_count`, the same samples
+:class:`~servoid.monitor_loop.ReadingsGrid` keeps; mongrid20 took it from the reference's readings); where they show
+none, the steady sine runs, and the input column says why.
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
@@ -149,17 +154,21 @@ from servoid.drivers.twin.presets import PRESETS
 from servoid.excitation.generate import sample
 from servoid.excitation.gentle import segment_end
 from servoid.excitation.monitor_input import (
+    CYCLE_STEPS,
+    CYCLED,
     IDENT,
     MONITOR_INPUTS,
     SINE,
     SINE_ACCEL_SHARE,
+    GridCount,
     cycled_sine,
+    default_input,
+    grid_count,
     monitor_spec,
 )
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 from servoid.ident.monitoring.alarms import Bound
 from servoid.ident.monitoring.loop_wear import FIRST_FIT_S, MIN_REVERSALS, PLAY, TRACK_S, LoopWearTracker, PlayRow
-from servoid.ident.offline.intervals import quantum
 from servoid.loop_compensation import loop_model
 from servoid.modelfile import ModelFile, load_model
 from servoid.monitor_loop import CALIBRATE, HOLD_LOOP, HORN_RECORD_S, short_horn
@@ -236,9 +245,16 @@ def _file_by_place(name: str, seed: int) -> tuple[ModelFile, float]:
 def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int, file: ModelFile,  # type: ignore[no-untyped-def]
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
-         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int = 0):  # fmt: skip
+         hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int | None = None,
+         progress: str = ""):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
-    ``factor(t)`` times the new one."""
+    ``factor(t)`` times the new one.
+
+    ``cycle``: the cycled sine's places (None: ``servoid monitor``'s default by the file's place; 0: one amplitude);
+    its count from the readings before the steady part, taken when the feed reaches it (as the monitor's stream).
+    ``progress``: a label; every 100 000 samples a line on stderr with the alarms raised so far (a long quiet run
+    stopped early still says how far it went without one).
+    """
     twin = Twin(preset(name), seed=seed)
     twin.enable()
     play0 = twin.truth.play_rad
@@ -253,12 +269,13 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
         cut = min(segment_end(ident, seed + 1000, n_ref + int(FIRST_FIT_S * RATE)), n_ref + n)
         u[cut:] = _monitor_input(name, n_ref + n - cut, seed, monitor_input, share, dither)
         steady_s = 0.0 if count_switch else (cut - n_ref) / RATE
-    ref = twin.sample(u[:n_ref], 1.0 / RATE)
-    if cycle > 0 and monitor_input == SINE:
-        # the steady sine's amplitude steps by a count / cycle each half-period; the count: the readings' resolution
-        scale = share / SINE_ACCEL_SHARE
-        steady = monitor_spec(SINE, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2)
-        u[cut:] = cycled_sine(steady, quantum(ref.y), cycle, n_ref + n - cut)
+    twin.sample(u[:n_ref], 1.0 / RATE)
+    steps = (CYCLE_STEPS if default_input(file.structure) == CYCLED else 0) if cycle is None else cycle
+    # the cycled sine: its count from the monitor's readings before the steady part (``servoid monitor``'s
+    # ReadingsGrid), then the amplitude a count / steps smaller each half-period, from the sample ``cut`` on
+    pending = steps > 0 and monitor_input == SINE and cut < n_ref + n
+    readings: list[np.ndarray] = []
+    grid: GridCount | None = None
     # as ``servoid monitor`` starts from a model file (servoid/cli/monitor.py, servoid/monitor_loop.py)
     model = dataclasses.replace(loop_model(file), sample_period_s=1.0 / RATE)
     bound = Bound(quantity=PLAY, low=0.9 * model.play, high=1.1 * model.play)  # --dead-zone 10%
@@ -269,17 +286,34 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
     chunk = int(chunk_s * RATE)
     truth = np.empty(n)
     for i in range(0, n, chunk):
+        if progress and i and i % 100_000 == 0:
+            print(f"{progress}: {i} samples, {len(_raised(tracker))} alarms raised", file=sys.stderr, flush=True)
         f = factor(i / RATE)
         twin.set_play(play0 * f)
-        rec = twin.sample(u[n_ref + i : n_ref + i + chunk], 1.0 / RATE)
+        parts = [(n_ref + i, n_ref + min(i + chunk, n))]
+        if pending and parts[0][1] > cut:  # the steady part starts in this chunk: its count first
+            parts = [(parts[0][0], cut), (cut, parts[0][1])] if parts[0][0] < cut else parts
+        for lo, hi in parts:
+            if pending and lo >= cut:
+                scale = share / SINE_ACCEL_SHARE
+                steady = monitor_spec(SINE, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2)
+                grid = grid_count(np.concatenate(readings), float(steady.amplitude))
+                if grid.found:
+                    u[cut:] = cycled_sine(steady, grid.count, steps, n_ref + n - cut)
+                pending, readings = False, []
+            if lo >= hi:
+                continue
+            rec = twin.sample(u[lo:hi], 1.0 / RATE)
+            if pending:
+                readings.append(rec.y)
+            for ui, yi in zip(rec.u.tolist(), rec.y.tolist(), strict=True):
+                tracker.update(ui, yi)
         truth[i : i + chunk] = play0 * f
-        for ui, yi in zip(rec.u.tolist(), rec.y.tolist(), strict=True):
-            tracker.update(ui, yi)
     tracker.result()
     rows: tuple[PlayRow, ...] = tracker.rows_since(0)
     t = np.array([r.window.t_s for r in rows])
     at = truth[np.minimum((t * RATE).astype(int) - 1, n - 1)]
-    return model, tracker, rows, t, at, play0
+    return model, tracker, rows, t, at, play0, grid
 
 
 def _raised(tracker: LoopWearTracker) -> list[float]:
@@ -353,9 +387,11 @@ def main() -> None:
     parser.add_argument(
         "--cycle",
         type=int,
-        default=0,
-        help="the steady sine's amplitude a count / N smaller each half-period over N values (the count: the "
-        "reference readings' resolution), its reversals on N places of the loop encoder's grid (default 0: one amplitude)",
+        default=None,
+        help="the steady sine's amplitude a count / N smaller each half-period over N values (the count: the first "
+        f"fit's readings' step, as servoid monitor takes it), its reversals on N places of the loop encoder's grid "
+        f"(default: servoid monitor's, 0 unless its CYCLED_DEFAULT is on, then {CYCLE_STEPS} where the file's play sits "
+        "in the loop; 0: one amplitude, the input before)",
     )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
@@ -377,7 +413,8 @@ def main() -> None:
     rows = []
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
-            "calibrate": args.calibrate or CALIBRATE, "dither": args.dither, "cycle": args.cycle}  # fmt: skip
+            "calibrate": args.calibrate or CALIBRATE, "dither": args.dither,
+            "cycle": 0 if args.dither > 0.0 and args.cycle is None else args.cycle}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")
@@ -392,8 +429,9 @@ def main() -> None:
             file = _model_file(name, args.file_seed, reference_s)
         opts["reference_s"] = reference_s
         raws, biases = [], []  # per tracking seed; the other tracking columns are the first seed's
+        grid: GridCount | None = None
         for track_seed in reversed(args.track_seeds):
-            model, tracker, tr, t, at, play0 = _run(
+            model, tracker, tr, t, at, play0, grid = _run(
                 name,
                 args.track,
                 lambda s: 1.0 + 0.5 * max(0.0, s - wear_from) / (args.track - wear_from),
@@ -422,18 +460,19 @@ def main() -> None:
         turns = np.array([r.window.reversals for r in tr[1:]])
         after, before = [], []  # the first alarm after the step per seed; alarms before it, all seeds
         for seed in args.seeds:
-            _, step, _, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, seed, file,
+            _, step, _, _, _, _, _ = _run(name, STEP_AT_S + 20.0, lambda s: 1.2 if s >= STEP_AT_S else 1.0, seed, file,
                                        **opts)  # fmt: skip
             raised = _raised(step)
             after.append(next((f"{x - STEP_AT_S:.2f}" for x in raised if x >= STEP_AT_S), "none"))
             before += [x for x in raised if x < STEP_AT_S]
-        _, calm, _, _, _, _ = _run(
+        _, calm, _, _, _, _, _ = _run(
             name,
             quiet / RATE,
             lambda s: 1.0,
             3,
             file,
             chunk_s=1.0,
+            progress=f"{name} quiet",
             **opts,
         )
         base = calm.baseline()
@@ -443,7 +482,15 @@ def main() -> None:
         place = "in the loop" if file.structure == PLAY_IN_LOOP else "outside the loop"
         if opts["calibrate"]:
             doubt += f"; scale {tracker.scale:.3f}"
-        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}, {reference_s:g} s", doubt, " / ".join(f"{r:.1%}" for r in raws), " / ".join(f"{b:+.1%}" for b in biases) + f" / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
+        if args.input != SINE:
+            kind = args.input
+        elif grid is None:
+            kind = "steady"
+        elif grid.found:
+            kind = f"cycled, count {grid.count:.4g} ({grid.readings} readings)"
+        else:
+            kind = f"steady: {grid.why}"
+        rows.append([name, f"{model.play / play0 - 1:+.1%}, {place}, {reference_s:g} s", kind, doubt, " / ".join(f"{r:.1%}" for r in raws), " / ".join(f"{b:+.1%}" for b in biases) + f" / {own:.1%} / {scatter:.1%}", f"{growth:.1%}", f"{raw_window:.1%}",
                      " / ".join(after), str(len(before)), f"{len(_raised(calm))} in {quiet}",
                      f"{base['scatter'] / base['median']:.1%} ({base['std'] / base['median']:.1%}) / "
                      f"{base['tau']:.1f} / {base['h']:.1f} / "
@@ -453,7 +500,7 @@ def main() -> None:
     table(
         f"monitor, the play alone on {tracker.window.config.window_s:g} s windows every "
         f"{tracker.window.config.every_s:g} s, CUSUM at the bounds +/-10 % ({RATE:g} Hz)",
-        ["preset", "model file play vs unworn truth, place, reference", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw (per track seed)", "raw = bias (file; per track seed) / own RMS / own without lag", "track RMS growth", "window RMS raw",
+        ["preset", "model file play vs unworn truth, place, reference", "steady sine (first track seed)", "first refit vs truth then; file: identifiable, interval (x unworn truth); doubt", "track RMS raw (per track seed)", "raw = bias (file; per track seed) / own RMS / own without lag", "track RMS growth", "window RMS raw",
          "alarm after +20 % step s (per seed)", "alarms before step", "false alarms", "quiet: scatter (sigma) / tau / h / ARL0 samples",
          "windows counted / reversals (median)", "estimate ms med/max", "wall s"],
         rows,

@@ -33,6 +33,21 @@ the grid, at the price of window plays that scatter with it. :func:`cycled_sine`
 instead, deterministically: each half-period ``count / steps`` smaller, over ``steps`` values, so that every
 reversal side passes the same ``steps`` places on the grid (``count``: the loop encoder's, from the readings).
 
+Which steady sine runs (:data:`STEADY` or :data:`CYCLED`, ``servoid monitor --input``): the steady one by default.
+The cycled one, over :data:`CYCLE_STEPS` places, is meant for a play inside the loop and is the default there only
+with :data:`CYCLED_DEFAULT` (off: on the twins' live files it delayed the XM430's alarm; :func:`default_input`). The
+count grid is a property of a loop closed on the encoder the readings come from:
+the horn servos' firmware (XM430, STS3215) closes its position loop on whole counts of the horn's encoder, so the
+readings' count is the loop's grid, and the cycle moves each reversal by a known share of it (on the XM430 twin's
+data file the window plays read 4.6 % low instead of 9.0-9.3 %, the STS3215's 3.9-4.0 % instead of 7.2-7.3 %, the
+alarm after +20 % within 0.75-2.00 s; on the XM430's live file the alarm came 4.25 s after, against 1.25 s on the
+steady sine; docs/monitor.md, mongrid20 and moncycle21). Where the play sits outside the
+loop (the CiA 402 and ODrive: the loop closes on the motor's encoder, the readings are the load's, 2^20 and 2^14
+counts a turn on the twins), a step of the readings' count moves the reversals by nothing the motor's loop sees:
+there the steady sine stays, bit for bit. The count is taken when the steady part starts, from the readings the
+monitor's first fit has just used (:func:`grid_count`: no second experiment, no value typed in); where they show
+none (too few changes, a continuous or noisy encoder) the steady sine runs instead, and the monitor says why.
+
 The benchmark and ``servoid monitor`` build both parts here (one owner).
 """
 
@@ -40,16 +55,20 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
 from servoid.excitation.generate import stream
 from servoid.excitation.gentle import segment_end
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, CYCLED_DEFAULT, INPUTS, STEADY
+from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import GentleSpec
 
-__all__ = ["IDENT", "MAX_DITHER", "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "coast_accel", "cycled_sine",
-           "monitor_spec", "monitor_stream"]  # fmt: skip
+__all__ = ["CYCLE_STEPS", "CYCLED", "CYCLED_DEFAULT", "IDENT", "INPUTS", "MAX_COUNT_SHARE", "MAX_DITHER", "MIN_COUNT_CHANGES",
+           "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "GridCount", "coast_accel", "cycled_sine",
+           "default_input", "grid_count", "monitor_spec", "monitor_stream"]  # fmt: skip
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
@@ -64,6 +83,14 @@ SINE_ACCEL_SHARE = 0.5
 MONITOR_INPUTS = {IDENT: (1.0, 8.0, 0.25, 1.0), SINE: (1.0, 1.0, 1.0, SINE_ACCEL_SHARE)}
 #: Largest ``dither`` of the steady sine's amplitude (:func:`monitor_spec`).
 MAX_DITHER = 0.5
+
+#: Fewest changes of the readings :func:`grid_count` takes a count from (those of
+#: :func:`~servoid.ident.offline.intervals.quantum`).
+MIN_COUNT_CHANGES = 10
+#: Largest count over the steady sine's amplitude :func:`grid_count` accepts: the cycle lowers the amplitude by up to
+#: ``(steps - 1) / steps`` of a count, here at most 7.5 % (the horn twins: 1 / 65 of it); a coarser "count" is a
+#: servo that hardly moved, not an encoder's.
+MAX_COUNT_SHARE = 0.1
 
 
 def monitor_spec(
@@ -149,6 +176,86 @@ def coast_accel(structure: str, slow_accel: float) -> float:
     return float(slow_accel)
 
 
+def default_input(structure: str, cycled: bool | None = None) -> str:
+    """The steady sine's kind by the model file's place of the play: :data:`CYCLED` inside the loop when ``cycled``, else
+    :data:`STEADY`.
+
+    The count grid is the loop encoder's, and the readings show it only where the loop closes on the encoder
+    they come from: the play inside the loop (the module's text). Outside it the steady sine stays whatever ``cycled``.
+
+    Parameters
+    ----------
+    structure : str
+        Where the model file's play sits (``play_in_loop`` or ``output_backlash``).
+    cycled : bool, optional
+        Whether the cycled sine is the default inside the loop (default: :data:`CYCLED_DEFAULT`, off).
+
+    Returns
+    -------
+    str
+    """
+    from servoid.ident.models.structure_names import PLAY_IN_LOOP
+
+    on = CYCLED_DEFAULT if cycled is None else cycled
+    return CYCLED if on and structure == PLAY_IN_LOOP else STEADY
+
+
+@dataclass(frozen=True)
+class GridCount:
+    """The loop encoder's count as :func:`grid_count` took it from the readings, or why it could not.
+
+    Attributes
+    ----------
+    count : float
+        The count, unit of the readings; NaN when none was found.
+    readings : int
+        Readings it was taken from.
+    why : str
+        Empty with a count; else why none (the steady sine then runs).
+    """
+
+    count: float
+    readings: int
+    why: str = ""
+
+    @property
+    def found(self) -> bool:
+        """Whether a count was found."""
+        return math.isfinite(self.count) and self.count > 0.0
+
+
+def grid_count(readings: np.ndarray, amplitude: float) -> GridCount:
+    """The count of the encoder the readings come from (:func:`~servoid.ident.offline.intervals.quantum`), if any.
+
+    Parameters
+    ----------
+    readings : ndarray
+        The position readings (the first fit's), unit of ``u``.
+    amplitude : float
+        The steady sine's amplitude: a count above :data:`MAX_COUNT_SHARE` of it is refused.
+
+    Returns
+    -------
+    GridCount
+    """
+    from servoid.ident.offline.intervals import quantum
+
+    y = np.asarray(readings, dtype=np.float64)
+    y = y[np.isfinite(y)]
+    changes = int(np.count_nonzero(np.diff(y))) if y.size > 1 else 0
+    if changes < MIN_COUNT_CHANGES:
+        return GridCount(math.nan, y.size, f"too few readings to see the encoder's count: {y.size} readings, "
+                                           f"{changes} changes of them ({MIN_COUNT_CHANGES} needed)")  # fmt: skip
+    count = quantum(y)
+    if not count > 0.0:
+        return GridCount(math.nan, y.size, f"the {y.size} readings are not whole multiples of one count (a continuous "
+                                           "or noisy encoder)")  # fmt: skip
+    if count > MAX_COUNT_SHARE * amplitude:
+        return GridCount(math.nan, y.size, f"the readings' step {count:.4g} is more than {MAX_COUNT_SHARE:g} of the "
+                                           f"sine's amplitude {amplitude:.4g} (the servo hardly moved)")  # fmt: skip
+    return GridCount(count, y.size)
+
+
 def monitor_stream(
     amplitude: float,
     accel: float,
@@ -159,6 +266,8 @@ def monitor_stream(
     rate: float = math.inf,
     coast: float = math.inf,
     dither: float = 0.0,
+    count: Callable[[], float] | None = None,
+    steps: int = CYCLE_STEPS,
 ) -> Iterator[float]:
     """The monitor's endless input: ``first`` samples of the identification's sines, then the steady sine.
 
@@ -174,6 +283,13 @@ def monitor_stream(
     seed : int
         Seed of the identification's sines (the steady sine draws nothing unless ``dither``: its segments are
         alike).
+    count : callable, optional
+        The cycled sine (:data:`CYCLED`): called once, when the steady part starts (the readings until then are
+        known), it returns the loop encoder's count, unit of ``u``; the steady sine's amplitude then cycles over
+        ``steps`` places of it (:func:`cycled_sine`). A count that is NaN or not positive runs the steady sine. None
+        (default): the steady sine, the input before.
+    steps : int
+        Places of the cycle (default :data:`CYCLE_STEPS`).
 
     Returns
     -------
@@ -182,10 +298,29 @@ def monitor_stream(
     ident = monitor_spec(IDENT, amplitude, accel, offset=offset, rate=rate)
     head = stream(ident, seed=seed, n=segment_end(ident, seed, first))
     steady = monitor_spec(SINE, amplitude, accel, offset=offset, rate=rate, coast=coast, dither=dither)
-    return itertools.chain(head, stream(steady, seed=seed))
+    if count is None:
+        return itertools.chain(head, stream(steady, seed=seed))
+    if dither > 0.0:
+        raise ValueError("dither and the cycled sine exclude each other")
+    return itertools.chain(head, _steady_or_cycled(steady, seed, count, steps))
 
 
-def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int) -> np.ndarray:
+def _steady_or_cycled(steady: GentleSpec, seed: int, count: Callable[[], float], steps: int,
+                      chunk: int = 4096) -> Iterator[float]:  # fmt: skip
+    """The cycled sine over ``count()``'s grid, taken when the first value is asked for; the steady sine without it."""
+    grid = count()
+    if not (math.isfinite(grid) and 0.0 < grid < float(steady.amplitude)):
+        yield from stream(steady, seed=seed)
+        return
+    start, last = 0, float(steady.offset)
+    while True:
+        values, last = clip_and_limit(cycled_sine(steady, grid, steps, chunk, start=start), low=steady.low,
+                                      high=steady.high, rate=steady.rate, last=last)  # fmt: skip
+        yield from values.tolist()
+        start += chunk
+
+
+def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int, *, start: int = 0) -> np.ndarray:
     """``n`` samples of the steady sine ``spec`` whose amplitude cycles over ``steps`` places of a count grid.
 
     Half-period ``k`` (a reversal each, the sides alternating) has the amplitude ``A - (k mod steps) count / steps``
@@ -203,11 +338,15 @@ def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int) -> np.ndarra
     steps : int
         Places on the grid, ``>= 1`` (1: the steady sine, half-periods of one amplitude).
     n : int
-        Samples from the start.
+        Samples from ``start``.
+    start : int
+        The first sample's index (a stream's chunk; default 0): the samples equal those of one call from 0.
 
     Returns
     -------
     ndarray
+        Inside ``offset +/- amplitude`` (the amplitudes only go down from the steady sine's), each half-period at
+        its peak acceleration, so its steepest slope is at most the steady sine's.
     """
     amplitude, accel = float(spec.amplitude), float(spec.accel or 0.0)
     if not (0.0 < count < amplitude and math.isfinite(count)):
@@ -217,7 +356,7 @@ def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int) -> np.ndarra
     amps = amplitude - np.arange(steps) * count / steps
     halves = np.pi * np.sqrt(amps / accel)  # samples per half-period at the peak acceleration
     per_cycle = float(np.sum(halves))
-    t = np.arange(n, dtype=np.float64)
+    t = np.arange(start, start + n, dtype=np.float64)
     cycles = np.floor(t / per_cycle)
     rest = t - cycles * per_cycle
     ends = np.cumsum(halves)

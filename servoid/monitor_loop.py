@@ -32,6 +32,10 @@ later). :func:`run_loop_monitor` runs the session with it and writes, in ``out``
     The model file with the held loop and the tracking estimate's play,
     rewritten at each alarm and at the end.
 
+With the cycled sine (:data:`~servoid.excitation.monitor_input.CYCLED`, ``--input cycled``; off by default)
+``events.jsonl`` also holds an ``input`` event when the steady part starts: the count the first fit's readings
+showed (:class:`ReadingsGrid`), or why there was none and the steady sine ran instead.
+
 Memory is bounded: the session keeps no samples, the tracker two windows
 (the first fit's 10 s) and its last 4096 rows.
 """
@@ -48,7 +52,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from servoid.drivers.base import Driver
-from servoid.excitation.monitor_input import coast_accel
+from servoid.excitation.monitor_input import CYCLED, STEADY, GridCount, coast_accel, grid_count
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.monitoring.alarms import AlarmEvent, Bound
 from servoid.ident.monitoring.loop_wear import PLAY, LoopWearTracker, PlayRow
@@ -62,6 +66,7 @@ from servoid.session import Sample, SessionConfig, SessionProgress, SessionResul
 __all__ = [
     "refusal",
     "design_sines",
+    "ReadingsGrid",
     "short_horn",
     "HORN_RECORD_S",
     "HOLD_LOOP",
@@ -166,6 +171,62 @@ def design_sines(model_file: ModelFile, period_s: float) -> tuple[float, float, 
     return amplitude, accel * scale, coast_accel(model_file.structure, slow) * scale
 
 
+class ReadingsGrid:
+    """The cycled sine's count, from the readings the first fit used: a session listener, and the count's source.
+
+    It keeps the usable readings from the session's start until it is called, when
+    :func:`~servoid.excitation.monitor_input.monitor_stream` starts the steady part (after the first fit's
+    identification sines), and takes the loop encoder's count from them
+    (:func:`~servoid.excitation.monitor_input.grid_count`): no second experiment. It keeps at most the
+    samples before the steady part (the first fit's 10 s and the rest of their segment), then none.
+
+    Parameters
+    ----------
+    amplitude : float
+        The steady sine's amplitude, unit of ``u``.
+    steps : int
+        Places of the cycle (reported with the count).
+    """
+
+    def __init__(self, amplitude: float, steps: int) -> None:
+        self.amplitude, self.steps = float(amplitude), int(steps)
+        self._readings: list[float] | None = []
+        self.grid: GridCount | None = None
+
+    def on_sample(self, sample: Sample, usable: bool) -> None:
+        """Keep a usable reading until the count is taken."""
+        if self._readings is not None and usable:
+            self._readings.append(sample.y)
+
+    def __call__(self) -> float:
+        """The count (NaN when the readings show none: the steady sine runs), taken once."""
+        if self.grid is None:
+            import numpy as np
+
+            self.grid = grid_count(np.array(self._readings or (), dtype=np.float64), self.amplitude)
+            self._readings = None
+        return self.grid.count
+
+    def describe(self, unit: str) -> str:
+        """One line: which steady sine runs and why (empty before the count is taken)."""
+        grid = self.grid
+        if grid is None:
+            return ""
+        if grid.found:
+            return (f"servoid monitor: the steady sine cycles its amplitude over {self.steps} places a count / "
+                    f"{self.steps} apart (the encoder's count {grid.count:.6g} {unit}, from the first fit's "
+                    f"{grid.readings} readings)")  # fmt: skip
+        return f"servoid monitor: the steady sine at one amplitude, not cycled: {grid.why}"
+
+    def event(self) -> dict[str, Any]:
+        """The ``input`` event's data."""
+        assert self.grid is not None
+        found = self.grid.found
+        return {"input": CYCLED if found else STEADY, "steps": self.steps if found else 1,
+                "count": self.grid.count if found else None, "readings": self.grid.readings,
+                "why": self.grid.why or None}  # fmt: skip
+
+
 @dataclass(frozen=True)
 class LoopMonitorResult:
     """A finished (or stopped) monitoring run of a servo-loop model.
@@ -196,6 +257,9 @@ class LoopMonitorResult:
         The session (counts only).
     doubt : str or None
         Why the model file's play is not the servo's (:attr:`LoopWearTracker.doubt`), or None.
+    grid : GridCount or None
+        The cycled sine's count as the first fit's readings showed it (:class:`ReadingsGrid`); None without the
+        cycled sine, or before its steady part started.
     """
 
     samples: int
@@ -210,6 +274,7 @@ class LoopMonitorResult:
     files: dict[str, Path]
     session: SessionResult
     doubt: str | None = None
+    grid: GridCount | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """For JSON: slots, the play, refits, every alarm event, those still active, why it stopped, the files."""
@@ -219,6 +284,8 @@ class LoopMonitorResult:
             "refits": self.refits, "dropped": self.dropped, "alarms": [ev.to_dict() for ev in self.events],
             "active": [ev.bound.quantity for ev in self.active], "files": {k: str(v) for k, v in self.files.items()},
             "doubt": self.doubt,
+            "grid": None if self.grid is None else {"count": self.grid.count if self.grid.found else None,
+                                                    "readings": self.grid.readings, "why": self.grid.why or None},
         }  # fmt: skip
 
     @property
@@ -244,6 +311,7 @@ def run_loop_monitor(
     on_progress: Callable[[SessionProgress], None] | None = None,
     metadata: Mapping[str, Any] | None = None,
     steady_s: float = 0.0,
+    grid: ReadingsGrid | None = None,
 ) -> LoopMonitorResult:
     """Monitor an open driver with the servo-loop tracker until ``inputs`` end, an alarm stops it, or Ctrl-C.
 
@@ -294,6 +362,9 @@ def run_loop_monitor(
         Servo seconds from the start at which ``inputs`` settle on the monitoring input (the steady
         sine after the identification's sines): windows that begin before it do not count
         (:class:`~servoid.ident.monitoring.loop_wear.LoopWearTracker`'s ``steady_s``).
+    grid : ReadingsGrid, optional
+        The cycled sine's count source (the one ``inputs`` calls): it takes the session's readings, and an ``input``
+        event (and ``on_event("input", line)``) says what it found once it has been called.
 
     Returns
     -------
@@ -306,11 +377,11 @@ def run_loop_monitor(
     """
     loop = _LoopRun(
         driver, session, start, model_file, [b for b in bounds if b.quantity == PLAY], Path(out),
-        stop_on_alarm, wait, true_play, on_event, rebase, steady_s,
+        stop_on_alarm, wait, true_play, on_event, rebase, steady_s, grid,
     )  # fmt: skip
     loop.tracker.warm_up()
     loop.start(metadata or {})
-    return loop.result(drive(driver, loop, inputs, session, on_progress))
+    return loop.result(drive(driver, loop, inputs, session, on_progress, () if grid is None else (grid,)))
 
 
 def refusal(why: str) -> str:
@@ -342,8 +413,10 @@ class _LoopRun:
         on_event: Callable[[str, str], None] | None,
         rebase: bool,
         steady_s: float,
+        grid: ReadingsGrid | None = None,
     ) -> None:
         self.driver, self.session, self.model_file, self.out = driver, session, model_file, out
+        self.grid, self.grid_said = grid, False
         self.bounds, self.stop_on_alarm = bounds, stop_on_alarm
         self.true_play, self.on_event = true_play, on_event
         interval = tuple(math.nan if v is None else float(v) for v in model_file.play_interval)
@@ -412,6 +485,11 @@ class _LoopRun:
             self._row(row)
             self.mean = row.mean
         self.rows_seen += len(new)
+        if not self.grid_said and self.grid is not None and self.grid.grid is not None:
+            self.grid_said = True
+            self._event("input", self.last.k if self.last else 0, **self.grid.event())
+            if self.on_event is not None:
+                self.on_event("input", self.grid.describe(self.driver.position_unit.unit))
         if not self.doubted and self.tracker.doubt is not None:
             self._doubt(self.tracker.doubt)
         if not self.based and not math.isnan(self.tracker.std):
@@ -490,4 +568,5 @@ class _LoopRun:
             active=tuple(self.tracker.active.values()),
             stopped="refused" if self.refused else "alarm" if self.stopped_on_alarm else session.stopped,
             files=dict(self.files), session=session, doubt=self.tracker.doubt,
+            grid=None if self.grid is None else self.grid.grid,
         )  # fmt: skip

@@ -42,7 +42,7 @@ import logging
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import IO, Any
@@ -62,7 +62,7 @@ from servoid.modelfile import ModelFile
 from servoid.monitor_config import EXIT_ALARM, MonitorConfig
 from servoid.monitor_history import HistorySnapshot, MonitorHistory
 from servoid.recording import RecordingWriter, split_metadata
-from servoid.session import Sample, SessionConfig, SessionProgress, SessionResult, run_session
+from servoid.session import Sample, SampleListener, SessionConfig, SessionProgress, SessionResult, run_session
 
 __all__ = [
     "MonitorConfig",
@@ -309,6 +309,7 @@ def drive(
     inputs: Iterable[float],
     session: SessionConfig,
     on_progress: Callable[[SessionProgress], None] | None,
+    listeners: Sequence[SampleListener] = (),
 ) -> SessionResult:
     """Run the session with a monitor's ``loop`` as its listener until the inputs end, it stops on an alarm, or Ctrl-C.
 
@@ -329,11 +330,12 @@ def drive(
         Sample period and policies.
     on_progress : callable, optional
         The session's progress callback.
+    listeners : sequence of SampleListener
+        Further listeners after ``loop`` (the cycled input's readings: :class:`servoid.monitor_loop.ReadingsGrid`).
     """
     try:
-        result = run_session(
-            driver, until_stopped(inputs, loop), session, listeners=[loop], keep_samples=False, on_progress=on_progress
-        )
+        result = run_session(driver, until_stopped(inputs, loop), session, listeners=[loop, *listeners],
+                             keep_samples=False, on_progress=on_progress)  # fmt: skip
         loop.finish("alarm" if loop.stopped_on_alarm else (result.stopped or "end of input"))
     except DriverError as exc:
         loop.finish(f"{type(exc).__name__}: {exc}")

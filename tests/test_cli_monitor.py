@@ -258,17 +258,22 @@ def _reversals(u):
     return int(np.count_nonzero(np.diff(np.sign(step))))
 
 
+def _events(out):
+    return [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+
+
 def test_a_servo_loop_model_is_driven_by_the_identifications_sines_then_one_steady_sine(tmp_path, monkeypatch, capsys):
     # what benchmarks/monitor_loop.py measured: the first fit's 10 s on the identification's gentle sines, then one
     # sine at their largest amplitude and half their highest acceleration (SINE_ACCEL_SHARE: 4 rad/s^2 here, 1.13 Hz
-    # at 0.08 rad)
+    # at 0.08 rad); --input cycled (the file's play sits inside the loop): the sine's amplitude a count / N smaller
+    # each half-period over N values (CYCLE_STEPS), the count the XM430 twin's encoder's, read from the first fit's readings
     from servoid.excitation.gentle import segment_end
     from servoid.excitation.monitor_input import IDENT, monitor_spec
 
     model = _designed_loop_file(tmp_path)
     sent, np = _commands(monkeypatch)
     assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "22",
-                 "--out", str(tmp_path / "sine")]) == 0  # fmt: skip
+                 "--input", "cycled", "--out", str(tmp_path / "sine")]) == 0  # fmt: skip
     err = capsys.readouterr().err
     hz = np.sqrt(4.0 / 0.08) / (2.0 * np.pi)
     assert f"then one steady sine +/-0.08 rad at {hz:.3g} Hz" in err
@@ -293,14 +298,90 @@ def test_a_servo_loop_model_is_driven_by_the_identifications_sines_then_one_stea
     assert min(peaks) > 0.95 * 0.08
     _, meta = read_estimates(tmp_path / "sine" / "estimates.csv")
     assert "spread=1.0" in meta["excitation"] and "steady sine" in meta["input"]
+    # cycled: the peaks, half-period by half-period, a quarter count lower each over four values, then again
+    count = 2.0 * np.pi / 4096.0
+    from servoid.excitation.monitor_input import CYCLE_STEPS as N
+
+    assert meta["input_kind"] == "cycled" and f"cycled: its amplitude a count / {N} smaller" in err
+    assert "the encoder's count 0.00153398 rad, from the first fit's" in err
+    [said] = [e for e in _events(tmp_path / "sine") if e["event"] == "input"]
+    assert said["input"] == "cycled" and said["count"] == pytest.approx(count, rel=1e-9) and said["k"] >= cut
+    turns = np.flatnonzero(np.sign(np.diff(u[cut + 1 :])) != np.sign(np.diff(u[cut:-1]))) + cut + 1
+    depth = (0.08 - np.abs(u[turns])) / (count / N)
+    np.testing.assert_allclose(depth, np.arange(depth.size) % N, atol=0.2)  # within the peak sample's rounding
+    # the default (off: CYCLED_DEFAULT) and --input steady: one amplitude, the input before, command for command
+    from servoid.excitation.monitor_input import monitor_stream
+
+    sent.clear()
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(model), "--duration", "11",
+                 "--out", str(tmp_path / "steady")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "one amplitude (the default; --input cycled" in err and "cycles its amplitude" not in err
+    old = np.fromiter(monitor_stream(0.08, 8.0 * 0.01**2, 1000, seed=0), dtype=np.float64, count=1100)
+    np.testing.assert_array_equal(np.array(sent), old)
+    _, meta = read_estimates(tmp_path / "steady" / "estimates.csv")
+    assert meta["input_kind"] == "steady" and not [e for e in _events(tmp_path / "steady") if e["event"] == "input"]
+
+
+def test_a_play_outside_the_loop_keeps_the_steady_sine_and_too_few_readings_fall_back_to_it(tmp_path, monkeypatch,
+                                                                                            capsys):  # fmt: skip
+    # a play outside the loop: its loop closes on the motor's encoder, whose count grid the readings do not show;
+    # even with the cycled sine as the default (CYCLED_DEFAULT on) it keeps the steady one
+    import servoid.excitation.monitor_input as monitor_input
+    from servoid.excitation.monitor_input import monitor_stream
+    from servoid.ident.models.structure_names import OUTPUT_BACKLASH
+
+    monkeypatch.setattr(monitor_input, "CYCLED_DEFAULT", True)
+
+    outside = _designed_loop_file(tmp_path, OUTPUT_BACKLASH)
+    sent, np = _commands(monkeypatch)
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(outside), "--duration", "11",
+                 "--out", str(tmp_path / "outside")]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert "one amplitude (the default; --input cycled" in err
+    old = np.fromiter(monitor_stream(0.08, 8.0 * 0.01**2, 1000, seed=0), dtype=np.float64, count=1100)
+    np.testing.assert_array_equal(np.array(sent), old)  # the input before, command for command
+    _, meta = read_estimates(tmp_path / "outside" / "estimates.csv")
+    assert meta["input_kind"] == "steady" and not [e for e in _events(tmp_path / "outside") if e["event"] == "input"]
+    # the same setting on a file whose play sits inside the loop: the cycled sine without --input
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(_designed_loop_file(tmp_path)),
+                 "--duration", "10.5", "--out", str(tmp_path / "inside")]) == 0  # fmt: skip
+    assert f"cycled: its amplitude a count / {monitor_input.CYCLE_STEPS} smaller" in capsys.readouterr().err
+    assert [e["input"] for e in _events(tmp_path / "inside") if e["event"] == "input"] == ["cycled"]
+    monkeypatch.setattr(monitor_input, "CYCLED_DEFAULT", False)
+    # a play inside the loop whose first fit's readings show no count (the sines inside one count of the encoder:
+    # the horn hardly moves): the steady sine, and the output says why
+    sent.clear()
+    out = tmp_path / "still"
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual&amplitude=0.0012", "--model",
+                 str(_designed_loop_file(tmp_path)), "--duration", "10.6", "--input", "cycled", "--json",
+                 "--out", str(out)]) == 0  # fmt: skip
+    captured = capsys.readouterr()
+    assert "the steady sine at one amplitude, not cycled: too few readings to see the encoder's count" in captured.err
+    summary = json.loads(captured.out)
+    assert summary["input_kind"] == "steady" and summary["grid"]["count"] is None
+    [said] = [e for e in _events(out) if e["event"] == "input"]
+    assert said["input"] == "steady" and "too few readings" in said["why"]
+    old = np.fromiter(monitor_stream(0.0012, 8.0 * 0.01**2, 1000, seed=0), dtype=np.float64, count=1060)
+    np.testing.assert_array_equal(np.array(sent), old)
+
+
+def test_input_applies_only_to_the_servo_loop_monitors_own_sine(tmp_path, model, capsys):
+    assert main(["monitor", "--driver", GEAR, "--model", str(model), "--input", "cycled", "--duration", "1",
+                 "--out", str(tmp_path / "mrgia")]) == 2  # fmt: skip
+    assert "--input (=cycled) chooses the steady sine of the servo-loop monitor" in capsys.readouterr().err
+    loop = _designed_loop_file(tmp_path)
+    assert main(["monitor", "--driver", "sim://xm430?clock=virtual", "--model", str(loop), "--input", "steady",
+                 "--excitation", "uniform:amplitude=0.03", "--duration", "1", "--out", str(tmp_path / "own")]) == 2  # fmt: skip
+    assert "it does not apply with --operating or --excitation" in capsys.readouterr().err
 
 
 def test_the_steady_sine_stays_inside_the_drivers_limits(tmp_path, monkeypatch, capsys):
     model = _designed_loop_file(tmp_path)
     sent, np = _commands(monkeypatch)
     driver = "sim://xm430?clock=virtual&centre=0.2&amplitude=0.05&max_step=0.004"
-    assert main(["monitor", "--driver", driver, "--model", str(model), "--duration", "12", "--out",
-                 str(tmp_path / "limited")]) == 0  # fmt: skip
+    assert main(["monitor", "--driver", driver, "--model", str(model), "--duration", "12", "--input", "cycled",
+                 "--out", str(tmp_path / "limited")]) == 0  # fmt: skip
     assert "steady sine +/-0.05 rad" in capsys.readouterr().err  # the design's 0.08 capped by the band
     u = np.array(sent)
     # from the servo's place at enable (0) to the band at the rate limit, then inside it
@@ -308,6 +389,8 @@ def test_the_steady_sine_stays_inside_the_drivers_limits(tmp_path, monkeypatch, 
     assert 0 < inside <= 0.15 / 0.004 + 1 and np.all(np.abs(u[inside:] - 0.2) <= 0.05 + 1e-12)
     assert np.max(np.abs(np.diff(u))) <= 0.004 + 1e-12
     assert np.max(u[1000:]) == pytest.approx(0.25, abs=0.001)
+    # the sine cycled (--input cycled): its amplitude only goes down, so the band holds it
+    assert [e["input"] for e in _events(tmp_path / "limited") if e["event"] == "input"] == ["cycled"]
 
 
 def test_excitation_overrides_the_steady_sine_and_a_file_without_a_design_says_so(tmp_path, monkeypatch, capsys):

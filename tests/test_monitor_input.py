@@ -1,4 +1,4 @@
-"""The monitor's steady sine with its amplitude dithered over the loop encoder's count grid (``monitor_spec(dither=)``)."""
+"""The monitor's steady sine with its amplitude dithered or cycled over the loop encoder's count grid."""
 
 from __future__ import annotations
 
@@ -8,8 +8,20 @@ import numpy as np
 import pytest
 
 from servoid.excitation.generate import sample
-from servoid.excitation.gentle import segments
-from servoid.excitation.monitor_input import SINE, cycled_sine, monitor_spec
+from servoid.excitation.gentle import segment_end, segments
+from servoid.excitation.monitor_input import (
+    CYCLED,
+    IDENT,
+    MAX_COUNT_SHARE,
+    SINE,
+    STEADY,
+    cycled_sine,
+    default_input,
+    grid_count,
+    monitor_spec,
+    monitor_stream,
+)
+from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 
 
 def test_no_dither_is_the_steady_sine_as_before() -> None:
@@ -73,3 +85,75 @@ def test_cycled_sine_of_one_step_is_the_steady_sine_at_its_peak_acceleration() -
 def test_cycled_sine_refuses_a_bad_count_or_steps(count: float, steps: int) -> None:
     with pytest.raises(ValueError, match="count|steps"):
         cycled_sine(monitor_spec(SINE, 0.1, 1e-4), count, steps, 10)
+
+
+COUNT = 2.0 * math.pi / 4096.0  # a 4096-count encoder's, rad
+
+
+def test_the_cycled_sine_is_off_by_default_and_never_the_default_outside_the_loop() -> None:
+    assert default_input(PLAY_IN_LOOP) == STEADY and default_input(OUTPUT_BACKLASH) == STEADY
+    assert default_input(PLAY_IN_LOOP, cycled=True) == CYCLED and default_input(OUTPUT_BACKLASH, cycled=True) == STEADY
+
+
+def test_cycled_sine_in_chunks_equals_one_call() -> None:
+    spec = monitor_spec(SINE, 0.1, 2e-4, offset=-0.2)
+    whole = cycled_sine(spec, COUNT, 4, 3000)
+    parts = np.concatenate([cycled_sine(spec, COUNT, 4, 1000, start=k) for k in (0, 1000, 2000)])
+    np.testing.assert_array_equal(parts, whole)
+
+
+def test_grid_count_reads_the_encoders_count_and_says_why_when_it_cannot() -> None:
+    rng = np.random.default_rng(3)
+    angle = 0.08 * np.sin(np.arange(2000) / 30.0) + rng.normal(0.0, 0.3 * COUNT, 2000)  # 0.3 count of noise
+    counts = np.round(angle / COUNT) * COUNT
+    found = grid_count(counts, 0.08)
+    assert found.found and found.count == pytest.approx(COUNT, rel=1e-9) and found.readings == 2000 and not found.why
+    few = grid_count(counts[:8], 0.08)  # a too short reading set
+    assert not few.found and math.isnan(few.count) and "too few readings" in few.why
+    still = grid_count(np.full(500, 3 * COUNT), 0.08)  # a servo that did not move
+    assert not still.found and "too few readings" in still.why
+    smooth = grid_count(angle, 0.08)  # a continuous encoder
+    assert not smooth.found and "not whole multiples" in smooth.why
+    coarse = grid_count(counts, COUNT / MAX_COUNT_SHARE * 0.9)  # a count above a tenth of the amplitude
+    assert not coarse.found and "more than" in coarse.why
+
+
+def _stream(n: int, **kw: object) -> np.ndarray:
+    it = monitor_stream(0.08, 8e-4, 1000, seed=5, offset=0.1, **kw)  # type: ignore[arg-type]
+    return np.fromiter(it, dtype=np.float64, count=n)
+
+
+def test_the_cycled_stream_takes_its_count_when_the_steady_part_starts_and_only_lowers_the_amplitude() -> None:
+    ident = monitor_spec(IDENT, 0.08, 8e-4, offset=0.1)
+    cut = segment_end(ident, 5, 1000)
+    steady = monitor_spec(SINE, 0.08, 8e-4, offset=0.1)
+    calls: list[int] = []
+    n = cut + 3000
+
+    def count() -> float:
+        calls.append(1)
+        return COUNT
+
+    it = monitor_stream(0.08, 8e-4, 1000, seed=5, offset=0.1, count=count)
+    head = [next(it) for _ in range(cut)]
+    assert calls == []  # not before the steady part: the readings until then are the count's
+    u = np.concatenate([head, np.fromiter(it, dtype=np.float64, count=n - cut)])
+    assert calls == [1]
+    old = _stream(n)  # the steady sine, the input before
+    np.testing.assert_array_equal(u[:cut], old[:cut])  # the first fit's sines unchanged
+    np.testing.assert_array_equal(u[cut:], cycled_sine(steady, COUNT, 4, n - cut))
+    # inside the steady sine's band and no steeper than it: the cycle only lowers the amplitude
+    assert np.max(np.abs(u[cut:] - 0.1)) <= 0.08 + 1e-15 and np.max(np.abs(old[cut:] - 0.1)) > 0.08 - 1e-5
+    assert np.max(np.abs(np.diff(u[cut - 1 :]))) <= math.sqrt(0.08 * 4e-4) * (1.0 + 1e-9)
+    assert np.max(np.abs(np.diff(old[cut - 1 :]))) > math.sqrt(0.08 * 4e-4) * 0.99
+    assert np.min(np.abs(u[cut:][_reversals(u[cut:])] - 0.1)) >= 0.08 - 0.75 * COUNT - 1e-4
+    # without a count (NaN: the readings showed none) the steady sine, bit for bit
+    np.testing.assert_array_equal(_stream(n, count=lambda: math.nan), old)
+
+
+def test_the_cycled_stream_keeps_the_rate_limit() -> None:
+    cut = segment_end(monitor_spec(IDENT, 0.08, 8e-4, offset=0.1, rate=5e-4), 5, 1000)
+    old = _stream(4000, rate=5e-4)[cut:]  # the steady part (each part limited from the offset, as before)
+    u = _stream(4000, rate=5e-4, count=lambda: COUNT)[cut:]
+    assert np.max(np.abs(np.diff(u))) <= 5e-4 + 1e-15 and np.max(np.abs(u - 0.1)) <= 0.08 + 1e-15
+    assert np.max(np.abs(np.diff(old))) == pytest.approx(5e-4) and not np.array_equal(u, old)

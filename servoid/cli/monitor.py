@@ -14,6 +14,7 @@ from servoid import limits
 from servoid.cli import _live, _term
 from servoid.drivers.model_plant import MODEL_AMPLITUDE
 from servoid.errors import ConfigError
+from servoid.excitation.monitor_input_names import CYCLE_STEPS, CYCLED, INPUTS, STEADY
 from servoid.excitation.specs import SignalSpec, UniformSpec, format_spec, parse_spec
 from servoid.ident.defaults import DEFAULT_PROCESS_NOISE
 from servoid.ident.monitoring.alarms import AlarmRule, Bound
@@ -22,8 +23,10 @@ from servoid.output_paths import output_dir, output_file
 
 if TYPE_CHECKING:  # pragma: no cover
     from servoid.drivers.base import Driver
+    from servoid.excitation.monitor_input import GridCount
     from servoid.ident.models.pseudo_wiener import BacklashModel
     from servoid.modelfile import ModelFile
+    from servoid.monitor_loop import ReadingsGrid
     from servoid.monitor_run import MonitorProgress, MonitorResult
 
 # The drivers, the estimator and the loop are imported inside run(): `servoid monitor --help` starts without them.
@@ -62,9 +65,25 @@ windows see); --persist, --z, --m2 and --fit do not apply
 (benchmarks/monitor_loop.py). Its input, without
 --operating and --excitation, is what that benchmark measured: the gentle
 sines of the file's design (`servoid identify --driver` writes it) for the
-first 10 s, then one steady sine at their largest amplitude and highest
+first 10 s, then one steady sine at their largest amplitude and half their highest
 acceleration (inside the driver's limits); a file without that design gets the
 uniform noise below, and the header's "input:" line says which.
+
+--input chooses that steady sine: "steady" (the default) keeps one amplitude;
+"cycled" steps it a count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} values, for a
+file whose play sits inside the loop (a horn servo: XM430, STS3215). Why: a
+horn servo's firmware closes its position loop on whole counts of the horn's
+encoder, and a sine of one amplitude reverses at the same place on that count
+grid every period, where the window plays read the play with a bias of their
+own (7-9 % low on the XM430 and STS3215 twins' data files); cycled, every
+window's reversals pass the same few places a count / {CYCLE_STEPS} apart and the bias
+averages out (4-5 %). It is not the default because on the twins' live files
+(what `servoid identify --driver` writes) it delayed the XM430's alarm after a
++20 % step from 1.25 to 4.25 s. The count is the encoder's, taken from the
+readings the first fit used; where they show none (too few changes, a
+continuous or noisy encoder) the steady sine runs, and a line says why. Where
+the play sits outside the loop the loop closes on the motor's encoder, whose
+grid the readings do not show: the cycle has nothing to average there.
 
 The input: the servo's normal operating input (--operating SPEC, a trajectory
 around the driver's centre), a small excitation superimposed on it
@@ -132,6 +151,10 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                      help="excitation added to it, e.g. uniform:amplitude=0.05 (default: without --operating, "
                           "for a servo-loop model with a design the identification's sines, then a steady sine; "
                           "else uniform noise of the driver's reference amplitude; with --operating, none)")  # fmt: skip
+    inp.add_argument("--input", choices=INPUTS, metavar="|".join(INPUTS),
+                     help="the servo-loop monitor's steady sine after the first fit: 'steady' (the default) keeps one "
+                          f"amplitude; 'cycled' steps it over {CYCLE_STEPS} places of the encoder's count grid, which a "
+                          "horn servo's firmware closes its loop on (see above)")  # fmt: skip
     inp.add_argument("--seed", type=int, default=0, help="seed of the input (default 0)")
     al = p.add_argument_group("alarms")
     al.add_argument(
@@ -380,6 +403,12 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--every (={args.every:g}) must be > 0 seconds")
     rule = AlarmRule(persist=args.persist, z=args.z)
     row_every = max(1, round(args.every * rate / args.check_every)) * args.check_every
+    if args.input is not None and not loop:
+        raise ConfigError(f"--input (={args.input}) chooses the steady sine of the servo-loop monitor; {args.model} "
+                          "holds no servo-loop model (the MRGIA follows it on --operating / --excitation)")  # fmt: skip
+    if args.input is not None and (args.operating is not None or args.excitation is not None):
+        raise ConfigError(f"--input (={args.input}) chooses the monitor's own steady sine; it does not apply with "
+                          "--operating or --excitation")  # fmt: skip
     driver = driver_from_url(args.driver)
     if loop:
         with driver:
@@ -448,7 +477,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         truth = simulated.twin_truth_at(k)
         return math.nan if truth is None else truth.play_rad
 
-    inputs, meta, steady = _loop_inputs(args, driver, model_file, period, total)
+    inputs, meta, steady, grid = _loop_inputs(args, driver, model_file, period, total)
     if not args.json:
         length = "until Ctrl-C" if total is None else f"{total} samples ({total * period:g} s)"
         _term.stderr.print(f"servoid monitor: {driver.describe()} at {1.0 / period:g} Hz, {length}; the servo-loop "
@@ -474,7 +503,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
             stop_on_alarm=args.fail_on_alarm, rebase=args.dead_zone.strip().endswith("%"),
             wait=simulated is not None and isinstance(simulated.clock, VirtualClock),
             true_play=true_play if twin else None, on_event=_print_event, on_progress=update, metadata=meta,
-            steady_s=steady * period,
+            steady_s=steady * period, grid=grid,
         )  # fmt: skip
     elapsed = time.perf_counter() - started
     if result.stopped == "refused":
@@ -483,7 +512,7 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
         raise ConfigError(refusal(result.doubt or "the model file's play is off"))
     if args.json:
         _term.print_json({**result.to_dict(), "unit": unit, "structure": model_file.structure,
-                          "start_play": start.play, "input": meta["input"]})  # fmt: skip
+                          "start_play": start.play, "input": meta["input"], "input_kind": _ran(meta, result.grid)})  # fmt: skip
     else:
         _term.stderr.print(f"servoid monitor: {result.samples} samples ({elapsed:.1f} s of wall time), {result.refits} "
                            f"estimates ({result.dropped} left out); play now {result.play:.4g} +/- "
@@ -494,10 +523,22 @@ def _run_loop(args: argparse.Namespace, driver: Driver, model_file: ModelFile, p
     return _exit_status(result)
 
 
+def _ran(meta: dict[str, str], grid: GridCount | None) -> str | None:
+    """Which steady sine ran (``steady`` or ``cycled``; None: not the monitor's own input)."""
+    kind = meta.get("input_kind")
+    if kind == CYCLED and grid is not None and not grid.found:
+        return STEADY  # the readings showed no count
+    return kind
+
+
 def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile, period: float,
-                 total: int | None) -> tuple[Iterator[float], dict[str, str], int]:  # fmt: skip
-    """The servo-loop monitor's commands, their description (``input``: the line the header prints) and the sample
-    where the steady sine begins (0 without it: the input does not change).
+                 total: int | None) -> tuple[Iterator[float], dict[str, str], int, ReadingsGrid | None]:  # fmt: skip
+    """The servo-loop monitor's commands, their description (``input``: the line the header prints), the sample
+    where the steady sine begins (0 without it: the input does not change) and the cycled sine's count source.
+
+    The steady sine is ``--input``'s, by default :func:`~servoid.excitation.monitor_input.default_input`'s: the steady
+    sine, the input before, bit for bit (the cycled one only where the file's play sits inside the loop and
+    ``CYCLED_DEFAULT`` is on, which it is not).
 
     Without ``--operating`` and ``--excitation``: what ``benchmarks/monitor_loop.py`` measured, the
     identification's gentle sines for the first fit, then one steady sine at their largest amplitude
@@ -506,9 +547,9 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
     slow phase's acceleration, at the same frequency), inside the driver's range and rate limit; a file without that design gets the MRGIA monitor's default, and the line says why.
     """
     from servoid.excitation.gentle import segment_end, segments
-    from servoid.excitation.monitor_input import IDENT, SINE, monitor_spec, monitor_stream
+    from servoid.excitation.monitor_input import IDENT, SINE, default_input, monitor_spec, monitor_stream
     from servoid.ident.monitoring.loop_wear import FIRST_FIT_S
-    from servoid.monitor_loop import design_sines
+    from servoid.monitor_loop import ReadingsGrid, design_sines
 
     unit = driver.command_unit.unit
     sines = None if args.operating is not None or args.excitation is not None else design_sines(model_file, period)
@@ -518,18 +559,21 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
         if args.operating is None and args.excitation is None:
             line += (f" ({args.model} holds no gentle-sines design from `servoid identify --driver`, so not the "
                      "steady sine the monitor measured best with: give --excitation to choose)")  # fmt: skip
-        return inputs, {**meta, "input": line}, 0
+            if args.input is not None:
+                line += f"; --input {args.input} applies only to that steady sine"
+        return inputs, {**meta, "input": line}, 0, None
     limits = driver.limits
     amplitude = min(sines[0], limits.high - limits.centre, limits.centre - limits.low)
     accel, coast = sines[1], sines[2]
     first = int(round(FIRST_FIT_S / period))
-    inputs = monitor_stream(
-        amplitude, accel, first, seed=args.seed, offset=limits.centre, rate=limits.max_step, coast=coast
-    )
-    if total is not None:
-        inputs = itertools.islice(inputs, total)
     ident = monitor_spec(IDENT, amplitude, accel, offset=limits.centre, rate=limits.max_step)
     sine = monitor_spec(SINE, amplitude, accel, offset=limits.centre, rate=limits.max_step, coast=coast)
+    kind = args.input or default_input(model_file.structure)
+    grid = ReadingsGrid(float(sine.amplitude), CYCLE_STEPS) if kind == CYCLED else None
+    inputs = monitor_stream(amplitude, accel, first, seed=args.seed, offset=limits.centre, rate=limits.max_step,
+                            coast=coast, count=grid, steps=CYCLE_STEPS)  # fmt: skip
+    if total is not None:
+        inputs = itertools.islice(inputs, total)
     hz = float(segments(sine, args.seed, 0, 1)[1][0]) / period
     steady = float(sine.accel or accel)  # (set by the spec: never None)
     cut = segment_end(ident, args.seed, first)  # where monitor_stream switches: the sines back at the offset
@@ -537,11 +581,24 @@ def _loop_inputs(args: argparse.Namespace, driver: Driver, model_file: ModelFile
             f"{accel / period**2:.4g} {unit}/s^2) for the first fit's {first * period:g} s and to the end of "
             f"their segment ({cut * period:.3g} s), then one steady sine "
             f"+/-{sine.amplitude:.4g} {unit} at {hz:.3g} Hz ({2 * hz:.3g} reversals a second, peak acceleration "
-            f"{steady / period**2:.4g} {unit}/s^2{_coast_note(coast, steady)}), from {args.model}'s "
-            "design; --excitation to choose another")  # fmt: skip
-    meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {cut} samples, then {format_spec(sine)}",
-            "seed": str(args.seed), "input": line}  # fmt: skip
-    return inputs, meta, cut
+            f"{steady / period**2:.4g} {unit}/s^2{_coast_note(coast, steady)}){_cycle_note(kind, args.input)}, from "
+            f"{args.model}'s design; --excitation to choose another")  # fmt: skip
+    then = format_spec(sine)
+    if grid is not None:
+        then += (f", cycled: its amplitude a count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} "
+                 "values (the count: the first fit's readings' step; events.jsonl's input event)")  # fmt: skip
+    meta = {"operating": "none", "excitation": f"{format_spec(ident)} for {cut} samples, then {then}",
+            "seed": str(args.seed), "input": line, "input_kind": kind}  # fmt: skip
+    return inputs, meta, cut, grid
+
+
+def _cycle_note(kind: str, chosen: str | None) -> str:
+    """The header's words on the steady sine's kind (``--input``) and why it is the default."""
+    why = "chosen by --input" if chosen is not None else "the default"
+    if kind == CYCLED:
+        return (f", cycled: its amplitude a count / {CYCLE_STEPS} smaller each half-period over {CYCLE_STEPS} "
+                f"values, the count from the first fit's readings ({why}; --input steady for one amplitude)")  # fmt: skip
+    return f", one amplitude ({why}; --input cycled to step it over the encoder's count grid)"
 
 
 def _coast_note(coast: float, accel: float) -> str:
@@ -577,7 +634,7 @@ def _announce_start(args: argparse.Namespace, driver: Driver, config: MonitorCon
 def _print_event(kind: str, line: str) -> None:
     if kind == "alarm":
         _term.stderr.print(line, style="bold red", markup=False, soft_wrap=True)
-    elif kind in ("clear", "recovery", "restart", "doubt"):
+    elif kind in ("clear", "recovery", "restart", "doubt", "input"):
         _term.stderr.print(line, style="yellow", markup=False, soft_wrap=True)
     else:
         _term.stderr.print(line, style="dim", markup=False, soft_wrap=True)
