@@ -25,4 +25,6 @@ CYCLE_STEPS = 4
 #: alarms 0.75-2.00 s, 0 false in 10^6), but ``servoid monitor`` runs its own steady sine only for a file with a design
 #: (a live ``identify --driver``), and on the twins' live files it moved the XM430's alarm after +20 % from 1.25 to
 #: 4.25 s (the window plays correlated, tau 1.0 -> 3.8) and the STS3215's level not at all (docs/monitor.md, moncycle21).
+#: N = 2 did not pass either (moncyc2): the XM430 data file's alarm 2.25-3.00 s on 4 of 16 step seeds, and two more
+#: live XM430 files read 0.07-0.08x of the play below the steady sine (0.897 / 0.931x against 0.964 / 1.013x).
 CYCLED_DEFAULT = False
