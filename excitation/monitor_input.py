@@ -223,6 +223,10 @@ class GridCount:
         """Whether a count was found."""
         return math.isfinite(self.count) and self.count > 0.0
 
+    def to_dict(self) -> dict[str, float | int | str | None]:
+        """For JSON (``--json``'s ``grid``, the ``input`` event): the count (null when none), the readings, why not."""
+        return {"count": self.count if self.found else None, "readings": self.readings, "why": self.why or None}
+
 
 def grid_count(readings: np.ndarray, amplitude: float) -> GridCount:
     """The count of the encoder the readings come from (:func:`~servoid.ident.offline.intervals.quantum`), if any.

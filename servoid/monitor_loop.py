@@ -222,9 +222,7 @@ class ReadingsGrid:
         """The ``input`` event's data."""
         assert self.grid is not None
         found = self.grid.found
-        return {"input": CYCLED if found else STEADY, "steps": self.steps if found else 1,
-                "count": self.grid.count if found else None, "readings": self.grid.readings,
-                "why": self.grid.why or None}  # fmt: skip
+        return {"input": CYCLED if found else STEADY, "steps": self.steps if found else 1, **self.grid.to_dict()}
 
 
 @dataclass(frozen=True)
@@ -284,8 +282,7 @@ class LoopMonitorResult:
             "refits": self.refits, "dropped": self.dropped, "alarms": [ev.to_dict() for ev in self.events],
             "active": [ev.bound.quantity for ev in self.active], "files": {k: str(v) for k, v in self.files.items()},
             "doubt": self.doubt,
-            "grid": None if self.grid is None else {"count": self.grid.count if self.grid.found else None,
-                                                    "readings": self.grid.readings, "why": self.grid.why or None},
+            "grid": None if self.grid is None else self.grid.to_dict(),
         }  # fmt: skip
 
     @property
