@@ -95,6 +95,9 @@ cycled`` runs; ``--cycle 0``: the steady sine of one amplitude, the input before
 the sample where the steady part starts (:func:`~servoid.excitation.monitor_input.grid_count`, the same samples
 :class:`~servoid.monitor_loop.ReadingsGrid` keeps; mongrid20 took it from the reference's readings); where they show
 none, the steady sine runs, and the input column says why.
+``--fractional-halves``: the cycle's half-periods of the length the peak acceleration gives (not whole samples, the
+cycle before moncyc22; :data:`~servoid.excitation.monitor_input.WHOLE_HALVES`): each peak then falls at another place
+between two samples, sliding from cycle to cycle, and the window plays beat with it (docs/monitor.md, moncyc22).
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
@@ -160,6 +163,7 @@ from servoid.excitation.monitor_input import (
     MONITOR_INPUTS,
     SINE,
     SINE_ACCEL_SHARE,
+    WHOLE_HALVES,
     GridCount,
     cycled_sine,
     default_input,
@@ -246,12 +250,13 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
          hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int | None = None,
-         progress: str = ""):  # fmt: skip
+         whole: bool = WHOLE_HALVES, progress: str = ""):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one.
 
     ``cycle``: the cycled sine's places (None: ``servoid monitor``'s default by the file's place; 0: one amplitude);
     its count from the readings before the steady part, taken when the feed reaches it (as the monitor's stream).
+    ``whole``: its half-periods of whole samples (:data:`~servoid.excitation.monitor_input.WHOLE_HALVES`).
     ``progress``: a label; every 100 000 samples a line on stderr with the alarms raised so far (a long quiet run
     stopped early still says how far it went without one).
     """
@@ -299,7 +304,7 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
                 steady = monitor_spec(SINE, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2)
                 grid = grid_count(np.concatenate(readings), float(steady.amplitude))
                 if grid.found:
-                    u[cut:] = cycled_sine(steady, grid.count, steps, n_ref + n - cut)
+                    u[cut:] = cycled_sine(steady, grid.count, steps, n_ref + n - cut, whole=whole)
                 pending, readings = False, []
             if lo >= hi:
                 continue
@@ -393,6 +398,12 @@ def main() -> None:
         f"(default: servoid monitor's, 0 unless its CYCLED_DEFAULT is on, then {CYCLE_STEPS} where the file's play sits "
         "in the loop; 0: one amplitude, the input before)",
     )
+    parser.add_argument(
+        "--fractional-halves",
+        action="store_true",
+        help="the cycled sine's half-periods of the length its peak acceleration gives, not whole samples (the cycle "
+        "before moncyc22; servoid monitor's WHOLE_HALVES)",
+    )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
         "--calibrate",
@@ -414,7 +425,8 @@ def main() -> None:
     opts = {"fresh": args.fresh, "monitor_input": args.input, "min_reversals": args.min_reversals,
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
             "calibrate": args.calibrate or CALIBRATE, "dither": args.dither,
-            "cycle": 0 if args.dither > 0.0 and args.cycle is None else args.cycle}  # fmt: skip
+            "cycle": 0 if args.dither > 0.0 and args.cycle is None else args.cycle,
+            "whole": WHOLE_HALVES and not args.fractional_halves}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")

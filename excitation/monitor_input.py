@@ -67,7 +67,7 @@ from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import GentleSpec
 
 __all__ = ["CYCLE_STEPS", "CYCLED", "CYCLED_DEFAULT", "IDENT", "INPUTS", "MAX_COUNT_SHARE", "MAX_DITHER", "MIN_COUNT_CHANGES",
-           "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "GridCount", "coast_accel", "cycled_sine",
+           "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "WHOLE_HALVES", "GridCount", "coast_accel", "cycled_sine",
            "default_input", "grid_count", "monitor_spec", "monitor_stream"]  # fmt: skip
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
@@ -91,6 +91,14 @@ MIN_COUNT_CHANGES = 10
 #: ``(steps - 1) / steps`` of a count, here at most 7.5 % (the horn twins: 1 / 65 of it); a coarser "count" is a
 #: servo that hardly moved, not an encoder's.
 MAX_COUNT_SHARE = 0.1
+#: Whether each half-period of :func:`cycled_sine` lasts a whole number of samples (its length rounded up, its peak
+#: acceleration lowered to fit: by under 3 % on the twins' 80-100 sample half-periods). The set point is sampled, and
+#: the horn servos' goal is a whole count: with half-periods of fractional length each peak falls at another place
+#: between two samples, which slides from cycle to cycle, so the samples the goal spends on its top count change
+#: slowly, and the window plays with them. On the XM430 twin's live files that beat (a period of about 3 cycles,
+#: 4.4 s) correlated the window plays over 4 estimates (tau 3.1-3.8, h 11.6-13.3) and the alarm after +20 % came
+#: 3.25-4.25 s late; with whole half-periods the sampled cycle repeats exactly (docs/monitor.md, moncyc22).
+WHOLE_HALVES = True
 
 
 def monitor_spec(
@@ -324,11 +332,14 @@ def _steady_or_cycled(steady: GentleSpec, seed: int, count: Callable[[], float],
         start += chunk
 
 
-def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int, *, start: int = 0) -> np.ndarray:
+def cycled_sine(
+    spec: GentleSpec, count: float, steps: int, n: int, *, start: int = 0, whole: bool = WHOLE_HALVES
+) -> np.ndarray:
     """``n`` samples of the steady sine ``spec`` whose amplitude cycles over ``steps`` places of a count grid.
 
     Half-period ``k`` (a reversal each, the sides alternating) has the amplitude ``A - (k mod steps) count / steps``
-    and the steady sine's peak acceleration (its length ``pi sqrt(a_k / accel)`` samples, not whole): each
+    and the steady sine's peak acceleration (its length ``pi sqrt(a_k / accel)`` samples; with ``whole`` that
+    length rounded up to whole samples and the acceleration lowered to fit, so the sampled cycle repeats): each
     reversal side passes ``steps`` places a ``count / steps`` apart on the loop encoder's grid, whatever the
     offset, and with ``steps`` odd both sides pass all of them (the module's text). Every half-period starts and
     ends at the offset: no step in the command.
@@ -345,12 +356,15 @@ def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int, *, start: in
         Samples from ``start``.
     start : int
         The first sample's index (a stream's chunk; default 0): the samples equal those of one call from 0.
+    whole : bool
+        Half-periods of whole samples (default :data:`WHOLE_HALVES`; False: of the length the peak acceleration
+        gives, the cycle before moncyc22).
 
     Returns
     -------
     ndarray
         Inside ``offset +/- amplitude`` (the amplitudes only go down from the steady sine's), each half-period at
-        its peak acceleration, so its steepest slope is at most the steady sine's.
+        most at its peak acceleration, so its steepest slope is at most the steady sine's.
     """
     amplitude, accel = float(spec.amplitude), float(spec.accel or 0.0)
     if not (0.0 < count < amplitude and math.isfinite(count)):
@@ -359,6 +373,8 @@ def cycled_sine(spec: GentleSpec, count: float, steps: int, n: int, *, start: in
         raise ValueError(f"steps must be 1 or more, not {steps!r}")
     amps = amplitude - np.arange(steps) * count / steps
     halves = np.pi * np.sqrt(amps / accel)  # samples per half-period at the peak acceleration
+    if whole:
+        halves = np.ceil(halves - 1e-9)  # (the tolerance: a length that is whole up to rounding stays as it is)
     per_cycle = float(np.sum(halves))
     t = np.arange(start, start + n, dtype=np.float64)
     cycles = np.floor(t / per_cycle)

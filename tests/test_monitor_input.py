@@ -49,9 +49,11 @@ def test_dither_out_of_range_is_refused(dither: float) -> None:
 
 
 def _reversals(u: np.ndarray) -> np.ndarray:
-    """Indices of the local extremes of ``u`` (a reversal of the set point each)."""
+    """Indices of the local extremes of ``u`` (a reversal of the set point each; of a peak between two samples, two
+    equal ones, the first)."""
     d = np.diff(u)
-    return np.flatnonzero(np.sign(d[1:]) != np.sign(d[:-1])) + 1
+    moves = np.flatnonzero(np.abs(d) > 1e-12)
+    return moves[:-1][np.sign(d[moves[1:]]) != np.sign(d[moves[:-1]])] + 1
 
 
 @pytest.mark.parametrize("steps", [3, 4])
@@ -76,9 +78,32 @@ def test_cycled_sine_puts_each_side_on_distinct_places_of_the_grid(steps: int) -
 def test_cycled_sine_of_one_step_is_the_steady_sine_at_its_peak_acceleration() -> None:
     accel = 4.0 / 200.0**2
     spec = monitor_spec(SINE, 0.1, 2.0 * accel)
-    u = cycled_sine(spec, 0.0015, 1, 2000)
+    u = cycled_sine(spec, 0.0015, 1, 2000, whole=False)
     t = np.arange(2000)
     np.testing.assert_allclose(u, 0.1 * np.sin(np.sqrt(accel / 0.1) * t), atol=1e-9)
+
+
+@pytest.mark.parametrize("steps", [1, 2, 4])
+def test_cycled_sine_of_whole_halves_repeats_its_sampled_cycle_exactly(steps: int) -> None:
+    # the XM430 twin's live design: +/-0.1 rad at 6.045 rad/s^2 and 200 Hz, half-periods of 80.8 samples
+    accel = 6.045 / 200.0**2
+    spec = monitor_spec(SINE, 0.1, 2.0 * accel, offset=0.05)
+    count = 2.0 * math.pi / 4096.0
+    amps = 0.1 - np.arange(steps) * count / steps
+    lengths = np.ceil(np.pi * np.sqrt(amps / accel))
+    assert np.all(lengths > np.pi * np.sqrt(amps / accel))  # (none is whole already: the case that slid)
+    period = int(np.sum(lengths)) * (2 if steps % 2 else 1)  # (odd steps: both sides before the sampled cycle repeats)
+    u = cycled_sine(spec, count, steps, 3 * period)
+    np.testing.assert_array_equal(u[period : 2 * period], u[:period])
+    np.testing.assert_array_equal(u[2 * period :], u[:period])
+    # each half-period at most at the peak acceleration (lowered by under 3 %), its places as before
+    assert np.max(np.abs(np.diff(u, 2))) <= accel * (1.0 + 1e-9)
+    assert np.max(np.abs(np.diff(u, 2))) >= 0.97 * accel * np.cos(np.pi / np.min(lengths))
+    idx = _reversals(u)
+    np.testing.assert_allclose(np.sort(np.unique(np.round(np.abs(u[idx] - 0.05), 6)))[::-1], amps, atol=accel)
+    # the fractional lengths (the cycle before): the sampled cycle does not repeat, each peak slides between samples
+    frac = cycled_sine(spec, count, steps, 3 * period, whole=False)
+    assert np.max(np.abs(frac[period : 2 * period] - frac[:period])) > 1e-4
 
 
 @pytest.mark.parametrize(("count", "steps"), [(0.0, 3), (0.2, 3), (math.nan, 3), (0.0015, 0)])
