@@ -95,9 +95,9 @@ cycled`` runs; ``--cycle 0``: the steady sine of one amplitude, the input before
 the sample where the steady part starts (:func:`~servoid.excitation.monitor_input.grid_count`, the same samples
 :class:`~servoid.monitor_loop.ReadingsGrid` keeps; mongrid20 took it from the reference's readings); where they show
 none, the steady sine runs, and the input column says why.
-``--fractional-halves``: the cycle's half-periods of the length the peak acceleration gives (not whole samples, the
-cycle before moncyc22; :data:`~servoid.excitation.monitor_input.WHOLE_HALVES`): each peak then falls at another place
-between two samples, sliding from cycle to cycle, and the window plays beat with it (docs/monitor.md, moncyc22).
+``--whole-halves``: the cycle's half-periods of whole samples (:data:`~servoid.excitation.monitor_input.WHOLE_HALVES`,
+off): of the length the peak acceleration gives, each peak falls at another place between two samples, sliding from
+cycle to cycle, and the window plays beat with it; whole, the sampled cycle repeats (docs/monitor.md, moncyc22).
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
@@ -399,10 +399,10 @@ def main() -> None:
         "in the loop; 0: one amplitude, the input before)",
     )
     parser.add_argument(
-        "--fractional-halves",
+        "--whole-halves",
         action="store_true",
-        help="the cycled sine's half-periods of the length its peak acceleration gives, not whole samples (the cycle "
-        "before moncyc22; servoid monitor's WHOLE_HALVES)",
+        help="the cycled sine's half-periods of whole samples, not of the length its peak acceleration gives "
+        "(servoid monitor's WHOLE_HALVES, off)",
     )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
@@ -426,7 +426,7 @@ def main() -> None:
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
             "calibrate": args.calibrate or CALIBRATE, "dither": args.dither,
             "cycle": 0 if args.dither > 0.0 and args.cycle is None else args.cycle,
-            "whole": WHOLE_HALVES and not args.fractional_halves}  # fmt: skip
+            "whole": WHOLE_HALVES or args.whole_halves}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")

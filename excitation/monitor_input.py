@@ -92,13 +92,14 @@ MIN_COUNT_CHANGES = 10
 #: servo that hardly moved, not an encoder's.
 MAX_COUNT_SHARE = 0.1
 #: Whether each half-period of :func:`cycled_sine` lasts a whole number of samples (its length rounded up, its peak
-#: acceleration lowered to fit: by under 3 % on the twins' 80-100 sample half-periods). The set point is sampled, and
-#: the horn servos' goal is a whole count: with half-periods of fractional length each peak falls at another place
+#: acceleration lowered to fit: by under 3 % on the twins' 80-100 sample half-periods); off. The set point is sampled,
+#: and the horn servos' goal is a whole count: with half-periods of fractional length each peak falls at another place
 #: between two samples, which slides from cycle to cycle, so the samples the goal spends on its top count change
-#: slowly, and the window plays with them. On the XM430 twin's live files that beat (a period of about 3 cycles,
-#: 4.4 s) correlated the window plays over 4 estimates (tau 3.1-3.8, h 11.6-13.3) and the alarm after +20 % came
-#: 3.25-4.25 s late; with whole half-periods the sampled cycle repeats exactly (docs/monitor.md, moncyc22).
-WHOLE_HALVES = True
+#: slowly, and the window plays beat with them. On the XM430 twin's live files that beat (about 3 cycles, 4.4 s)
+#: correlated the window plays over 4 estimates (tau 3.1-3.8, h 11.6-13.3): the alarm after +20 % came 3.25-4.25 s
+#: late; with whole half-periods 1.50 s (tau 1.0). But the slide is also what averages the level: on the XM430's data
+#: file the tracking went from 4.6 to 6.2-6.3 % and the live files read 0.035-0.04x lower (docs/monitor.md, moncyc22).
+WHOLE_HALVES = False
 
 
 def monitor_spec(
@@ -357,8 +358,8 @@ def cycled_sine(
     start : int
         The first sample's index (a stream's chunk; default 0): the samples equal those of one call from 0.
     whole : bool
-        Half-periods of whole samples (default :data:`WHOLE_HALVES`; False: of the length the peak acceleration
-        gives, the cycle before moncyc22).
+        Half-periods of whole samples (default :data:`WHOLE_HALVES`, off: of the length the peak acceleration
+        gives, as before moncyc22).
 
     Returns
     -------

@@ -93,7 +93,7 @@ def test_cycled_sine_of_whole_halves_repeats_its_sampled_cycle_exactly(steps: in
     lengths = np.ceil(np.pi * np.sqrt(amps / accel))
     assert np.all(lengths > np.pi * np.sqrt(amps / accel))  # (none is whole already: the case that slid)
     period = int(np.sum(lengths)) * (2 if steps % 2 else 1)  # (odd steps: both sides before the sampled cycle repeats)
-    u = cycled_sine(spec, count, steps, 3 * period)
+    u = cycled_sine(spec, count, steps, 3 * period, whole=True)
     np.testing.assert_array_equal(u[period : 2 * period], u[:period])
     np.testing.assert_array_equal(u[2 * period :], u[:period])
     # each half-period at most at the peak acceleration (lowered by under 3 %), its places as before
@@ -104,6 +104,7 @@ def test_cycled_sine_of_whole_halves_repeats_its_sampled_cycle_exactly(steps: in
     # the fractional lengths (the cycle before): the sampled cycle does not repeat, each peak slides between samples
     frac = cycled_sine(spec, count, steps, 3 * period, whole=False)
     assert np.max(np.abs(frac[period : 2 * period] - frac[:period])) > 1e-4
+    np.testing.assert_array_equal(cycled_sine(spec, count, steps, 3 * period), frac)  # off by default (WHOLE_HALVES)
 
 
 @pytest.mark.parametrize(("count", "steps"), [(0.0, 3), (0.2, 3), (math.nan, 3), (0.0015, 0)])
