@@ -27,4 +27,7 @@ CYCLE_STEPS = 4
 #: 4.25 s (the window plays correlated, tau 1.0 -> 3.8) and the STS3215's level not at all (docs/monitor.md, moncycle21).
 #: N = 2 did not pass either (moncyc2): the XM430 data file's alarm 2.25-3.00 s on 4 of 16 step seeds, and two more
 #: live XM430 files read 0.07-0.08x of the play below the steady sine (0.897 / 0.931x against 0.964 / 1.013x).
+#: moncyc22: the live XM430's late alarm is the set point's samples beating with the cycle (half-periods of whole
+#: samples, :data:`~servoid.excitation.monitor_input.WHOLE_HALVES`, bring it to 1.50 s), but with them the XM430's
+#: data file tracks 6.2-6.3 % and its live files read lower still: off (docs/monitor.md).
 CYCLED_DEFAULT = False
