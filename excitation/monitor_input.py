@@ -98,7 +98,7 @@ MAX_COUNT_SHARE = 0.1
 #: slowly, and the window plays beat with them. On the XM430 twin's live files that beat (about 3 cycles, 4.4 s)
 #: correlated the window plays over 4 estimates (tau 3.1-3.8, h 11.6-13.3): the alarm after +20 % came 3.25-4.25 s
 #: late; with whole half-periods 1.50 s (tau 1.0). But the slide is also what averages the level: on the XM430's data
-#: file the tracking went from 4.6 to 6.2-6.3 % and the live files read 0.035-0.04x lower (docs/monitor.md, moncyc22).
+#: file the tracking went from 4.6 to 6.2-6.3 % and the live files read 0.02-0.04x lower (docs/monitor.md, moncyc22).
 WHOLE_HALVES = False
 
 
