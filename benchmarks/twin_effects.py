@@ -129,11 +129,14 @@ def main() -> None:
     parser.add_argument("--load", default=None, help="comma-separated dumps: print their summary again, run nothing")
     args = parser.parse_args()
     if args.load:
-        loaded: list[dict[str, Any]] = []
+        loaded: dict[tuple[Any, ...], dict[str, Any]] = {}  # a record in two dumps counts once
         for path in args.load.split(","):
             with open(path) as f:
-                loaded += [json.loads(line) for line in f if line.strip()]
-        summarise(loaded)
+                for row in (json.loads(line) for line in f if line.strip()):
+                    loaded[row["preset"], row["effect"], row["mult"], row["seed"], row["noise_seed"], row["counts"]] = (
+                        row
+                    )
+        summarise(list(loaded.values()))
         return
     # a longer record: the table's excitation run on for longer, its sample cap scaled alike
     real_servos.MAX_SAMPLES = round(real_servos.MAX_SAMPLES * args.duration_s / real_servos.DURATION_S)
