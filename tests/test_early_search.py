@@ -295,6 +295,30 @@ def test_a_search_past_its_wall_budget_is_stopped_and_leaves_no_result_and_no_th
     assert est._thread is not None and not est._thread.is_alive()
 
 
+def test_a_head_waiting_for_the_first_windows_offer_is_cut_at_its_wall_budget(monkeypatch) -> None:
+    # the head's samples have all come before the first window's search ended (a slow machine): the head's massless
+    # search runs, then it waits for that search's offer; if none ever comes (a way out of the window refit that
+    # neither offers nor releases), the wall budget must cut the wait as it cuts a search, not leave it waiting
+    from servoid.ident.offline import _threads, loop_fit
+
+    stop = _threads.Stop(why="the wall budget")
+    calls: list[bool | None] = []
+
+    def massless_then_deadline(u_: np.ndarray, y_: np.ndarray, *args, load: bool | None = False, **kwargs):
+        calls.append(load)
+        stop.now()  # the budget's deadline comes while the head waits for the offer
+        return "massless"
+
+    monkeypatch.setattr(loop_fit, "fit_loop", massless_then_deadline)
+    u, y = _heavy_record(300)
+    est = EarlySearch(1 / RATE, u.size, end=u.size, stop=stop)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    assert est._thread is not None
+    est._thread.join(30.0)  # a guard against the hang, not a timing: the cut search ends at once
+    assert not est._thread.is_alive() and est.cut and "cut" in (est.error or "")
+    assert calls == [False] and est.result(wait=True) is None and not est._offered.is_set()
+
+
 def test_warm_up_runs_the_search_once_so_its_kernels_are_loaded_before_the_sampler_starts(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     from servoid.ident.offline import loop_fit
 

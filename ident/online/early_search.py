@@ -85,7 +85,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "head_samples", "full_in_time"]
+__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "OFFER_POLL_S", "head_samples", "full_in_time"]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
@@ -98,6 +98,9 @@ BEGIN_WAIT_S = 5.0
 #: 60 s leave about 14 s after the probe (6.2 s) and a 40 s run, of which the answer's refit and the
 #: identification take 1-4 s.
 HEAD_LATE_S = 8.0
+#: Wall seconds between two looks at the stop while the head's search waits for the first window's offer
+#: (:meth:`EarlySearch._await_offer`): how late past the wall budget's deadline such a wait is cut.
+OFFER_POLL_S = 0.1
 
 
 def full_in_time(first_s: float, first_samples: int, head: int, left_s: float) -> bool:
@@ -321,7 +324,7 @@ class EarlySearch:
         if not self._offered.is_set():
             # the first window's search has not ended by now: a slow machine; the massless head meanwhile
             massless = fit_loop(u, y, self.sample_period_s, keep=keep, load=False)
-            self._offered.wait()
+            self._await_offer()
         elif self._first is not None and full_in_time(
             self._first[1], self._first[2], int(u.size), (self._end - self._seen) * self.sample_period_s
         ):
@@ -337,6 +340,17 @@ class EarlySearch:
             return None  # the first window's load did not name the place on the head: the full search decides
         self.warm = True
         return choice
+
+    def _await_offer(self) -> None:
+        """Wait for the first window's search to offer its model or for :meth:`release`; under a stop (the wall
+        budget), only until it comes: the wait is then cut as a search is (:class:`~servoid.ident.offline._threads.Stopped`).
+
+        The window refit offers or releases on every way out of that search (livebus20's fix, issue 15); this
+        keeps a head that waits from outliving the budget on a way that was missed. Without a stop it waits as
+        before (a virtual clock never gets here: no ``end``).
+        """
+        while not self._offered.wait(OFFER_POLL_S if self._stop is not None else None):
+            _threads.check()
 
     def searched(self, *, wait: bool) -> SlowSearch | None:
         """The search for the window refit's second look (called on its worker thread), or None.
