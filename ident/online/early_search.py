@@ -85,7 +85,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "OFFER_POLL_S", "head_samples", "full_in_time"]
+__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "OFFER_POLL_S", "TAKE_FIRST", "head_samples", "full_in_time"]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
@@ -98,6 +98,11 @@ BEGIN_WAIT_S = 5.0
 #: 60 s leave about 14 s after the probe (6.2 s) and a 40 s run, of which the answer's refit and the
 #: identification take 1-4 s.
 HEAD_LATE_S = 8.0
+#: Whether a real clock's head, when the first window's search has not ended by the time the head's samples have
+#: all come (a slow machine), takes that search as its own instead of searching (livecia22, issue 15: the head's
+#: search with its load stage is 10-11 s of CPU on the CiA 402 twin's live records, 88-92 % of it the load stage,
+#: the first window's 6.6-8.9 s, the slow phase's 7 s; the process gets about 15 s of CPU for them at load 6-9).
+TAKE_FIRST = True
 #: Wall seconds between two looks at the stop while the head's search waits for the first window's offer
 #: (:meth:`EarlySearch._await_offer`): how late past the wall budget's deadline such a wait is cut.
 OFFER_POLL_S = 0.1
@@ -189,6 +194,9 @@ class EarlySearch:
         self._first: tuple[ServoLoopModel, float, int] | None = None  # the first window's model, wall s, samples
         self._offered = threading.Event()  # set by offer() or release(): nothing more will be offered
         self.warm = False  # the head was searched warm from the first window's model (the module's text)
+        self._choice: LoopChoice | None = None  # the first window's search, as offered (TAKE_FIRST)
+        self.taken = False  # the first window's search answered for the head (TAKE_FIRST)
+        self._late = False  # the head's samples had all come before the first window's search was offered
         self._stop = stop
         self.cut = False  # the search was stopped by ``stop`` (:attr:`error` says so)
         self._yielding = True  # the search's thread runs below the sampler's priority (until :meth:`full_speed`)
@@ -256,16 +264,24 @@ class EarlySearch:
             self._begun.set()
             return
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
+        self._late = not self._offered.is_set()  # the first window's search had not ended (TAKE_FIRST)
         self._job = (u[lo:], y[lo:], keep[lo:], lo)
         if not self._hold:
             self.begin()
         self._begun.set()
 
-    def offer(self, model: ServoLoopModel, seconds: float, samples: int) -> None:
-        """The window refit's first window: its search's model, the search's wall seconds and its samples (once)."""
+    def offer(self, model: ServoLoopModel, seconds: float, samples: int, choice: LoopChoice | None = None) -> None:
+        """The window refit's first window: its search's model, the search's wall seconds and its samples, and the
+        search itself (``choice``, :data:`TAKE_FIRST`) (once)."""
         if not self._offered.is_set():
             self._first = (model, float(seconds), int(samples))
+            self._choice = choice
             self._offered.set()
+
+    @property
+    def offered(self) -> bool:
+        """Whether the first window's search was offered, or none will be (:meth:`release`)."""
+        return self._offered.is_set()
 
     def release(self) -> None:
         """No first window will be offered (the stream ended): a search waiting for one runs in full."""
@@ -300,6 +316,10 @@ class EarlySearch:
                 self._niced = _yield_cpu()
         try:
             with _threads.stopping(self._stop):
+                taken = self._first_taken()
+                if taken is not None:  # a slow machine: the first window's search answers for the head
+                    self._found = SlowSearch(taken[0], lo, taken[1])
+                    return
                 choice = self._warm(u, y, keep)
                 if choice is None:
                     choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
@@ -310,6 +330,21 @@ class EarlySearch:
             self.error = f"the early search failed: {exc}"
             return
         self._found = SlowSearch(choice, lo, int(u.size))
+
+    def _first_taken(self) -> tuple[LoopChoice, int] | None:
+        """The first window's search and its samples as the head's search, or None (:data:`TAKE_FIRST`).
+
+        Only on a real clock (``end``) where that search had not ended when the head's samples had all come (a slow
+        machine): the head is then not searched at all, nor massless meanwhile; it waits for that search (under the
+        stop) and takes it. Released with none (the search failed or was stopped), None: the head's own search runs.
+        """
+        if not (TAKE_FIRST and self._end and self._late):
+            return None
+        self._await_offer()
+        if self._choice is None or self._first is None:
+            return None
+        self.taken = True
+        return self._choice, self._first[2]
 
     def _warm(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray) -> LoopChoice | None:
         """The head searched warm from the first window's model (the module's text), or None: the full search runs."""
