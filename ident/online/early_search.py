@@ -56,6 +56,14 @@ names the place (the play outside the loop by at least
 :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN` in validation); else the head's full
 search runs after all. A virtual clock (no ``end``) always runs the full search.
 
+Where the first window's search had not ended when the head's samples had all come (:data:`TAKE_FIRST`),
+the head is not searched at all: it waits for that search (carried past the run's end on a real clock,
+:class:`~servoid.ident.online.window.WindowRefit`'s ``budget``) and takes it as its own, its choice on the
+fast part's first 10 s, which the refinement then refits warm on the whole fast part. On the CiA 402 twin at
+load 8-11 (docs/online.md, livecia22) the process gets about 15 s of CPU for the searches after the
+sampler, and the three searches from scratch take 6.6-11 s each, 88-92 % of the fast part's in the load
+stage: one fast-part search instead of two answered with the servo loop where main answered with the black box.
+
 The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
 ``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
 fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
@@ -85,7 +93,16 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "OFFER_POLL_S", "TAKE_FIRST", "head_samples", "full_in_time"]
+__all__ = [
+    "EarlySearch",
+    "HEAD_SHARE",
+    "BEGIN_WAIT_S",
+    "HEAD_LATE_S",
+    "OFFER_POLL_S",
+    "TAKE_FIRST",
+    "head_samples",
+    "full_in_time",
+]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
