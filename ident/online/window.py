@@ -1011,7 +1011,8 @@ class WindowRefit:
         self._niced = _yield_cpu()
 
     def _bounded(self, wait: bool, wait_s: float) -> None:
-        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop.
+        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop; a
+        first window's search not yet ended carried on instead, for ``early`` (``budget``, the module's text).
 
         A refit still queued (not started) is dropped; where it was the first window's search, ``early`` is released
         (a stopped search tells it itself, :func:`_refit`): a run that ended as its first window fell due left the
