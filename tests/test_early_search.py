@@ -18,7 +18,15 @@ from servoid.excitation.specs import GentleSpec
 from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import OUTPUT_BACKLASH, PLAY_IN_LOOP
 from servoid.ident.offline.intervals import MIN_STRUCTURE_MARGIN
-from servoid.ident.online.early_search import HEAD_LATE_S, HEAD_SHARE, EarlySearch, full_in_time, head_samples
+from servoid.ident.online import early_search
+from servoid.ident.online.early_search import (
+    HEAD_LATE_S,
+    HEAD_SHARE,
+    TAKE_FIRST,
+    EarlySearch,
+    full_in_time,
+    head_samples,
+)
 from servoid.ident.online.window import SlowSearch, WindowConfig, WindowRefit, WindowResult
 
 
@@ -209,7 +217,7 @@ def test_a_slow_machine_searches_the_head_warm_from_the_first_windows_load() -> 
         (0, "heavy", 100.0, [None]),  # a virtual clock: always the full search
         (1600, "heavy", 0.1, [None]),  # a fast machine: the full search ends in time
         (1600, "inside", 100.0, [None]),  # the first window found no load outside the loop: the grid runs here
-        (1600, None, 0.0, [False, None]),  # no first window by the head's end: massless meanwhile, then in full
+        (1600, None, 0.0, [None]),  # no first window by the head's end, then none (released): in full, nothing before
     ],
 )
 def test_the_head_is_searched_in_full_unless_a_slow_machine_has_the_first_windows_load(
@@ -295,6 +303,60 @@ def test_a_search_past_its_wall_budget_is_stopped_and_leaves_no_result_and_no_th
     assert est._thread is not None and not est._thread.is_alive()
 
 
+def test_a_head_waiting_for_the_first_windows_offer_is_cut_at_its_wall_budget(monkeypatch) -> None:
+    # the head's samples have all come before the first window's search ended (a slow machine): the head's massless
+    # search runs, then it waits for that search's offer; if none ever comes (a way out of the window refit that
+    # neither offers nor releases), the wall budget must cut the wait as it cuts a search, not leave it waiting
+    from servoid.ident.offline import _threads, loop_fit
+
+    stop = _threads.Stop(time.perf_counter() - 1.0, "the wall budget")  # past: only a wait that looks at it ends
+    calls: list[bool | None] = []
+
+    def unstoppable(u_: np.ndarray, y_: np.ndarray, *args, load: bool | None = False, **kwargs):
+        calls.append(load)  # (a fit that never looks at the stop: only the wait can be cut)
+        return "massless"
+
+    monkeypatch.setattr(loop_fit, "fit_loop", unstoppable)
+    u, y = _heavy_record(300)
+    est = EarlySearch(1 / RATE, u.size, end=u.size, stop=stop)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    assert est._thread is not None
+    est._thread.join(30.0)  # a guard against the hang, not a timing: the cut search ends at once
+    assert not est._thread.is_alive() and est.cut and "cut" in (est.error or "")
+    assert calls == ([] if TAKE_FIRST else [False]) and est.result(wait=True) is None and not est._offered.is_set()
+
+
+@pytest.mark.parametrize("offered", [True, False])
+def test_a_slow_machines_head_takes_the_first_windows_search_instead_of_searching(monkeypatch, offered: bool) -> None:
+    # the head's samples have all come before the first window's search ended: the head waits for it and takes it
+    # (its choice and its samples) without a search of its own; released with none, the head's own search runs
+    from servoid.ident.offline import loop_fit
+
+    calls: list[bool | None] = []
+
+    def recorded(u_: np.ndarray, y_: np.ndarray, *args, load: bool | None = False, **kwargs):
+        calls.append(load)
+        return "full"
+
+    monkeypatch.setattr(loop_fit, "fit_loop", recorded)
+    monkeypatch.setattr(early_search, "TAKE_FIRST", True)
+    u, y = _heavy_record(300)
+    est = EarlySearch(1 / RATE, u.size, end=u.size)
+    _feed(est, u, y, np.ones(u.size, dtype=bool))
+    assert est.started and est.result(wait=False) is None  # waiting for the first window's search
+    first = SimpleNamespace(structure=OUTPUT_BACKLASH, play=0.01)  # (only handed on: the refinement reads it)
+    if offered:
+        est.offer(HEAVY, 50.0, 200, first)  # type: ignore[arg-type]
+    else:
+        est.release()
+    found = est.result(wait=True)
+    assert found is not None, est.error
+    if offered:
+        assert found.choice is first and found.samples == 200 and found.start == 0 and est.taken and calls == []
+    else:
+        assert found.choice == "full" and not est.taken and calls == [None]
+
+
 def test_warm_up_runs_the_search_once_so_its_kernels_are_loaded_before_the_sampler_starts(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     from servoid.ident.offline import loop_fit
 
@@ -334,3 +396,35 @@ def test_a_searchs_thread_yields_to_the_sampler_until_the_run_ends() -> None:
     gate.set()
     assert est.result(wait=True) is None and "failed" in (est.error or "")
     assert seen == [min(19, before + WORKER_NICENESS), before]
+
+
+@pytest.mark.parametrize("budget", [True, False])
+def test_a_first_windows_search_running_at_the_streams_end_carries_on_for_the_head_only_under_a_budget(
+    monkeypatch, budget: bool
+) -> None:
+    from servoid.ident.offline import _threads, loop_fit
+
+    real, entered, gate = loop_fit.fit_loop, threading.Event(), threading.Event()
+
+    def held(*args, **kwargs):  # the window's search is held until the stream has ended (a slow machine's)
+        entered.set()
+        gate.wait(30.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(loop_fit, "fit_loop", held)
+    u, y = _record(10.5, seed=3)
+    est = EarlySearch(1 / RATE, u.size + 1, end=u.size)  # never reached: only the offer is looked at
+    stop = _threads.Stop(why="the wall budget") if budget else None
+    refit = WindowRefit(WindowConfig(1 / RATE, first_s=10.0), wait=False, end=u.size, early=est, budget=stop)
+    for ui, yi in zip(u, y, strict=True):
+        refit.update(ui, yi)
+    assert entered.wait(30.0)  # the worker runs the first window's search
+    out = refit.result(final=True, wait=False, wait_s=0.0)  # the search still held: not waited for
+    gate.set()
+    assert out.model is None and out.abandoned == 1 and out.carried is budget
+    assert est._offered.wait(30.0)  # offered as it ended (carried), or released as it was stopped
+    if budget:  # carried on: its model offered to the head, its window's warm refit told to stop
+        assert est._first is not None and est._first[2] == 1000 and refit._carried is not None
+        assert refit._carried.wait(5.0)
+    else:  # stopped at the stream's end: nothing offered, the head searches in full
+        assert est._first is None

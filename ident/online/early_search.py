@@ -56,6 +56,14 @@ names the place (the play outside the loop by at least
 :data:`~servoid.ident.offline.intervals.MIN_STRUCTURE_MARGIN` in validation); else the head's full
 search runs after all. A virtual clock (no ``end``) always runs the full search.
 
+Where the first window's search had not ended when the head's samples had all come (:data:`TAKE_FIRST`),
+the head is not searched at all: it waits for that search (carried past the run's end on a real clock,
+:class:`~servoid.ident.online.window.WindowRefit`'s ``budget``) and takes it as its own, its choice on the
+fast part's first 10 s, which the refinement then refits warm on the whole fast part. On the CiA 402 twin at
+load 8-11 (docs/online.md, livecia22) the process gets about 15 s of CPU for the searches after the
+sampler, and the three searches from scratch take 6.6-11 s each, 88-92 % of the fast part's in the load
+stage: one fast-part search instead of two answered with the servo loop where main answered with the black box.
+
 The window refit's second look (:class:`~servoid.ident.online.window.WindowRefit`,
 ``early=``) falls on the same samples (the fast part's first 20 s of a 26.7 s
 fast part): it takes this search's answer (:meth:`EarlySearch.searched`)
@@ -85,7 +93,16 @@ if TYPE_CHECKING:  # pragma: no cover
     from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
 
-__all__ = ["EarlySearch", "HEAD_SHARE", "BEGIN_WAIT_S", "HEAD_LATE_S", "head_samples", "full_in_time"]
+__all__ = [
+    "EarlySearch",
+    "HEAD_SHARE",
+    "BEGIN_WAIT_S",
+    "HEAD_LATE_S",
+    "OFFER_POLL_S",
+    "TAKE_FIRST",
+    "head_samples",
+    "full_in_time",
+]
 
 #: Share of the fast part (the run after a design's slow phase) the early search covers; the rest
 #: runs while it searches and joins the answer through the final refit. A quarter of a 40 s run's
@@ -98,6 +115,14 @@ BEGIN_WAIT_S = 5.0
 #: 60 s leave about 14 s after the probe (6.2 s) and a 40 s run, of which the answer's refit and the
 #: identification take 1-4 s.
 HEAD_LATE_S = 8.0
+#: Whether a real clock's head, when the first window's search has not ended by the time the head's samples have
+#: all come (a slow machine), takes that search as its own instead of searching (livecia22, issue 15: the head's
+#: search with its load stage is 10-11 s of CPU on the CiA 402 twin's live records, 88-92 % of it the load stage,
+#: the first window's 6.6-8.9 s, the slow phase's 7 s; the process gets about 15 s of CPU for them at load 6-9).
+TAKE_FIRST = True
+#: Wall seconds between two looks at the stop while the head's search waits for the first window's offer
+#: (:meth:`EarlySearch._await_offer`): how late past the wall budget's deadline such a wait is cut.
+OFFER_POLL_S = 0.1
 
 
 def full_in_time(first_s: float, first_samples: int, head: int, left_s: float) -> bool:
@@ -186,6 +211,9 @@ class EarlySearch:
         self._first: tuple[ServoLoopModel, float, int] | None = None  # the first window's model, wall s, samples
         self._offered = threading.Event()  # set by offer() or release(): nothing more will be offered
         self.warm = False  # the head was searched warm from the first window's model (the module's text)
+        self._choice: LoopChoice | None = None  # the first window's search, as offered (TAKE_FIRST)
+        self.taken = False  # the first window's search answered for the head (TAKE_FIRST)
+        self._late = False  # the head's samples had all come before the first window's search was offered
         self._stop = stop
         self.cut = False  # the search was stopped by ``stop`` (:attr:`error` says so)
         self._yielding = True  # the search's thread runs below the sampler's priority (until :meth:`full_speed`)
@@ -253,16 +281,24 @@ class EarlySearch:
             self._begun.set()
             return
         lo = int(np.argmax(keep))  # the simulation starts at a measured sample
+        self._late = not self._offered.is_set()  # the first window's search had not ended (TAKE_FIRST)
         self._job = (u[lo:], y[lo:], keep[lo:], lo)
         if not self._hold:
             self.begin()
         self._begun.set()
 
-    def offer(self, model: ServoLoopModel, seconds: float, samples: int) -> None:
-        """The window refit's first window: its search's model, the search's wall seconds and its samples (once)."""
+    def offer(self, model: ServoLoopModel, seconds: float, samples: int, choice: LoopChoice | None = None) -> None:
+        """The window refit's first window: its search's model, the search's wall seconds and its samples, and the
+        search itself (``choice``, :data:`TAKE_FIRST`) (once)."""
         if not self._offered.is_set():
             self._first = (model, float(seconds), int(samples))
+            self._choice = choice
             self._offered.set()
+
+    @property
+    def offered(self) -> bool:
+        """Whether the first window's search was offered, or none will be (:meth:`release`)."""
+        return self._offered.is_set()
 
     def release(self) -> None:
         """No first window will be offered (the stream ended): a search waiting for one runs in full."""
@@ -297,6 +333,10 @@ class EarlySearch:
                 self._niced = _yield_cpu()
         try:
             with _threads.stopping(self._stop):
+                taken = self._first_taken()
+                if taken is not None:  # a slow machine: the first window's search answers for the head
+                    self._found = SlowSearch(taken[0], lo, taken[1])
+                    return
                 choice = self._warm(u, y, keep)
                 if choice is None:
                     choice = fit_loop(u, y, self.sample_period_s, keep=keep, load=None)
@@ -307,6 +347,21 @@ class EarlySearch:
             self.error = f"the early search failed: {exc}"
             return
         self._found = SlowSearch(choice, lo, int(u.size))
+
+    def _first_taken(self) -> tuple[LoopChoice, int] | None:
+        """The first window's search and its samples as the head's search, or None (:data:`TAKE_FIRST`).
+
+        Only on a real clock (``end``) where that search had not ended when the head's samples had all come (a slow
+        machine): the head is then not searched at all, nor massless meanwhile; it waits for that search (under the
+        stop) and takes it. Released with none (the search failed or was stopped), None: the head's own search runs.
+        """
+        if not (TAKE_FIRST and self._end and self._late):
+            return None
+        self._await_offer()
+        if self._choice is None or self._first is None:
+            return None
+        self.taken = True
+        return self._choice, self._first[2]
 
     def _warm(self, u: np.ndarray, y: np.ndarray, keep: np.ndarray) -> LoopChoice | None:
         """The head searched warm from the first window's model (the module's text), or None: the full search runs."""
@@ -321,7 +376,7 @@ class EarlySearch:
         if not self._offered.is_set():
             # the first window's search has not ended by now: a slow machine; the massless head meanwhile
             massless = fit_loop(u, y, self.sample_period_s, keep=keep, load=False)
-            self._offered.wait()
+            self._await_offer()
         elif self._first is not None and full_in_time(
             self._first[1], self._first[2], int(u.size), (self._end - self._seen) * self.sample_period_s
         ):
@@ -337,6 +392,17 @@ class EarlySearch:
             return None  # the first window's load did not name the place on the head: the full search decides
         self.warm = True
         return choice
+
+    def _await_offer(self) -> None:
+        """Wait for the first window's search to offer its model or for :meth:`release`; under a stop (the wall
+        budget), only until it comes: the wait is then cut as a search is (:class:`~servoid.ident.offline._threads.Stopped`).
+
+        The window refit offers or releases on every way out of that search (livebus20's fix, issue 15); this
+        keeps a head that waits from outliving the budget on a way that was missed. Without a stop it waits as
+        before (a virtual clock never gets here: no ``end``).
+        """
+        while not self._offered.wait(OFFER_POLL_S if self._stop is not None else None):
+            _threads.check()
 
     def searched(self, *, wait: bool) -> SlowSearch | None:
         """The search for the window refit's second look (called on its worker thread), or None.

@@ -56,6 +56,12 @@ a receding-horizon fit:
   play outside the loop, starts the slow phase's held search (``slow_early``);
   the first :attr:`WindowConfig.burn_in_s` of each window are simulated, not scored:
   where in the play the motor side starts is unknown;
+  on a real clock with a wall budget (``budget``), a first window's search still running when the stream
+  ends is not stopped there: it carries on, at the worker's own priority, until it ends or the budget's
+  deadline, and is handed to the head's search as it ends (``early``'s warm head, which waits for it), its
+  window's own warm refit then stopped (:attr:`WindowResult.carried`): on the CiA 402 twin under load the
+  first window's search had 3.5 s of its 7 s of CPU by the run's end, and the head then searched from
+  scratch with the load stage (14 s of CPU) in the 10 s left (docs/online.md, sixteenth pass);
 * after a live design's slow phase (``slow``: its first samples, set aside, the
   windows timed from its end) the place of the play decides what a window
   scores (issue 15): inside the loop the last window, as above; outside it the
@@ -128,6 +134,7 @@ from servoid.ident.models.servo_loop import ServoLoopModel
 from servoid.ident.models.structure_names import PLAY_IN_LOOP
 
 if TYPE_CHECKING:  # pragma: no cover
+    from servoid.ident.offline._threads import Stop
     from servoid.ident.offline.loop_fit import LoopChoice
     from servoid.ident.online.early_search import EarlySearch
 
@@ -196,13 +203,15 @@ def _check(stop: threading.Event | None) -> None:
         raise Cancelled("the window refit was stopped at the stream's end")
 
 
-def _stoppable(stop: threading.Event, work: Callable[..., Any], *job: Any) -> Any:
-    """``work(*job)`` on the worker, its fits stopped inside (:func:`._threads.stopping`) once ``stop`` is set:
-    a refit told to stop frees the CPU at its next simulation, not at its next fit (raised as :class:`Cancelled`)."""
+def _stoppable(stop: threading.Event, work: Callable[..., Any], *job: Any, deadline_s: float = math.inf) -> Any:
+    """``work(*job)`` on the worker, its fits stopped inside (:func:`._threads.stopping`) once ``stop`` is set (or at
+    ``deadline_s``, a wall budget's :func:`time.perf_counter` instant: a first window's search carried past the
+    stream's end): a refit told to stop frees the CPU at its next simulation, not at its next fit (raised as
+    :class:`Cancelled`)."""
     from servoid.ident.offline import _threads
 
     try:
-        with _threads.stopping(_threads.Stop(why="the stream's end", event=stop)):
+        with _threads.stopping(_threads.Stop(deadline_s, why="the stream's end", event=stop)):
             return work(*job)
     except _threads.Stopped as exc:
         raise Cancelled(f"the window refit was {exc}") from exc
@@ -362,6 +371,9 @@ class WindowResult:
         Refits not started because the last refits' wall time said they could not end before the stream.
     abandoned : int
         Refits running at the stream's end that were not waited for (told to stop, their result dropped).
+    carried : bool
+        Whether the first window's search was running at the stream's end and carried on for the head's
+        search (:class:`WindowRefit`'s ``budget``; counted in ``abandoned`` too: no window model came of it).
     """
 
     model: ServoLoopModel | None
@@ -375,6 +387,7 @@ class WindowResult:
     end_s: float = math.nan
     late: int = 0
     abandoned: int = 0
+    carried: bool = False
 
     @property
     def age_s(self) -> float:
@@ -392,7 +405,7 @@ class WindowResult:
                 "history": [r.to_dict() for r in self.history], "config": self.config.to_dict(),
                 "dropped": self.dropped, "stall_s": self.stall_s, "errors": list(self.errors),
                 "end_s": self.end_s, "age_s": self.age_s, "late": self.late, "abandoned": self.abandoned,
-                "slow_search": None if self.slow_search is None else {
+                "carried": self.carried, "slow_search": None if self.slow_search is None else {
                     "structure": self.slow_search.choice.structure, "play": self.slow_search.choice.play,
                     "samples": self.slow_search.samples}}  # fmt: skip
 
@@ -646,6 +659,11 @@ class WindowRefit:
         The slow phase's search on a thread of its own (``at`` this ``slow``, ``skip`` 0, ``hold``:
         started by the first window that asks for it), fed the same stream before this refit: the
         windows take it instead of searching the slow phase on the worker (the module's text).
+    budget : Stop, optional
+        A live run's wall budget on a real clock: with ``early``, a first window's search still
+        running when :meth:`result` would stop it carries on until it ends or the budget's deadline,
+        for ``early`` (the module's text; :attr:`WindowResult.carried`). None (default): it is
+        stopped there, as every refit.
     """
 
     def __init__(
@@ -663,6 +681,7 @@ class WindowRefit:
         grace_s: float = 0.0,
         early: EarlySearch | None = None,
         slow_early: EarlySearch | None = None,
+        budget: Stop | None = None,
     ) -> None:
         if not isinstance(config, WindowConfig):
             raise ConfigError(f"config must be a WindowConfig, not {type(config).__name__}")
@@ -686,8 +705,9 @@ class WindowRefit:
         self._errors: list[str] = []
         self._dropped = 0
         self._stall = 0.0
+        self._niced: tuple[int, int] | None = None  # the worker's thread id and niceness before it was lowered
         self._pool = (
-            ThreadPoolExecutor(max_workers=1, thread_name_prefix="servoid-window", initializer=_yield_cpu)
+            ThreadPoolExecutor(max_workers=1, thread_name_prefix="servoid-window", initializer=self._lower)
             if background
             else None
         )
@@ -717,6 +737,9 @@ class WindowRefit:
         self._early = early
         self._slow_early = slow_early
         self._offering = False  # the first window's search was started: it offers its model to ``early`` as it ends
+        self._budget = budget
+        self._deadline_s = math.inf if budget is None else budget.deadline_s
+        self._carried: threading.Event | None = None  # the carried first search's stop: set once it has offered
 
     def _span(self) -> int:
         """Samples the next refit fits: the first ``max(window_s, first_s)``, every later one ``window_s``."""
@@ -790,7 +813,7 @@ class WindowRefit:
         if self._pool is None:
             self._store(work, job, t_s)
         else:
-            self._future = self._pool.submit(_stoppable, self._stop, work, *job)
+            self._future = self._pool.submit(_stoppable, self._stop, work, *job, deadline_s=self._deadline_s)
 
     def _first_searched(self, choice: LoopChoice | None, seconds: float, samples: int) -> None:
         """The first window's search as it ends (on the worker, before its warm refit; None: it failed): offered to the
@@ -803,7 +826,9 @@ class WindowRefit:
             if choice is None:
                 self._early.release()
             else:
-                self._early.offer(choice.model, seconds, samples)
+                self._early.offer(choice.model, seconds, samples, choice)
+        if self._carried is not None:  # carried past the stream's end for the head: its window's refit not wanted
+            self._carried.set()
         named = choice is not None and choice.structure != PLAY_IN_LOOP and choice.margin >= MIN_STRUCTURE_MARGIN
         if self._slow_early is not None and named:
             self._slow_early.begin()
@@ -981,8 +1006,13 @@ class WindowRefit:
             self._pool = None
             sys.setswitchinterval(self._switch)
 
+    def _lower(self) -> None:
+        """The worker's initializer: its priority lowered below the sampler's (:func:`_yield_cpu`), kept to give back."""
+        self._niced = _yield_cpu()
+
     def _bounded(self, wait: bool, wait_s: float) -> None:
-        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop.
+        """Collect a running refit: waited for, or (not ``wait``) for ``wait_s`` at most and then told to stop; a
+        first window's search not yet ended carried on instead, for ``early`` (``budget``, the module's text).
 
         A refit still queued (not started) is dropped; where it was the first window's search, ``early`` is released
         (a stopped search tells it itself, :func:`_refit`): a run that ended as its first window fell due left the
@@ -997,7 +1027,14 @@ class WindowRefit:
             self._future = None
             self._abandoned += 1
         if self._future is not None:  # still running, not waited for: it stops at its next fit
-            self._stop.set()
+            carry = self._budget is not None and self._early is not None and self._offering and not self._history
+            if carry and self._carried is None:
+                self._carried = self._stop  # set by _first_searched once the search has offered its model
+                if self._early is not None and self._early.offered:  # it ended meanwhile: only its warm refit runs
+                    self._stop.set()
+                _unyield(self._niced)  # no sampler any more: the worker at its own priority
+            else:
+                self._stop.set()
             self._stop = threading.Event()  # a final refit runs on
             self._future = None
             self._abandoned += 1
@@ -1050,4 +1087,4 @@ class WindowRefit:
         return WindowResult(self.model if self._history else None, tuple(self._history[-HISTORY_ROWS:]), self.config, self._dropped,
                             self._stall, tuple(self._errors), self._rival, self._search,
                             end_s=n * self.config.sample_period_s, late=self._late,
-                            abandoned=self._abandoned)  # fmt: skip
+                            abandoned=self._abandoned, carried=self._carried is not None)  # fmt: skip

@@ -340,8 +340,9 @@ def live_record(args: argparse.Namespace, make_config: Callable[[float], MRGIACo
         # the slow phase's search on a thread of its own, started when first asked for (a window that puts the play
         # outside the loop, else the answer's step 4): the windows and the answer take it (one search of the slow phase)
         slow_search = EarlySearch(config.period_s, slow_samples, hold=True, stop=budget) if slow_samples else None
+        # (on a real clock a first window's search still running at the run's end carries on for the head's search)
         window = WindowRefit(WindowConfig(config.period_s), wait=virtual, slow=slow_samples, load=None, end=u.size,
-                             grace_s=END_GRACE_S, early=early, slow_early=slow_search)  # fmt: skip
+                             grace_s=END_GRACE_S, early=early, slow_early=slow_search, budget=budget)  # fmt: skip
         window.warm_up()
         if not virtual:
             early.warm_up()  # the searches' kernels loaded before the servo moves (a real sampler cannot wait)
@@ -486,7 +487,7 @@ def _early_dict(early: EarlySearch, found: SlowSearch | None) -> dict[str, Any]:
             "play": None if found is None else found.choice.play,
             "structure": None if found is None else found.choice.structure,
             "seconds": None if found is None else found.choice.seconds, "error": early.error,
-            "warm": early.warm}  # fmt: skip
+            "warm": early.warm, "taken": early.taken}  # fmt: skip
 
 
 def _described(designed: str | None, slow: tuple[str, float] | None, slow_samples: int) -> str:
