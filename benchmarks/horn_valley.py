@@ -16,7 +16,10 @@ contact's ``wc`` (rad/s) and ``zeta``, the loop's ``kp``, ``kv``, the motor's Co
 and the stall band ``max(fs, fc) / (kp kv)`` (the set-point error the loop needs to move the motor, as a share of
 the play held), and ``coast``: the distance the horn coasts, ``v^2 / (2 al)``, from the record's typical speed
 ``v`` (the set point's rms speed): the two lengths besides the play that hold the horn where the play would.
-``--force``: where the stage keeps no horn (no rebound named, or the horn not validating better), the stage run
+``--twin NAME=VALUE ...``: the offline twin's preset with those overridden (a diagnosis of which of the twin's terms
+moves the valley; the truth is the overridden preset's); ``--read-cpr N``: its record re-read at N counts per
+revolution (``real_servos.coarse_reading``: a loop on finer counts, the readings as coarse as N). ``--count-loss`` (offline records; a prototype): every fit's residual taken outside the reading's count (the
+position within half the record's smallest step of the reading costs nothing). ``--force``: where the stage keeps no horn (no rebound named, or the horn not validating better), the stage run
 past those two gates, and its horn profiled (marked "forced"). ``--hold NAMES``: each profile again with those names held at the answer's values (not refitted): how much of the
 valley's flatness their freedom makes. The twin's own horn (``al``, ``wc``, ``zeta`` and the inertia ratio
 computed from the preset) is printed once per preset, for reference: never used by the fits.
@@ -62,10 +65,12 @@ def twin_horn(name: str) -> str:
             f"rad/s^2, contact wc {wc:.0f} rad/s, zeta {zeta:.3f} on the load alone")  # fmt: skip
 
 
-def offline_record(name: str, accel: float, seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``name`` twin driven by gentle sines up to ``accel`` rad/s^2 for ``seconds`` at :data:`RATE`
-    (``horn_live.py``'s record, any preset)."""
-    twin = Twin(preset(name), seed=seed)
+def offline_record(
+    name: str, accel: float, seconds: float, seed: int, overrides: dict[str, str] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``name`` twin (its preset with ``overrides``) driven by gentle sines up to ``accel`` rad/s^2 for
+    ``seconds`` at :data:`RATE` (``horn_live.py``'s record, any preset)."""
+    twin = Twin(preset(name, **(overrides or {})), seed=seed)
     twin.enable()
     spec = GentleSpec(amplitude=AMPLITUDE, accel=accel / RATE**2, spread=8.0)
     rec = twin.sample(sample(spec, int(seconds * RATE), seed=seed + 1000), 1.0 / RATE)
@@ -93,6 +98,25 @@ def _forced(u: np.ndarray, y: np.ndarray, period: float, whole: lf.LoopChoice, k
         return hc.with_horn(u, y, period, whole, kept)
     finally:
         hc.rebound, lf.LOAD_MARGIN = named, margin
+
+
+def count_loss(y: np.ndarray) -> None:
+    """Every fit's residual read as a count's reading (``--count-loss``, a prototype): a reading ``y`` says the
+    position lies within half a count of it, so the residual is the model's distance outside that interval,
+    ``sign(r) max(|r| - q / 2, 0)``, with ``q`` the record's own smallest step between readings (as the probe
+    reads the quantisation). Patches ``loop_fit._Problem.scored`` for the rest of the process."""
+    steps = np.abs(np.diff(y[np.isfinite(y)]))
+    half = 0.5 * float(np.min(steps[steps > 0.0]))
+    scored = lf._Problem.scored
+    base = getattr(scored, "__wrapped__", scored)
+
+    def counted(self: Any, y_hat: np.ndarray) -> np.ndarray:
+        r: np.ndarray = base(self, y_hat)
+        out: np.ndarray = np.sign(r) * np.maximum(np.abs(r) - half, 0.0)
+        return out
+
+    counted.__wrapped__ = base  # type: ignore[attr-defined]
+    lf._Problem.scored = counted
 
 
 def valley(
@@ -160,6 +184,12 @@ def main() -> None:
     parser.add_argument("--grid", type=float, nargs="*",
                         default=[0.8, 0.85, 0.9, 0.95, 1.0, 1.05, 1.1, 1.15, 1.2], help="plays / truth")  # fmt: skip
     parser.add_argument("--hold", nargs="*", action="append", default=[], help="names held in a second profile")
+    parser.add_argument("--twin", nargs="*", default=[], metavar="NAME=VALUE",
+                        help="the offline twin's preset overridden (a diagnosis: which of its terms moves the valley)")  # fmt: skip
+    parser.add_argument("--read-cpr", type=int, default=0,
+                        help="the offline record re-read at these counts per revolution (a --twin finer encoder's loop, "
+                        "the readings as coarse as this)")  # fmt: skip
+    parser.add_argument("--count-loss", action="store_true", help="every fit's residual outside the reading's count")
     parser.add_argument("--force", action="store_true", help="the horn stage past its gates where it keeps no horn")
     args = parser.parse_args()
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -167,9 +197,19 @@ def main() -> None:
     print(f"machine load (1 min): {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores", flush=True)
     for name in sorted({args.preset, *(r.name.split("-")[0] for r in args.runs)}):
         print(twin_horn(name))
-    truth = preset(args.preset).play_rad
+    overrides = dict(kv.split("=", 1) for kv in args.twin)
+    if overrides:
+        print(f"the offline twin's preset overridden: {overrides}")
+    truth = preset(args.preset, **overrides).play_rad
     for seed in args.offline_seeds:
-        u, y = offline_record(args.preset, args.accel, args.seconds, seed)
+        u, y = offline_record(args.preset, args.accel, args.seconds, seed, overrides)
+        if args.read_cpr:
+            from real_servos import coarse_reading
+
+            fine = int(preset(args.preset, **overrides).load_encoder_cpr)
+            y = coarse_reading(y, fine, fine // args.read_cpr)
+        if args.count_loss:
+            count_loss(y)
         for end in args.ends:
             m = int(round(end * RATE))
             print(f"{args.preset} gentle sines {args.accel:g} rad/s^2 seed {seed} to {end:g} s ({m} samples):")
