@@ -98,6 +98,9 @@ none, the steady sine runs, and the input column says why.
 ``--whole-halves``: the cycle's half-periods of whole samples (:data:`~servoid.excitation.monitor_input.WHOLE_HALVES`,
 off): of the length the peak acceleration gives, each peak falls at another place between two samples, sliding from
 cycle to cycle, and the window plays beat with it; whole, the sampled cycle repeats (docs/monitor.md, moncyc22).
+``--even-phases M``: the cycle's peaks pass M sample phases evenly (:data:`~servoid.excitation.monitor_input.EVEN_PHASES`,
+off; M coprime to ``--cycle``): the sampled pattern repeats after ``lcm(N, 2, M)`` half-periods (docs/monitor.md,
+monphase22).
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
 
@@ -159,6 +162,7 @@ from servoid.excitation.gentle import segment_end
 from servoid.excitation.monitor_input import (
     CYCLE_STEPS,
     CYCLED,
+    EVEN_PHASES,
     IDENT,
     MONITOR_INPUTS,
     SINE,
@@ -250,13 +254,14 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
          chunk_s: float = CHUNK_S, fresh: bool = False, monitor_input: str = "ident", min_reversals: int = MIN_REVERSALS,
          share: float = SINE_ACCEL_SHARE, count_switch: bool = False, reference_s: float = REFERENCE_S,
          hold_loop: bool = HOLD_LOOP, calibrate: bool = CALIBRATE, dither: float = 0.0, cycle: int | None = None,
-         whole: bool = WHOLE_HALVES, progress: str = ""):  # fmt: skip
+         whole: bool = WHOLE_HALVES, phases: int = EVEN_PHASES, progress: str = ""):  # fmt: skip
     """The twin's reference part (``reference_s``), then ``seconds`` of monitoring from ``file`` with the play at
     ``factor(t)`` times the new one.
 
     ``cycle``: the cycled sine's places (None: ``servoid monitor``'s default by the file's place; 0: one amplitude);
     its count from the readings before the steady part, taken when the feed reaches it (as the monitor's stream).
-    ``whole``: its half-periods of whole samples (:data:`~servoid.excitation.monitor_input.WHOLE_HALVES`).
+    ``whole``: its half-periods of whole samples (:data:`~servoid.excitation.monitor_input.WHOLE_HALVES`);
+    ``phases``: the sample phases its peaks pass evenly (:data:`~servoid.excitation.monitor_input.EVEN_PHASES`).
     ``progress``: a label; every 100 000 samples a line on stderr with the alarms raised so far (a long quiet run
     stopped early still says how far it went without one).
     """
@@ -304,7 +309,8 @@ def _run(name: str, seconds: float, factor: Callable[[float], float], seed: int,
                 steady = monitor_spec(SINE, SINE_AMPLITUDE[name], scale * 8.0 / RATE**2)
                 grid = grid_count(np.concatenate(readings), float(steady.amplitude))
                 if grid.found:
-                    u[cut:] = cycled_sine(steady, grid.count, steps, n_ref + n - cut, whole=whole)
+                    u[cut:] = cycled_sine(steady, grid.count, steps, n_ref + n - cut, whole=whole,
+                                              phases=phases)  # fmt: skip
                 pending, readings = False, []
             if lo >= hi:
                 continue
@@ -404,6 +410,14 @@ def main() -> None:
         help="the cycled sine's half-periods of whole samples, not of the length its peak acceleration gives "
         "(servoid monitor's WHOLE_HALVES, off)",
     )
+    parser.add_argument(
+        "--even-phases",
+        type=int,
+        default=EVEN_PHASES,
+        metavar="M",
+        help="the cycled sine's peaks pass M sample phases evenly, M coprime to --cycle (servoid monitor's "
+        "EVEN_PHASES, 0: off)",
+    )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(
         "--calibrate",
@@ -426,7 +440,7 @@ def main() -> None:
             "share": args.accel_share, "count_switch": args.count_switch, "hold_loop": not args.free_loop,
             "calibrate": args.calibrate or CALIBRATE, "dither": args.dither,
             "cycle": 0 if args.dither > 0.0 and args.cycle is None else args.cycle,
-            "whole": WHOLE_HALVES or args.whole_halves}  # fmt: skip
+            "whole": WHOLE_HALVES or args.whole_halves, "phases": args.even_phases}  # fmt: skip
     wear_from = args.wear_from
     if not 0.0 <= wear_from < args.track:
         raise SystemExit(f"--wear-from must lie in [0, --track), not {wear_from:g}")

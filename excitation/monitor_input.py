@@ -67,8 +67,8 @@ from servoid.excitation.shaping import clip_and_limit
 from servoid.excitation.specs import GentleSpec
 
 __all__ = ["CYCLE_STEPS", "CYCLED", "CYCLED_DEFAULT", "IDENT", "INPUTS", "MAX_COUNT_SHARE", "MAX_DITHER", "MIN_COUNT_CHANGES",
-           "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "WHOLE_HALVES", "GridCount", "coast_accel", "cycled_sine",
-           "default_input", "grid_count", "monitor_spec", "monitor_stream"]  # fmt: skip
+           "MONITOR_INPUTS", "SINE", "SINE_ACCEL_SHARE", "STEADY", "EVEN_PHASES", "WHOLE_HALVES", "GridCount", "coast_accel", "cycled_sine",
+           "default_input", "grid_count", "half_periods", "monitor_spec", "monitor_stream"]  # fmt: skip
 
 #: The identification's gentle sines (segments of many amplitudes and accelerations).
 IDENT = "ident"
@@ -100,6 +100,13 @@ MAX_COUNT_SHARE = 0.1
 #: late; with whole half-periods 1.50 s (tau 1.0). But the slide is also what averages the level: on the XM430's data
 #: file the tracking went from 4.6 to 6.2-6.3 % and the live files read 0.02-0.04x lower (docs/monitor.md, moncyc22).
 WHOLE_HALVES = False
+#: Sample phases the peaks of :func:`cycled_sine` pass evenly, ``M`` (0: off, the lengths the peak acceleration or
+#: :data:`WHOLE_HALVES` gives). With ``M`` coprime to the cycle's steps, every half-period lasts ``s / M`` samples
+#: past a whole number of the same parity (:func:`half_periods`), so consecutive peaks fall ``s / M`` of a sample
+#: further each time: any ``M`` in a row pass ``M`` evenly spaced places between two samples, every amplitude passes
+#: all of them, and the sampled pattern repeats exactly after ``lcm(steps, 2, M)`` half-periods (docs/monitor.md,
+#: monphase22). Off.
+EVEN_PHASES = 0
 
 
 def monitor_spec(
@@ -333,8 +340,53 @@ def _steady_or_cycled(steady: GentleSpec, seed: int, count: Callable[[], float],
         start += chunk
 
 
+def half_periods(amps: np.ndarray, accel: float, phases: int) -> np.ndarray:
+    """Half-period lengths, samples, at most at the peak acceleration, whose peaks pass ``phases`` sample phases evenly.
+
+    Each length ``pi sqrt(a_k / accel)`` is lengthened to the next value ``s / phases + p`` modulo 2 (``s`` coprime to
+    ``phases``, ``p`` 0 or 1, the same for all: the pair that lengthens the longest least), so consecutive peaks lie
+    ``(L_k + L_k+1) / 2 = s / phases`` modulo 1 apart: their fractional positions step over ``phases`` evenly spaced
+    values (:data:`EVEN_PHASES`). The peak acceleration is lowered to fit (the amplitudes stay).
+
+    Parameters
+    ----------
+    amps : ndarray
+        The half-periods' amplitudes, unit of ``u``.
+    accel : float
+        The peak acceleration, unit of ``u`` per sample squared.
+    phases : int
+        Sample phases ``M``, ``>= 2``.
+
+    Returns
+    -------
+    ndarray
+        One length per amplitude, samples.
+    """
+    if phases < 2:
+        raise ValueError(f"phases must be 2 or more, not {phases!r}")
+    free = np.pi * np.sqrt(np.asarray(amps, dtype=np.float64) / accel)
+    best: np.ndarray | None = None
+    for s in range(1, phases):
+        if math.gcd(s, phases) != 1:
+            continue
+        for parity in (0, 1):
+            rest = s / phases + parity  # the lengths' value modulo 2
+            lengths = rest + 2.0 * np.ceil((free - rest) / 2.0 - 1e-9)
+            if best is None or float(np.max(lengths - free)) < float(np.max(best - free)):
+                best = lengths
+    assert best is not None  # (phases >= 2: s = 1 is coprime)
+    return best
+
+
 def cycled_sine(
-    spec: GentleSpec, count: float, steps: int, n: int, *, start: int = 0, whole: bool = WHOLE_HALVES
+    spec: GentleSpec,
+    count: float,
+    steps: int,
+    n: int,
+    *,
+    start: int = 0,
+    whole: bool = WHOLE_HALVES,
+    phases: int = EVEN_PHASES,
 ) -> np.ndarray:
     """``n`` samples of the steady sine ``spec`` whose amplitude cycles over ``steps`` places of a count grid.
 
@@ -360,6 +412,9 @@ def cycled_sine(
     whole : bool
         Half-periods of whole samples (default :data:`WHOLE_HALVES`, off: of the length the peak acceleration
         gives, as before moncyc22).
+    phases : int
+        Sample phases the peaks pass evenly (default :data:`EVEN_PHASES`, 0: off; else ``>= 2``, coprime to
+        ``steps``, and ``whole`` off): the lengths of :func:`half_periods`.
 
     Returns
     -------
@@ -372,8 +427,12 @@ def cycled_sine(
         raise ValueError(f"count must lie in (0, amplitude = {amplitude:g}), not {count!r}")
     if steps < 1:
         raise ValueError(f"steps must be 1 or more, not {steps!r}")
+    if phases and (whole or phases < 2 or math.gcd(phases, steps) != 1):
+        raise ValueError(f"phases must be 0 or 2 or more, coprime to steps = {steps} and without whole, not {phases!r}")
     amps = amplitude - np.arange(steps) * count / steps
     halves = np.pi * np.sqrt(amps / accel)  # samples per half-period at the peak acceleration
+    if phases:
+        halves = half_periods(amps, accel, phases)
     if whole:
         halves = np.ceil(halves - 1e-9)  # (the tolerance: a length that is whole up to rounding stays as it is)
     per_cycle = float(np.sum(halves))

@@ -107,6 +107,37 @@ def test_cycled_sine_of_whole_halves_repeats_its_sampled_cycle_exactly(steps: in
     np.testing.assert_array_equal(cycled_sine(spec, count, steps, 3 * period), frac)  # off by default (WHOLE_HALVES)
 
 
+@pytest.mark.parametrize("phases", [3, 5])
+def test_cycled_sine_of_even_phases_repeats_and_its_peaks_pass_evenly_spaced_sample_phases(phases: int) -> None:
+    # the XM430 twin's live design as above (half-periods of 80.8 samples), four steps
+    accel, steps = 6.045 / 200.0**2, 4
+    spec = monitor_spec(SINE, 0.1, 2.0 * accel, offset=0.05)
+    count = 2.0 * math.pi / 4096.0
+    halves = steps * phases  # lcm(steps, 2, phases): every amplitude at every phase, both sides
+    free = np.pi * np.sqrt((0.1 - np.arange(steps) * count / steps) / accel)
+    period = round(float(np.sum(np.resize(free, halves))))  # about; the repeat is searched near it
+    u = cycled_sine(spec, count, steps, 4 * period, phases=phases)
+    shifts = [p for p in range(period - 2 * halves, period + 2 * halves + 1)
+              if np.allclose(u[p : p + 2 * period], u[: 2 * period], rtol=0.0, atol=1e-12)]  # fmt: skip
+    assert len(shifts) == 1
+    assert np.max(np.abs(np.diff(u, 2))) <= accel * (1.0 + 1e-9)  # at most the peak acceleration
+    # each peak from its three top samples (the vertex of their parabola): the fractional positions of every
+    # amplitude's peaks over the pattern are ``phases`` values 1 / phases apart
+    idx = _reversals(u)[: 2 * halves]
+    y0, y1, y2 = (np.abs(u[idx + j] - 0.05) for j in (-1, 0, 1))
+    peaks = idx + 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)
+    for k in range(steps):
+        got = np.sort(np.mod(peaks[k:halves:steps] - peaks[k], 1.0))
+        np.testing.assert_allclose(got, np.arange(phases) / phases, atol=0.01)
+    frac = cycled_sine(spec, count, steps, 4 * period)  # off by default (EVEN_PHASES): the sliding cycle
+    assert np.max(np.abs(frac[shifts[0] : shifts[0] + period] - frac[:period])) > 1e-4
+
+
+def test_cycled_sine_refuses_phases_not_coprime_to_its_steps() -> None:
+    with pytest.raises(ValueError, match="phases"):
+        cycled_sine(monitor_spec(SINE, 0.1, 1e-4), 0.0015, 4, 10, phases=2)
+
+
 @pytest.mark.parametrize(("count", "steps"), [(0.0, 3), (0.2, 3), (math.nan, 3), (0.0015, 0)])
 def test_cycled_sine_refuses_a_bad_count_or_steps(count: float, steps: int) -> None:
     with pytest.raises(ValueError, match="count|steps"):
