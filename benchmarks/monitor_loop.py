@@ -99,7 +99,7 @@ none, the steady sine runs, and the input column says why.
 off): of the length the peak acceleration gives, each peak falls at another place between two samples, sliding from
 cycle to cycle, and the window plays beat with it; whole, the sampled cycle repeats (docs/monitor.md, moncyc22).
 ``--even-phases M``: the cycle's peaks pass M sample phases evenly (:data:`~servoid.excitation.monitor_input.EVEN_PHASES`,
-off; M coprime to ``--cycle``): the sampled pattern repeats after ``lcm(N, 2, M)`` half-periods (docs/monitor.md,
+off): the sampled pattern repeats after ``lcm(N, 2, M)`` half-periods (docs/monitor.md,
 monphase22).
 
 ``--seeds``: the twin seeds of the step run (default 2); the alarm column gives one delay per seed.
@@ -415,8 +415,7 @@ def main() -> None:
         type=int,
         default=EVEN_PHASES,
         metavar="M",
-        help="the cycled sine's peaks pass M sample phases evenly, M coprime to --cycle (servoid monitor's "
-        "EVEN_PHASES, 0: off)",
+        help="the cycled sine's peaks pass M sample phases evenly (servoid monitor's EVEN_PHASES, 0: off)",
     )
     parser.add_argument("--file-seed", type=int, default=1, help="twin seed of the model file's reference (default 1)")
     parser.add_argument(

@@ -101,10 +101,10 @@ MAX_COUNT_SHARE = 0.1
 #: file the tracking went from 4.6 to 6.2-6.3 % and the live files read 0.02-0.04x lower (docs/monitor.md, moncyc22).
 WHOLE_HALVES = False
 #: Sample phases the peaks of :func:`cycled_sine` pass evenly, ``M`` (0: off, the lengths the peak acceleration or
-#: :data:`WHOLE_HALVES` gives). With ``M`` coprime to the cycle's steps, every half-period lasts ``s / M`` samples
-#: past a whole number of the same parity (:func:`half_periods`), so consecutive peaks fall ``s / M`` of a sample
-#: further each time: any ``M`` in a row pass ``M`` evenly spaced places between two samples, every amplitude passes
-#: all of them, and the sampled pattern repeats exactly after ``lcm(steps, 2, M)`` half-periods (docs/monitor.md,
+#: :data:`WHOLE_HALVES` gives). Every half-period lasts ``s / M`` samples past a whole number of the same parity
+#: (:func:`half_periods`), so consecutive peaks fall ``s / M`` of a sample further each time: any ``M`` in a row pass
+#: ``M`` evenly spaced places between two samples, and the sampled pattern repeats exactly after ``lcm(steps, 2, M)``
+#: half-periods; with ``M`` coprime to the cycle's steps every amplitude passes all ``M`` places (docs/monitor.md,
 #: monphase22). Off.
 EVEN_PHASES = 0
 
@@ -413,8 +413,9 @@ def cycled_sine(
         Half-periods of whole samples (default :data:`WHOLE_HALVES`, off: of the length the peak acceleration
         gives, as before moncyc22).
     phases : int
-        Sample phases the peaks pass evenly (default :data:`EVEN_PHASES`, 0: off; else ``>= 2``, coprime to
-        ``steps``, and ``whole`` off): the lengths of :func:`half_periods`.
+        Sample phases the peaks pass evenly (default :data:`EVEN_PHASES`, 0: off; else ``>= 2``, and ``whole``
+        off): the lengths of :func:`half_periods`. Coprime to ``steps``, every amplitude passes all of them; with
+        ``phases = steps`` each amplitude keeps one and the sampled cycle repeats every cycle.
 
     Returns
     -------
@@ -427,8 +428,8 @@ def cycled_sine(
         raise ValueError(f"count must lie in (0, amplitude = {amplitude:g}), not {count!r}")
     if steps < 1:
         raise ValueError(f"steps must be 1 or more, not {steps!r}")
-    if phases and (whole or phases < 2 or math.gcd(phases, steps) != 1):
-        raise ValueError(f"phases must be 0 or 2 or more, coprime to steps = {steps} and without whole, not {phases!r}")
+    if phases and (whole or phases < 2):
+        raise ValueError(f"phases must be 0, or 2 or more without whole, not {phases!r}")
     amps = amplitude - np.arange(steps) * count / steps
     halves = np.pi * np.sqrt(amps / accel)  # samples per half-period at the peak acceleration
     if phases:

@@ -133,9 +133,10 @@ def test_cycled_sine_of_even_phases_repeats_and_its_peaks_pass_evenly_spaced_sam
     assert np.max(np.abs(frac[shifts[0] : shifts[0] + period] - frac[:period])) > 1e-4
 
 
-def test_cycled_sine_refuses_phases_not_coprime_to_its_steps() -> None:
+@pytest.mark.parametrize(("phases", "whole"), [(1, False), (-3, False), (3, True)])
+def test_cycled_sine_refuses_one_phase_or_phases_with_whole_halves(phases: int, whole: bool) -> None:
     with pytest.raises(ValueError, match="phases"):
-        cycled_sine(monitor_spec(SINE, 0.1, 1e-4), 0.0015, 4, 10, phases=2)
+        cycled_sine(monitor_spec(SINE, 0.1, 1e-4), 0.0015, 4, 10, phases=phases, whole=whole)
 
 
 @pytest.mark.parametrize(("count", "steps"), [(0.0, 3), (0.2, 3), (math.nan, 3), (0.0015, 0)])
