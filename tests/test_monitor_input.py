@@ -107,29 +107,34 @@ def test_cycled_sine_of_whole_halves_repeats_its_sampled_cycle_exactly(steps: in
     np.testing.assert_array_equal(cycled_sine(spec, count, steps, 3 * period), frac)  # off by default (WHOLE_HALVES)
 
 
-@pytest.mark.parametrize("phases", [3, 5])
+@pytest.mark.parametrize("phases", [3, 4, 5])
 def test_cycled_sine_of_even_phases_repeats_and_its_peaks_pass_evenly_spaced_sample_phases(phases: int) -> None:
     # the XM430 twin's live design as above (half-periods of 80.8 samples), four steps
     accel, steps = 6.045 / 200.0**2, 4
     spec = monitor_spec(SINE, 0.1, 2.0 * accel, offset=0.05)
     count = 2.0 * math.pi / 4096.0
-    halves = steps * phases  # lcm(steps, 2, phases): every amplitude at every phase, both sides
+    halves = math.lcm(steps, 2, phases)  # the sampled pattern's half-periods
     free = np.pi * np.sqrt((0.1 - np.arange(steps) * count / steps) / accel)
     period = round(float(np.sum(np.resize(free, halves))))  # about; the repeat is searched near it
-    u = cycled_sine(spec, count, steps, 4 * period, phases=phases)
+    n = 2 * period + 4 * halves + 400
+    u = cycled_sine(spec, count, steps, n, phases=phases)
     shifts = [p for p in range(period - 2 * halves, period + 2 * halves + 1)
-              if np.allclose(u[p : p + 2 * period], u[: 2 * period], rtol=0.0, atol=1e-12)]  # fmt: skip
+              if np.allclose(u[p : p + period], u[:period], rtol=0.0, atol=1e-12)]  # fmt: skip
     assert len(shifts) == 1
     assert np.max(np.abs(np.diff(u, 2))) <= accel * (1.0 + 1e-9)  # at most the peak acceleration
-    # each peak from its three top samples (the vertex of their parabola): the fractional positions of every
-    # amplitude's peaks over the pattern are ``phases`` values 1 / phases apart
+    # each peak from its three top samples (the vertex of their parabola): any ``phases`` peaks in a row lie at
+    # ``phases`` fractional positions 1 / phases apart; coprime to the steps, so do every amplitude's
     idx = _reversals(u)[: 2 * halves]
     y0, y1, y2 = (np.abs(u[idx + j] - 0.05) for j in (-1, 0, 1))
     peaks = idx + 0.5 * (y0 - y2) / (y0 - 2.0 * y1 + y2)
-    for k in range(steps):
-        got = np.sort(np.mod(peaks[k:halves:steps] - peaks[k], 1.0))
+    for first in range(halves):
+        got = np.sort(np.mod(peaks[first : first + phases] - peaks[first], 1.0))
         np.testing.assert_allclose(got, np.arange(phases) / phases, atol=0.01)
-    frac = cycled_sine(spec, count, steps, 4 * period)  # off by default (EVEN_PHASES): the sliding cycle
+    if math.gcd(steps, phases) == 1:
+        for k in range(steps):
+            got = np.sort(np.mod(peaks[k:halves:steps] - peaks[k], 1.0))
+            np.testing.assert_allclose(got, np.arange(phases) / phases, atol=0.01)
+    frac = cycled_sine(spec, count, steps, n)  # off by default (EVEN_PHASES): the sliding cycle
     assert np.max(np.abs(frac[shifts[0] : shifts[0] + period] - frac[:period])) > 1e-4
 
 
